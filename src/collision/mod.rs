@@ -1,0 +1,39 @@
+//! Collision checking, the hot path of every planner.
+//!
+//! `CollisionWorld` says what is checked against what (robot links, fixed obstacles, free and
+//! attached objects, SRDF-disabled pairs, touch links). Two `CollisionChecker`s answer the same
+//! question: `ExactChecker` (parry3d shapes, the reference used by tests) and `FastChecker`
+//! (conservative sphere/box model in f32, no allocation per check). `MotionValidator` checks
+//! straight segments between configurations.
+//!
+//! Depends on `model`, `kinematics`, `geometry`; must not depend on planning or the server.
+
+mod exact;
+mod fast;
+mod motion;
+mod world;
+
+pub use exact::ExactChecker;
+pub use fast::{FastChecker, FastModelSettings};
+pub use motion::MotionValidator;
+pub use world::{AttachedBody, BodyId, CollisionWorld, PlacedRobot, StaticBody, StaticKind};
+
+/// Two bodies found in collision.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Contact {
+    /// Name of the first body (`robot/link`, `obstacle:name`, `object:name`).
+    pub a: String,
+    /// Name of the second body.
+    pub b: String,
+}
+
+/// "Is configuration q of the world's robots free?" — q is the concatenation of every robot's
+/// configuration in scene order (see [`CollisionWorld::dof`]).
+pub trait CollisionChecker: Send {
+    /// True when no checked pair of bodies intersects.
+    fn is_free(&mut self, q: &[f64]) -> bool;
+    /// The first colliding pair found, if any (for reports; may allocate).
+    fn first_contact(&mut self, q: &[f64]) -> Option<Contact>;
+    /// Number of configuration checks performed so far.
+    fn checks(&self) -> u64;
+}

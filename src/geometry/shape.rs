@@ -1,0 +1,166 @@
+//! Shapes of links, obstacles and objects.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use nalgebra::{Point3, Vector3};
+
+use super::Pose;
+
+/// A triangle mesh (collision geometry). Collision checkers use its convex hull, a conservative
+/// superset of the mesh, so a small body inside a closed mesh is never missed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    /// Where the mesh was read from (for messages).
+    pub source: String,
+    /// Vertices in the shape frame, scale applied.
+    pub vertices: Vec<Point3<f64>>,
+    /// Triangles as vertex indices.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Reads an STL or OBJ file (COLLADA `.dae` too) and applies a per-axis scale.
+    pub fn load(path: &Path, scale: [f64; 3]) -> Result<Mesh, String> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default();
+        if !matches!(ext.as_str(), "stl" | "obj" | "dae") {
+            return Err(format!(
+                "mesh '{}': unsupported format '{ext}' (STL, OBJ and DAE are read)",
+                path.display()
+            ));
+        }
+        let scene = mesh_loader::Loader::default()
+            .merge_meshes(true)
+            .load(path)
+            .map_err(|e| format!("mesh '{}': {e}", path.display()))?;
+        let mut vertices = Vec::new();
+        let mut triangles = Vec::new();
+        for m in &scene.meshes {
+            let base = vertices.len() as u32;
+            for v in &m.vertices {
+                vertices.push(Point3::new(
+                    v[0] as f64 * scale[0],
+                    v[1] as f64 * scale[1],
+                    v[2] as f64 * scale[2],
+                ));
+            }
+            for f in &m.faces {
+                triangles.push([f[0] + base, f[1] + base, f[2] + base]);
+            }
+        }
+        if vertices.len() < 4 {
+            return Err(format!(
+                "mesh '{}': has {} vertices, a solid needs at least 4",
+                path.display(),
+                vertices.len()
+            ));
+        }
+        Ok(Mesh {
+            source: path.display().to_string(),
+            vertices,
+            triangles,
+        })
+    }
+
+    /// Radius of the smallest origin-centred sphere holding every vertex.
+    pub fn max_radius(&self) -> f64 {
+        self.vertices
+            .iter()
+            .map(|v| v.coords.norm())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// A collision shape in its own frame. Cylinders and capsules have their axis along local z and
+/// are centred on the origin (the URDF convention).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    Box { half_extents: Vector3<f64> },
+    Cylinder { radius: f64, half_length: f64 },
+    Sphere { radius: f64 },
+    Capsule { radius: f64, half_length: f64 },
+    Mesh(Arc<Mesh>),
+}
+
+impl Shape {
+    /// Short name of the kind ("box", "cylinder", …).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Shape::Box { .. } => "box",
+            Shape::Cylinder { .. } => "cylinder",
+            Shape::Sphere { .. } => "sphere",
+            Shape::Capsule { .. } => "capsule",
+            Shape::Mesh(_) => "mesh",
+        }
+    }
+
+    /// Radius of a sphere centred on the shape origin that contains the shape.
+    pub fn bounding_radius(&self) -> f64 {
+        match self {
+            Shape::Box { half_extents } => half_extents.norm(),
+            Shape::Cylinder {
+                radius,
+                half_length,
+            } => (radius * radius + half_length * half_length).sqrt(),
+            Shape::Sphere { radius } => *radius,
+            Shape::Capsule {
+                radius,
+                half_length,
+            } => radius + half_length,
+            Shape::Mesh(m) => m.max_radius(),
+        }
+    }
+
+    /// Checks that the dimensions are finite and positive; the error names the parameter.
+    pub fn validate(&self) -> Result<(), String> {
+        let pos = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{name}: must be finite and > 0, got {v}"))
+            }
+        };
+        match self {
+            Shape::Box { half_extents } => {
+                for (i, v) in half_extents.iter().enumerate() {
+                    pos(&format!("half_extents[{i}]"), *v)?;
+                }
+                Ok(())
+            }
+            Shape::Cylinder {
+                radius,
+                half_length,
+            }
+            | Shape::Capsule {
+                radius,
+                half_length,
+            } => {
+                pos("radius", *radius)?;
+                pos("length", *half_length)
+            }
+            Shape::Sphere { radius } => pos("radius", *radius),
+            Shape::Mesh(m) => {
+                if m.vertices
+                    .iter()
+                    .all(|v| v.coords.iter().all(|c| c.is_finite()))
+                {
+                    Ok(())
+                } else {
+                    Err(format!("mesh '{}': non-finite vertex", m.source))
+                }
+            }
+        }
+    }
+}
+
+/// A shape placed in a body's frame (a link, an obstacle or an object).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Geometry {
+    /// Pose of the shape in the body frame.
+    pub origin: Pose,
+    pub shape: Shape,
+}

@@ -1,0 +1,12 @@
+//! Kinematics in f64: forward kinematics of all links in one pass, geometric Jacobians of chains,
+//! and inverse kinematics (analytic S-R-S arm IK, numeric damped least squares).
+//!
+//! Depends on `model` and `geometry` only; knows nothing of collision or planning.
+
+mod chain;
+mod fk;
+pub mod numeric;
+pub mod srs;
+
+pub use chain::Chain;
+pub use fk::{forward, link_pose, ForwardKinematics};

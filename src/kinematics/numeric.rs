@@ -1,0 +1,1 @@
+//! Numeric IK (being written).

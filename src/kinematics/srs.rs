@@ -1,0 +1,1 @@
+//! Analytic S-R-S IK (being written).

@@ -1,0 +1,12 @@
+//! manyhands: multi-robot grasp-and-motion planning.
+//!
+//! Layers (a module may use only the ones below it):
+//! `collision`, `kinematics` → `model` → `geometry`.
+//! The planning core never depends on tokio or axum.
+
+pub mod collision;
+pub mod geometry;
+pub mod kinematics;
+pub mod model;
+
+pub use model::{Robot, Scene};

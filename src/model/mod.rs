@@ -1,0 +1,16 @@
+//! The robot and scene model: `Robot` from URDF + SRDF, `Scene` from scene JSON.
+//!
+//! Pure data, loaders and validation errors. Depends only on `geometry`; knows nothing of
+//! kinematics algorithms, collision checking or planning.
+
+mod error;
+mod robot;
+mod scene;
+mod srdf;
+mod urdf;
+
+pub use error::ModelError;
+pub use robot::{
+    EndEffector, Group, GroupState, Joint, JointKind, Limits, Link, Mimic, Robot, RobotLibrary,
+};
+pub use scene::{Body, ContactPoint, Grasp, GraspType, Object, RobotPlacement, Scene, SceneJson};

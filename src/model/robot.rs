@@ -1,0 +1,364 @@
+//! `Robot`: links, joints, limits, groups, end effectors, named states and allowed collisions.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use nalgebra::{Unit, Vector3};
+
+use super::{srdf, urdf, ModelError};
+use crate::geometry::{Geometry, Pose};
+
+/// Kind of a URDF joint. A planar or holonomic base is expressed as two prismatic joints and
+/// one revolute joint (see `robots/armar.urdf`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    Revolute,
+    Continuous,
+    Prismatic,
+    Fixed,
+}
+
+impl JointKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            JointKind::Revolute => "revolute",
+            JointKind::Continuous => "continuous",
+            JointKind::Prismatic => "prismatic",
+            JointKind::Fixed => "fixed",
+        }
+    }
+}
+
+/// Joint limits. Continuous joints have `lower = -π`, `upper = π` for sampling and
+/// `bounded = false` (they may wrap).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    pub lower: f64,
+    pub upper: f64,
+    pub velocity: f64,
+    pub effort: f64,
+    pub bounded: bool,
+}
+
+impl Limits {
+    /// True when `v` lies within the position limits (always true for unbounded joints).
+    pub fn contains(&self, v: f64) -> bool {
+        !self.bounded || (v >= self.lower && v <= self.upper)
+    }
+}
+
+/// A joint that follows another: `value = multiplier * value(joint) + offset`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mimic {
+    /// Index of the configuration variable followed.
+    pub var: usize,
+    pub multiplier: f64,
+    pub offset: f64,
+}
+
+/// A URDF joint. Joints are stored so that `joints[l - 1]` is the parent joint of `links[l]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    pub name: String,
+    pub kind: JointKind,
+    pub parent: usize,
+    pub child: usize,
+    /// Pose of the joint frame in the parent link frame.
+    pub origin: Pose,
+    pub axis: Unit<Vector3<f64>>,
+    pub limits: Limits,
+    /// Index in the configuration vector for independent movable joints.
+    pub var: Option<usize>,
+    pub mimic: Option<Mimic>,
+}
+
+impl Joint {
+    /// True for revolute, continuous and prismatic joints (mimic joints included).
+    pub fn is_movable(&self) -> bool {
+        self.kind != JointKind::Fixed
+    }
+}
+
+/// A link with its collision geometry (visual geometry is ignored).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Link {
+    pub name: String,
+    /// Index of the joint whose child this link is (`None` for the root).
+    pub parent_joint: Option<usize>,
+    pub collision: Vec<Geometry>,
+}
+
+/// An SRDF planning group: an ordered set of configuration variables.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    pub name: String,
+    /// Configuration variables of the group, in tree order.
+    pub vars: Vec<usize>,
+    /// Links of the group.
+    pub links: Vec<usize>,
+    /// `(base link, tip link)` when the group is (or resolves to) a single chain.
+    pub chain: Option<(usize, usize)>,
+}
+
+/// An SRDF end effector: a hand attached to `parent_link` (its TCP frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EndEffector {
+    pub name: String,
+    pub parent_link: usize,
+    pub group: String,
+    pub parent_group: Option<String>,
+}
+
+/// An SRDF named state of a group.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupState {
+    pub name: String,
+    pub group: String,
+    /// `(variable, value)` pairs.
+    pub values: Vec<(usize, f64)>,
+}
+
+/// A robot: kinematic tree, limits and semantic information from URDF + SRDF.
+///
+/// Links are in topological order (`links[0]` is the root, parents before children) and
+/// `joints[l - 1]` is the parent joint of `links[l]`. A configuration is a `[f64]` of length
+/// [`Robot::dof`], one value per independent movable joint (`vars`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Robot {
+    pub name: String,
+    pub links: Vec<Link>,
+    pub joints: Vec<Joint>,
+    /// Joint index of each configuration variable.
+    pub vars: Vec<usize>,
+    pub groups: Vec<Group>,
+    pub end_effectors: Vec<EndEffector>,
+    pub group_states: Vec<GroupState>,
+    /// `disabled[a * links.len() + b]`: collisions between links a and b are never checked.
+    pub disabled: Vec<bool>,
+    /// Reasons given in the SRDF (`Adjacent`, `Never`, …) for disabled pairs, `(a, b, reason)`, a < b.
+    pub disabled_reasons: Vec<(usize, usize, String)>,
+    /// Things in the files that were tolerated but ignored (e.g. SRDF pairs naming absent links).
+    pub warnings: Vec<String>,
+    link_index: HashMap<String, usize>,
+    joint_index: HashMap<String, usize>,
+}
+
+impl Robot {
+    /// Loads a robot from a URDF file and, optionally, its SRDF.
+    pub fn from_files(urdf_path: &Path, srdf_path: Option<&Path>) -> Result<Robot, ModelError> {
+        let urdf_text = read(urdf_path)?;
+        let base_dir = urdf_path.parent().unwrap_or(Path::new("."));
+        let mut robot = urdf::parse(&urdf_text, &urdf_path.display().to_string(), base_dir)?;
+        if let Some(sp) = srdf_path {
+            let text = read(sp)?;
+            srdf::apply(&mut robot, &text, &sp.display().to_string())?;
+        }
+        Ok(robot)
+    }
+
+    /// Parses a robot from URDF and SRDF text. `base_dir` resolves relative mesh paths.
+    pub fn from_strings(
+        urdf_text: &str,
+        srdf_text: Option<&str>,
+        base_dir: &Path,
+    ) -> Result<Robot, ModelError> {
+        let mut robot = urdf::parse(urdf_text, "robot.urdf", base_dir)?;
+        if let Some(s) = srdf_text {
+            srdf::apply(&mut robot, s, "robot.srdf")?;
+        }
+        Ok(robot)
+    }
+
+    pub(crate) fn new_tree(
+        name: String,
+        links: Vec<Link>,
+        joints: Vec<Joint>,
+        vars: Vec<usize>,
+    ) -> Robot {
+        let n = links.len();
+        let link_index = links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| (l.name.clone(), i))
+            .collect();
+        let joint_index = joints
+            .iter()
+            .enumerate()
+            .map(|(i, j)| (j.name.clone(), i))
+            .collect();
+        let mut r = Robot {
+            name,
+            links,
+            joints,
+            vars,
+            groups: Vec::new(),
+            end_effectors: Vec::new(),
+            group_states: Vec::new(),
+            disabled: vec![false; n * n],
+            disabled_reasons: Vec::new(),
+            warnings: Vec::new(),
+            link_index,
+            joint_index,
+        };
+        for i in 0..n {
+            r.disabled[i * n + i] = true;
+        }
+        r
+    }
+
+    /// Number of configuration variables.
+    pub fn dof(&self) -> usize {
+        self.vars.len()
+    }
+
+    pub fn link(&self, name: &str) -> Option<usize> {
+        self.link_index.get(name).copied()
+    }
+
+    pub fn joint(&self, name: &str) -> Option<usize> {
+        self.joint_index.get(name).copied()
+    }
+
+    /// Configuration variable of a joint name.
+    pub fn var(&self, joint_name: &str) -> Option<usize> {
+        self.joint(joint_name).and_then(|j| self.joints[j].var)
+    }
+
+    /// Name of configuration variable `v`.
+    pub fn var_name(&self, v: usize) -> &str {
+        &self.joints[self.vars[v]].name
+    }
+
+    /// Limits of configuration variable `v`.
+    pub fn var_limits(&self, v: usize) -> &Limits {
+        &self.joints[self.vars[v]].limits
+    }
+
+    pub fn group(&self, name: &str) -> Option<&Group> {
+        self.groups.iter().find(|g| g.name == name)
+    }
+
+    pub fn end_effector(&self, name: &str) -> Option<&EndEffector> {
+        self.end_effectors.iter().find(|e| e.name == name)
+    }
+
+    /// True when collisions between links `a` and `b` are not checked (same link, or an SRDF
+    /// `disable_collisions` pair).
+    pub fn is_disabled(&self, a: usize, b: usize) -> bool {
+        self.disabled[a * self.links.len() + b]
+    }
+
+    pub(crate) fn disable(&mut self, a: usize, b: usize, reason: &str) {
+        let n = self.links.len();
+        self.disabled[a * n + b] = true;
+        self.disabled[b * n + a] = true;
+        self.disabled_reasons
+            .push((a.min(b), a.max(b), reason.to_string()));
+    }
+
+    /// Configuration of all zeros clamped into the limits.
+    pub fn zero_config(&self) -> Vec<f64> {
+        (0..self.dof())
+            .map(|v| {
+                let l = self.var_limits(v);
+                0.0f64.clamp(l.lower, l.upper)
+            })
+            .collect()
+    }
+
+    /// A named configuration: an SRDF `group_state` applied to the zero configuration.
+    /// When several groups define a state of that name, all are applied.
+    pub fn named_config(&self, name: &str) -> Option<Vec<f64>> {
+        let mut q = self.zero_config();
+        let mut found = false;
+        for s in self.group_states.iter().filter(|s| s.name == name) {
+            found = true;
+            for &(v, x) in &s.values {
+                q[v] = x;
+            }
+        }
+        found.then_some(q)
+    }
+
+    /// Value of every joint (mimic joints resolved) for configuration `q`; fixed joints get 0.
+    #[inline]
+    pub fn joint_value(&self, joint: usize, q: &[f64]) -> f64 {
+        let j = &self.joints[joint];
+        if let Some(v) = j.var {
+            q[v]
+        } else if let Some(m) = j.mimic {
+            m.multiplier * q[m.var] + m.offset
+        } else {
+            0.0
+        }
+    }
+
+    /// Checks a configuration: length, finiteness and limits. The error names the joint.
+    pub fn check_config(&self, q: &[f64]) -> Result<(), String> {
+        if q.len() != self.dof() {
+            return Err(format!(
+                "expected {} values (robot '{}'), got {}",
+                self.dof(),
+                self.name,
+                q.len()
+            ));
+        }
+        for (v, &x) in q.iter().enumerate() {
+            let l = self.var_limits(v);
+            if !x.is_finite() {
+                return Err(format!("{}: value must be finite", self.var_name(v)));
+            }
+            if !l.contains(x) {
+                return Err(format!(
+                    "{}: value {x} outside limit [{}, {}]",
+                    self.var_name(v),
+                    l.lower,
+                    l.upper
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Builds a configuration from `name → value` pairs on top of `base`. Errors name the joint.
+    pub fn config_from_map<'a>(
+        &self,
+        base: &[f64],
+        values: impl IntoIterator<Item = (&'a String, &'a f64)>,
+    ) -> Result<Vec<f64>, String> {
+        let mut q = base.to_vec();
+        for (name, &x) in values {
+            let v = self
+                .var(name)
+                .ok_or_else(|| format!("{name}: no such movable joint in robot '{}'", self.name))?;
+            q[v] = x;
+        }
+        self.check_config(&q)?;
+        Ok(q)
+    }
+
+    /// Path of links from `base` down to `tip` (both included), or `None` if `tip` is not below
+    /// `base`.
+    pub fn link_path(&self, base: usize, tip: usize) -> Option<Vec<usize>> {
+        let mut path = vec![tip];
+        let mut l = tip;
+        while l != base {
+            let j = self.links[l].parent_joint?;
+            l = self.joints[j].parent;
+            path.push(l);
+        }
+        path.reverse();
+        Some(path)
+    }
+}
+
+/// Robots by name, shared read-only.
+pub type RobotLibrary = HashMap<String, Arc<Robot>>;
+
+fn read(p: &Path) -> Result<String, ModelError> {
+    std::fs::read_to_string(p).map_err(|e| ModelError::Io {
+        file: p.display().to_string(),
+        reason: e.to_string(),
+    })
+}
