@@ -1,26 +1,558 @@
-//! Fast conservative collision checking (being written).
-use super::{CollisionChecker, CollisionWorld, Contact};
+//! The planners' collision checker: a conservative primitive model, no allocation per check.
+//!
+//! Every shape becomes one primitive: spheres stay spheres, boxes stay oriented boxes (OBB),
+//! meshes become the box around their vertices, cylinders and capsules keep their exact form
+//! where the other side is a sphere and use their enclosing box where it is a box. Each body
+//! (link, attached object, fixed body) has a bounding sphere tested first; the pair list is
+//! precomputed from [`CollisionWorld::pairs`]. Because each primitive contains the exact shape,
+//! whenever [`super::ExactChecker`] reports a collision this checker does too; the largest
+//! over-approximation is reported by [`FastChecker::max_overapproximation`] (0.415 · radius of the
+//! largest cylinder or capsule met by a box).
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::world::{BodyId, CollisionWorld, PlacedRobot};
+use super::{CollisionChecker, Contact};
+use crate::geometry::{Pose, Shape};
+use crate::kinematics::forward;
+
 /// Settings of the fast model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FastModelSettings {
+    /// Extra padding added to every moving primitive (a safety distance), metres.
+    pub padding: f64,
+}
+
+impl Default for FastModelSettings {
+    fn default() -> Self {
+        FastModelSettings { padding: 0.0 }
+    }
+}
+
+/// Tolerance added to every primitive so rounding can never turn a touching pair free.
+const EPS: f64 = 1e-9;
+
 #[derive(Debug, Clone, Copy)]
-pub struct FastModelSettings;
-/// Planner checker.
+enum Prim {
+    Sphere {
+        c: Vector3<f64>,
+        r: f64,
+    },
+    Obb {
+        c: Vector3<f64>,
+        rot: Matrix3<f64>,
+        half: Vector3<f64>,
+    },
+    /// Exact against spheres; `half` is the enclosing box used against boxes.
+    Cylinder {
+        c: Vector3<f64>,
+        rot: Matrix3<f64>,
+        r: f64,
+        h: f64,
+    },
+    Capsule {
+        c: Vector3<f64>,
+        rot: Matrix3<f64>,
+        r: f64,
+        h: f64,
+    },
+}
+
+impl Prim {
+    fn from_shape(origin: &Pose, shape: &Shape, pad: f64) -> Prim {
+        let c = origin.translation.vector;
+        let rot = *origin.rotation.to_rotation_matrix().matrix();
+        match shape {
+            Shape::Sphere { radius } => Prim::Sphere { c, r: radius + pad + EPS },
+            Shape::Box { half_extents } => Prim::Obb {
+                c,
+                rot,
+                half: half_extents.add_scalar(pad + EPS),
+            },
+            Shape::Cylinder { radius, half_length } => Prim::Cylinder {
+                c,
+                rot,
+                r: radius + pad + EPS,
+                h: half_length + pad + EPS,
+            },
+            Shape::Capsule { radius, half_length } => Prim::Capsule {
+                c,
+                rot,
+                r: radius + pad + EPS,
+                h: *half_length,
+            },
+            Shape::Mesh(m) => {
+                let mut lo = Vector3::repeat(f64::INFINITY);
+                let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+                for v in &m.vertices {
+                    lo = lo.inf(&v.coords);
+                    hi = hi.sup(&v.coords);
+                }
+                let mid = (lo + hi) * 0.5;
+                Prim::Obb {
+                    c: c + rot * mid,
+                    rot,
+                    half: ((hi - lo) * 0.5).add_scalar(pad + EPS),
+                }
+            }
+        }
+    }
+
+    /// The primitive moved by a body pose `(rot, t)`.
+    #[inline]
+    fn transformed(&self, r: &Matrix3<f64>, t: &Vector3<f64>) -> Prim {
+        match *self {
+            Prim::Sphere { c, r: rad } => Prim::Sphere { c: r * c + t, r: rad },
+            Prim::Obb { c, rot, half } => Prim::Obb { c: r * c + t, rot: r * rot, half },
+            Prim::Cylinder { c, rot, r: rad, h } => Prim::Cylinder { c: r * c + t, rot: r * rot, r: rad, h },
+            Prim::Capsule { c, rot, r: rad, h } => Prim::Capsule { c: r * c + t, rot: r * rot, r: rad, h },
+        }
+    }
+
+    fn bounding(&self) -> (Vector3<f64>, f64) {
+        match *self {
+            Prim::Sphere { c, r } => (c, r),
+            Prim::Obb { c, half, .. } => (c, half.norm()),
+            Prim::Cylinder { c, r, h, .. } => (c, (r * r + h * h).sqrt()),
+            Prim::Capsule { c, r, h, .. } => (c, r + h),
+        }
+    }
+
+    /// Enclosing box (for tests against boxes).
+    #[inline]
+    fn as_obb(&self) -> (Vector3<f64>, Matrix3<f64>, Vector3<f64>) {
+        match *self {
+            Prim::Sphere { c, r } => (c, Matrix3::identity(), Vector3::repeat(r)),
+            Prim::Obb { c, rot, half } => (c, rot, half),
+            Prim::Cylinder { c, rot, r, h } => (c, rot, Vector3::new(r, r, h)),
+            Prim::Capsule { c, rot, r, h } => (c, rot, Vector3::new(r, r, h + r)),
+        }
+    }
+}
+
+#[inline]
+fn sphere_hits(c: &Vector3<f64>, r: f64, other: &Prim) -> bool {
+    match *other {
+        Prim::Sphere { c: c2, r: r2 } => (c - c2).norm_squared() <= (r + r2) * (r + r2),
+        Prim::Obb { c: c2, rot, half } => {
+            let p = rot.tr_mul(&(c - c2));
+            let d = Vector3::new(
+                (p.x.abs() - half.x).max(0.0),
+                (p.y.abs() - half.y).max(0.0),
+                (p.z.abs() - half.z).max(0.0),
+            );
+            d.norm_squared() <= r * r
+        }
+        Prim::Cylinder { c: c2, rot, r: rc, h } => {
+            let p = rot.tr_mul(&(c - c2));
+            let radial = (p.x * p.x + p.y * p.y).sqrt();
+            let dr = (radial - rc).max(0.0);
+            let dz = (p.z.abs() - h).max(0.0);
+            dr * dr + dz * dz <= r * r
+        }
+        Prim::Capsule { c: c2, rot, r: rc, h } => {
+            let p = rot.tr_mul(&(c - c2));
+            let z = p.z.clamp(-h, h);
+            let d2 = p.x * p.x + p.y * p.y + (p.z - z) * (p.z - z);
+            d2 <= (r + rc) * (r + rc)
+        }
+    }
+}
+
+/// Separating-axis test of two oriented boxes (Gottschalk et al.).
+#[inline]
+fn obb_obb(
+    ca: &Vector3<f64>,
+    ra: &Matrix3<f64>,
+    ha: &Vector3<f64>,
+    cb: &Vector3<f64>,
+    rb: &Matrix3<f64>,
+    hb: &Vector3<f64>,
+) -> bool {
+    let r = ra.tr_mul(rb);
+    let t = ra.tr_mul(&(cb - ca));
+    let mut abs_r = Matrix3::zeros();
+    for i in 0..3 {
+        for j in 0..3 {
+            abs_r[(i, j)] = r[(i, j)].abs() + 1e-12;
+        }
+    }
+    for i in 0..3 {
+        let rb_proj = hb.x * abs_r[(i, 0)] + hb.y * abs_r[(i, 1)] + hb.z * abs_r[(i, 2)];
+        if t[i].abs() > ha[i] + rb_proj {
+            return false;
+        }
+    }
+    for j in 0..3 {
+        let ra_proj = ha.x * abs_r[(0, j)] + ha.y * abs_r[(1, j)] + ha.z * abs_r[(2, j)];
+        let tp = t.x * r[(0, j)] + t.y * r[(1, j)] + t.z * r[(2, j)];
+        if tp.abs() > ra_proj + hb[j] {
+            return false;
+        }
+    }
+    for i in 0..3 {
+        let i1 = (i + 1) % 3;
+        let i2 = (i + 2) % 3;
+        for j in 0..3 {
+            let j1 = (j + 1) % 3;
+            let j2 = (j + 2) % 3;
+            let ra_p = ha[i1] * abs_r[(i2, j)] + ha[i2] * abs_r[(i1, j)];
+            let rb_p = hb[j1] * abs_r[(i, j2)] + hb[j2] * abs_r[(i, j1)];
+            let tp = t[i2] * r[(i1, j)] - t[i1] * r[(i2, j)];
+            if tp.abs() > ra_p + rb_p {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+#[inline]
+fn prims_hit(a: &Prim, b: &Prim) -> bool {
+    match (a, b) {
+        (Prim::Sphere { c, r }, other) | (other, Prim::Sphere { c, r }) => sphere_hits(c, *r, other),
+        _ => {
+            let (ca, ra, ha) = a.as_obb();
+            let (cb, rb, hb) = b.as_obb();
+            obb_obb(&ca, &ra, &ha, &cb, &rb, &hb)
+        }
+    }
+}
+
+/// Where a moving body hangs: robot link or attached object.
+#[derive(Debug, Clone, Copy)]
+struct Mount {
+    robot: usize,
+    link: usize,
+}
+
+#[derive(Debug, Clone)]
+struct MovingBody {
+    id: BodyId,
+    mount: Mount,
+    /// Offset of the body frame in the link frame (identity for links).
+    rel: Pose,
+    /// Primitives in the body frame.
+    local: Vec<Prim>,
+    /// Bounding sphere in the body frame.
+    bc: Vector3<f64>,
+    br: f64,
+    /// Range of this body's primitives in the per-check world buffer.
+    start: usize,
+}
+
+#[derive(Debug, Clone)]
+struct StaticBodyModel {
+    id: BodyId,
+    prims: Vec<Prim>,
+    bc: Vector3<f64>,
+    br: f64,
+}
+
+/// Pair to test: moving body index, and either a static (is_static) or another moving body.
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    a: u32,
+    b: u32,
+    b_static: bool,
+}
+
+/// Conservative checker used by planners. See the module documentation.
+#[derive(Debug, Clone)]
 pub struct FastChecker {
+    world: CollisionWorld,
+    moving: Vec<MovingBody>,
+    statics: Vec<StaticBodyModel>,
+    pairs: Vec<Pair>,
+    // Per-check buffers.
+    link_poses: Vec<Vec<Pose>>,
+    body_rot: Vec<Matrix3<f64>>,
+    body_t: Vec<Vector3<f64>>,
+    body_bc: Vec<Vector3<f64>>,
+    world_prims: Vec<Prim>,
+    prims_ready: Vec<u32>,
+    epoch: u32,
     checks: u64,
+    overapprox: f64,
 }
+
 impl FastChecker {
-    pub fn new(_w: &CollisionWorld) -> Self {
-        FastChecker { checks: 0 }
+    pub fn new(world: &CollisionWorld) -> FastChecker {
+        FastChecker::with_settings(world, FastModelSettings::default())
     }
-}
-impl CollisionChecker for FastChecker {
-    fn is_free(&mut self, _q: &[f64]) -> bool {
+
+    pub fn with_settings(world: &CollisionWorld, settings: FastModelSettings) -> FastChecker {
+        let mut moving = Vec::new();
+        let mut index_of = std::collections::HashMap::new();
+        let mut start = 0;
+        let mut overapprox: f64 = 0.0;
+        let mut push_body = |id: BodyId, mount: Mount, rel: Pose, shapes: &[crate::geometry::Geometry], moving: &mut Vec<MovingBody>| {
+            let local: Vec<Prim> = shapes
+                .iter()
+                .map(|g| Prim::from_shape(&g.origin, &g.shape, settings.padding))
+                .collect();
+            let (bc, br) = bounding_of(&local);
+            index_of.insert(id, moving.len());
+            let n = local.len();
+            moving.push(MovingBody { id, mount, rel, local, bc, br, start });
+            start += n;
+        };
+        for (r, p) in world.robots.iter().enumerate() {
+            for (l, link) in p.robot.links.iter().enumerate() {
+                if !link.collision.is_empty() {
+                    push_body(BodyId::Link { robot: r, link: l }, Mount { robot: r, link: l }, Pose::identity(), &link.collision, &mut moving);
+                }
+            }
+        }
+        for (a, at) in world.attached.iter().enumerate() {
+            if !at.shapes.is_empty() {
+                push_body(BodyId::Attached(a), Mount { robot: at.robot, link: at.link }, at.rel, &at.shapes, &mut moving);
+            }
+        }
+        let mut statics = Vec::new();
+        let mut static_index = std::collections::HashMap::new();
+        for (s, st) in world.statics.iter().enumerate() {
+            if st.shapes.is_empty() {
+                continue;
+            }
+            let prims: Vec<Prim> = st
+                .shapes
+                .iter()
+                .map(|g| Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0))
+                .collect();
+            let (bc, br) = bounding_of(&prims);
+            static_index.insert(BodyId::Static(s), statics.len());
+            statics.push(StaticBodyModel { id: BodyId::Static(s), prims, bc, br });
+        }
+        // Over-approximation of the box form of cylinders and capsules (met only by boxes).
+        let shapes = world
+            .robots
+            .iter()
+            .flat_map(|p| p.robot.links.iter().flat_map(|l| l.collision.iter()))
+            .chain(world.attached.iter().flat_map(|a| a.shapes.iter()))
+            .chain(world.statics.iter().flat_map(|s| s.shapes.iter()));
+        for g in shapes {
+            let o = match g.shape {
+                Shape::Cylinder { radius, .. } => radius * (2f64.sqrt() - 1.0),
+                Shape::Capsule { radius, .. } => radius * (3f64.sqrt() - 1.0),
+                Shape::Mesh(_) => f64::INFINITY,
+                _ => 0.0,
+            };
+            overapprox = overapprox.max(o);
+        }
+        overapprox += settings.padding;
+        let mut pairs = Vec::new();
+        for (a, b) in world.pairs() {
+            match (index_of.get(&a), index_of.get(&b), static_index.get(&b), static_index.get(&a)) {
+                (Some(&ia), Some(&ib), _, _) => pairs.push(Pair { a: ia as u32, b: ib as u32, b_static: false }),
+                (Some(&ia), None, Some(&sb), _) => pairs.push(Pair { a: ia as u32, b: sb as u32, b_static: true }),
+                (None, Some(&ib), _, Some(&sa)) => pairs.push(Pair { a: ib as u32, b: sa as u32, b_static: true }),
+                _ => {}
+            }
+        }
+        let link_poses = world
+            .robots
+            .iter()
+            .map(|p: &PlacedRobot| vec![Pose::identity(); p.robot.links.len()])
+            .collect();
+        let nb = moving.len();
+        FastChecker {
+            world: world.clone(),
+            moving,
+            statics,
+            pairs,
+            link_poses,
+            body_rot: vec![Matrix3::identity(); nb],
+            body_t: vec![Vector3::zeros(); nb],
+            body_bc: vec![Vector3::zeros(); nb],
+            world_prims: vec![Prim::Sphere { c: Vector3::zeros(), r: 0.0 }; start],
+            prims_ready: vec![0; nb],
+            epoch: 0,
+            checks: 0,
+            overapprox,
+        }
+    }
+
+    /// Largest distance by which the fast model may report a collision that the exact
+    /// geometry does not have (0 for worlds of spheres and boxes; infinite with meshes).
+    pub fn max_overapproximation(&self) -> f64 {
+        self.overapprox
+    }
+
+    /// The world this checker was built for.
+    pub fn world(&self) -> &CollisionWorld {
+        &self.world
+    }
+
+    /// Number of body pairs tested per check (before bounding-sphere culling).
+    pub fn pair_count(&self) -> usize {
+        self.pairs.len()
+    }
+
+    #[inline]
+    fn prepare(&mut self, q: &[f64]) {
+        for (r, p) in self.world.robots.iter().enumerate() {
+            let dof = p.robot.dof();
+            forward(&p.robot, &p.base, &q[p.offset..p.offset + dof], &mut self.link_poses[r]);
+        }
+        for (i, b) in self.moving.iter().enumerate() {
+            let lp = &self.link_poses[b.mount.robot][b.mount.link];
+            let pose = if matches!(b.id, BodyId::Attached(_)) { lp * b.rel } else { *lp };
+            let rot = *pose.rotation.to_rotation_matrix().matrix();
+            let t = pose.translation.vector;
+            self.body_bc[i] = rot * b.bc + t;
+            self.body_rot[i] = rot;
+            self.body_t[i] = t;
+        }
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.prims_ready.iter_mut().for_each(|e| *e = 0);
+            self.epoch = 1;
+        }
+    }
+
+    #[inline]
+    fn ensure_prims(&mut self, i: usize) {
+        if self.prims_ready[i] == self.epoch {
+            return;
+        }
+        self.prims_ready[i] = self.epoch;
+        let b = &self.moving[i];
+        let (rot, t) = (&self.body_rot[i], &self.body_t[i]);
+        for (k, p) in b.local.iter().enumerate() {
+            self.world_prims[b.start + k] = p.transformed(rot, t);
+        }
+    }
+
+    /// Index of the first colliding pair, if any.
+    fn find(&mut self, q: &[f64]) -> Option<usize> {
         self.checks += 1;
-        true
-    }
-    fn first_contact(&mut self, _q: &[f64]) -> Option<Contact> {
+        self.prepare(q);
+        for pi in 0..self.pairs.len() {
+            let p = self.pairs[pi];
+            let a = p.a as usize;
+            let b = p.b as usize;
+            let ra = self.moving[a].br;
+            if p.b_static {
+                let s = &self.statics[b];
+                let rr = ra + s.br;
+                if (self.body_bc[a] - s.bc).norm_squared() > rr * rr {
+                    continue;
+                }
+                self.ensure_prims(a);
+                let ma = &self.moving[a];
+                let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
+                let s = &self.statics[b];
+                if pa.iter().any(|x| s.prims.iter().any(|y| prims_hit(x, y))) {
+                    return Some(pi);
+                }
+            } else {
+                let rr = ra + self.moving[b].br;
+                if (self.body_bc[a] - self.body_bc[b]).norm_squared() > rr * rr {
+                    continue;
+                }
+                self.ensure_prims(a);
+                self.ensure_prims(b);
+                let (ma, mb) = (&self.moving[a], &self.moving[b]);
+                let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
+                let pb = &self.world_prims[mb.start..mb.start + mb.local.len()];
+                if pa.iter().any(|x| pb.iter().any(|y| prims_hit(x, y))) {
+                    return Some(pi);
+                }
+            }
+        }
         None
     }
+}
+
+fn bounding_of(prims: &[Prim]) -> (Vector3<f64>, f64) {
+    if prims.is_empty() {
+        return (Vector3::zeros(), 0.0);
+    }
+    // Centre: middle of the box around the primitive spheres; radius covers them all.
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for p in prims {
+        let (c, r) = p.bounding();
+        lo = lo.inf(&c.add_scalar(-r));
+        hi = hi.sup(&c.add_scalar(r));
+    }
+    let c = (lo + hi) * 0.5;
+    let r = prims
+        .iter()
+        .map(|p| {
+            let (pc, pr) = p.bounding();
+            (pc - c).norm() + pr
+        })
+        .fold(0.0, f64::max);
+    (c, r * (1.0 + 1e-12) + EPS)
+}
+
+impl CollisionChecker for FastChecker {
+    fn is_free(&mut self, q: &[f64]) -> bool {
+        self.find(q).is_none()
+    }
+
+    fn first_contact(&mut self, q: &[f64]) -> Option<Contact> {
+        let pi = self.find(q)?;
+        let p = self.pairs[pi];
+        let a = self.moving[p.a as usize].id;
+        let b = if p.b_static {
+            self.statics[p.b as usize].id
+        } else {
+            self.moving[p.b as usize].id
+        };
+        Some(Contact {
+            a: self.world.body_name(a),
+            b: self.world.body_name(b),
+        })
+    }
+
     fn checks(&self) -> u64 {
         self.checks
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn obb(c: [f64; 3], yaw: f64, h: [f64; 3]) -> Prim {
+        Prim::Obb {
+            c: Vector3::from(c),
+            rot: *nalgebra::Rotation3::from_euler_angles(0.0, 0.0, yaw).matrix(),
+            half: Vector3::from(h),
+        }
+    }
+
+    #[test]
+    fn obb_separation_on_edge_axes() {
+        // Two unit cubes, one turned 45° about z: corner-to-face distances decide.
+        let a = obb([0.0, 0.0, 0.0], 0.0, [0.5, 0.5, 0.5]);
+        let touching = obb([0.5 + 0.70, 0.0, 0.0], std::f64::consts::FRAC_PI_4, [0.5, 0.5, 0.5]);
+        let apart = obb([0.5 + 0.72, 0.0, 0.0], std::f64::consts::FRAC_PI_4, [0.5, 0.5, 0.5]);
+        assert!(prims_hit(&a, &touching));
+        assert!(!prims_hit(&a, &apart));
+    }
+
+    #[test]
+    fn sphere_against_cylinder_is_exact() {
+        let cyl = Prim::Cylinder { c: Vector3::zeros(), rot: Matrix3::identity(), r: 0.1, h: 0.2 };
+        // Beside the mantle.
+        assert!(sphere_hits(&Vector3::new(0.149, 0.0, 0.0), 0.05, &cyl));
+        assert!(!sphere_hits(&Vector3::new(0.151, 0.0, 0.0), 0.05, &cyl));
+        // Diagonal from the rim: distance sqrt(0.03² + 0.04²) = 0.05.
+        assert!(sphere_hits(&Vector3::new(0.13, 0.0, 0.239), 0.05, &cyl));
+        assert!(!sphere_hits(&Vector3::new(0.13, 0.0, 0.241), 0.05, &cyl));
+    }
+
+    #[test]
+    fn sphere_against_capsule_and_box() {
+        let cap = Prim::Capsule { c: Vector3::zeros(), rot: Matrix3::identity(), r: 0.1, h: 0.2 };
+        assert!(sphere_hits(&Vector3::new(0.0, 0.0, 0.349), 0.05, &cap));
+        assert!(!sphere_hits(&Vector3::new(0.0, 0.0, 0.351), 0.05, &cap));
+        let b = obb([0.0, 0.0, 0.0], 0.0, [0.1, 0.2, 0.3]);
+        assert!(sphere_hits(&Vector3::new(0.0, 0.249, 0.0), 0.05, &b));
+        assert!(!sphere_hits(&Vector3::new(0.0, 0.251, 0.0), 0.05, &b));
     }
 }

@@ -10,11 +10,13 @@
 
 mod exact;
 mod fast;
+mod generate;
 mod motion;
 mod world;
 
 pub use exact::ExactChecker;
 pub use fast::{FastChecker, FastModelSettings};
+pub use generate::{random_boxes, RandomBoxes};
 pub use motion::MotionValidator;
 pub use world::{AttachedBody, BodyId, CollisionWorld, PlacedRobot, StaticBody, StaticKind};
 

@@ -10,3 +10,5 @@ pub mod srs;
 
 pub use chain::Chain;
 pub use fk::{forward, link_pose, ForwardKinematics};
+pub use numeric::{pose_error, IkFailure, IkSettings, IkStats, NumericIk};
+pub use srs::{SolutionOrder, SrsArm, SrsError};

@@ -1,1 +1,720 @@
-//! Analytic S-R-S IK (being written).
+//! Analytic inverse kinematics of a 7-DoF S-R-S (spherical shoulder – revolute elbow – spherical
+//! wrist) arm, parameterised by the swivel (arm) angle ψ.
+//!
+//! Reference: paper 000 (Vahrenkamp et al. 2009, "Humanoid motion planning for dual-arm
+//! manipulation and re-grasping tasks", §II-A: an IK solver for the 7-DoF arms that is able to
+//! enumerate the swivel angles, so an IK-RRT can sample goal configurations), and M. Shimizu,
+//! H. Kakuya, W.-K. Yoon, K. Kitagaki, K. Kosuge, "Analytical Inverse Kinematic Computation for
+//! 7-DOF Redundant Manipulators With Joint Limits and Its Application to Redundancy Resolution",
+//! IEEE T-RO 24(5), 2008 (the arm angle ψ).
+//!
+//! The solver works in the product-of-exponentials (PoE) form, so it applies to any URDF chain
+//! of 7 revolute joints with S-R-S structure, whatever the fixed joint origins and the fixed tip
+//! (TCP) offset after joint 7:
+//!
+//! * joints 1–3 have axes intersecting in the shoulder centre `s`,
+//! * joint 4 is the elbow (its rotation changes the shoulder–wrist distance),
+//! * joints 5–7 have axes intersecting in the wrist centre `w`,
+//! * consecutive axes in each triple are not parallel.
+//!
+//! With spatial twists ξᵢ taken at the zero configuration in the chain-base frame,
+//! `T(θ) = e^{ξ1θ1} ⋯ e^{ξ7θ7} T_tip(0)`. For a target `T` and a swivel angle ψ:
+//!
+//! 1. wrist-centre target `w_t = T · T_tip(0)⁻¹ · w` (w is fixed in the last link);
+//! 2. θ4 from Paden–Kahan subproblem 3, `|e^{ξ4θ4} w − s| = |w_t − s|` (two branches, one when
+//!    the arm is stretched);
+//! 3. the shoulder rotation `R_sh = e^{[k1]θ1} e^{[k2]θ2} e^{[k3]θ3}` is fixed by ψ: it maps the
+//!    arm frame `[â, p, m]` (â = unit(e^{ξ4θ4}w − s), m = unit component of the elbow axis ⟂ â,
+//!    p = m × â) onto `[u, d(ψ), u × d(ψ)]` with u = unit(w_t − s),
+//!    `d(ψ) = cos ψ · n + sin ψ · (u × n)` and n the unit component of the base −z axis ⟂ u
+//!    (+x if u ∥ z);
+//! 4. θ1..θ3 from Paden–Kahan subproblem 2 (applied to k3) and subproblem 1 (two branches), the
+//!    wrist θ5..θ7 the same way from the rotation part of `(e^{ξ1θ1}⋯e^{ξ4θ4})⁻¹ T T_tip(0)⁻¹`
+//!    (two branches). Up to 8 solutions per ψ.
+//!
+//! ψ is the arm angle of Shimizu et al.: the rotation of the elbow about the shoulder–wrist line,
+//! ψ = 0 when the elbow lies in the plane spanned by the s–w line and the base −z direction.
+//! Every solution is mapped into the joint limits (±2π) and verified by forward kinematics
+//! (error ≤ 1e-9 m / 1e-9 rad); solutions failing either are dropped.
+
+use std::f64::consts::PI;
+
+use nalgebra::{Matrix3, Point3, Unit, Vector3};
+use rand::seq::SliceRandom;
+use rand::Rng;
+use thiserror::Error;
+
+use super::chain::Chain;
+use super::fk::joint_motion;
+use crate::geometry::Pose;
+use crate::model::{JointKind, Limits, Robot};
+
+/// Distance (m) within which joint axes must meet in the shoulder / wrist centre.
+pub const AXIS_INTERSECTION_TOLERANCE: f64 = 1e-9;
+/// Maximum position (m) and orientation (rad) error of a returned solution.
+pub const SOLUTION_TOLERANCE: f64 = 1e-9;
+
+/// Why a chain is not an S-R-S arm.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SrsError {
+    #[error("group '{0}' is not a chain")]
+    NoChain(String),
+    #[error(
+        "not an S-R-S arm: chain {base}→{tip} has {found} movable joints, an S-R-S arm needs exactly 7 revolute joints"
+    )]
+    JointCount {
+        base: String,
+        tip: String,
+        found: usize,
+    },
+    #[error("not an S-R-S arm: joint '{joint}' is {kind}, an S-R-S arm needs 7 revolute joints")]
+    NotRevolute { joint: String, kind: &'static str },
+    #[error("not an S-R-S arm: joint '{joint}' is a mimic joint")]
+    Mimic { joint: String },
+    #[error(
+        "not an S-R-S arm: axes of consecutive {part} joints '{a}' and '{b}' are parallel"
+    )]
+    ParallelAxes {
+        part: &'static str,
+        a: String,
+        b: String,
+    },
+    #[error(
+        "not an S-R-S arm: the {part} axes ('{a}', '{b}', '{c}') do not intersect in one point: joint '{worst}' misses their common point by {distance:.3e} m (tolerance 1e-9 m)"
+    )]
+    NotIntersecting {
+        part: &'static str,
+        a: String,
+        b: String,
+        c: String,
+        worst: String,
+        distance: f64,
+    },
+    #[error(
+        "not an S-R-S arm: elbow joint '{joint}' cannot change the shoulder–wrist distance (its axis passes through the shoulder or wrist centre, or the centres coincide)"
+    )]
+    DegenerateElbow { joint: String },
+}
+
+/// Order of the solutions returned by [`SrsArm::solve_enumerate`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SolutionOrder {
+    /// In the order found (ψ ascending from −π, then branch).
+    AsFound,
+    /// Shuffled with the caller's RNG.
+    Random,
+    /// Ascending Euclidean joint-space distance to a seed (chain variable order).
+    NearestTo([f64; 7]),
+    /// Ascending weighted distance `Σ wᵢ (qᵢ − seedᵢ)²` to a seed.
+    NearestToWeighted { seed: [f64; 7], weights: [f64; 7] },
+}
+
+/// Analytic IK of one S-R-S arm chain. Cheap to clone; `solve` allocates nothing.
+#[derive(Debug, Clone)]
+pub struct SrsArm {
+    chain: Chain,
+    vars: [usize; 7],
+    names: [String; 7],
+    limits: [Limits; 7],
+    /// Fixed transform before each joint (relative to the previous joint's moving frame).
+    pre: [Pose; 7],
+    /// Joint axes in their own joint frames.
+    local_axis: [Unit<Vector3<f64>>; 7],
+    /// Fixed transform from joint 7's moving frame to the tip link.
+    tail: Pose,
+    /// Spatial axis directions at the zero configuration (chain-base frame).
+    k: [Vector3<f64>; 7],
+    /// A point on each spatial axis at the zero configuration.
+    p: [Vector3<f64>; 7],
+    s: Vector3<f64>,
+    w: Vector3<f64>,
+    /// Wrist centre in the tip frame: `T_tip(0)⁻¹ · w`.
+    w_in_tip: Point3<f64>,
+    /// Rotation part of `T_tip(0)⁻¹`.
+    tip0_rot_inv: Matrix3<f64>,
+    reach_min: f64,
+    reach_max: f64,
+}
+
+#[inline]
+fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
+    // Rodrigues: I + sinθ [k]× + (1 − cosθ) [k]×²
+    let (sn, cs) = angle.sin_cos();
+    let kx = k.cross_matrix();
+    Matrix3::identity() + kx * sn + kx * kx * (1.0 - cs)
+}
+
+/// Paden–Kahan subproblem 1 for directions: the angle about unit `k` that rotates `a` onto `b`
+/// (in the plane ⟂ k).
+#[inline]
+fn sp1(k: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    let ap = a - k * k.dot(a);
+    let bp = b - k * k.dot(b);
+    k.dot(&ap.cross(&bp)).atan2(ap.dot(&bp))
+}
+
+/// Solves `e^{[k1]a} e^{[k2]b} e^{[k3]c} = r` (k1 ∦ k2, k2 ∦ k3): Paden–Kahan subproblem 2
+/// applied to k3, then subproblem 1 for the third angle. Up to two solutions.
+#[inline]
+fn euler3(
+    k1: &Vector3<f64>,
+    k2: &Vector3<f64>,
+    k3: &Vector3<f64>,
+    r: &Matrix3<f64>,
+    out: &mut [[f64; 3]; 2],
+) -> usize {
+    let x = *k3;
+    let y = r * k3;
+    let k12 = k1.dot(k2);
+    let denom = k12 * k12 - 1.0;
+    let alpha = (k12 * k2.dot(&x) - k1.dot(&y)) / denom;
+    let beta = (k12 * k1.dot(&y) - k2.dot(&x)) / denom;
+    let cr = k1.cross(k2);
+    let cr2 = cr.norm_squared();
+    let g2 = (1.0 - alpha * alpha - beta * beta - 2.0 * alpha * beta * k12) / cr2;
+    if !(g2 >= -1e-12) {
+        return 0; // orientation not reachable by this axis triple (or NaN)
+    }
+    let g = g2.max(0.0).sqrt();
+    let ngam = if g > 0.0 { 2 } else { 1 };
+    // A direction ⟂ k3 to read off the third angle.
+    let v = {
+        let t = if k3.x.abs() < 0.6 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        (t - k3 * k3.dot(&t)).normalize()
+    };
+    let mut n = 0;
+    for i in 0..ngam {
+        let gamma = if i == 0 { g } else { -g };
+        let c = k1 * alpha + k2 * beta + cr * gamma;
+        let b = sp1(k2, &x, &c);
+        let a = sp1(k1, &c, &y);
+        let rest = (rot(k1, a) * rot(k2, b)).transpose() * r;
+        let cc = sp1(k3, &v, &(rest * v));
+        out[n] = [a, b, cc];
+        n += 1;
+    }
+    n
+}
+
+/// Maps `v` into `lim` by adding multiples of 2π (the representative nearest the middle of the
+/// range); `None` if no representative lies within the limits. Unbounded joints: into [−π, π).
+#[inline]
+fn into_limits(v: f64, lim: &Limits) -> Option<f64> {
+    if !v.is_finite() {
+        return None;
+    }
+    if !lim.bounded {
+        return Some(v - 2.0 * PI * ((v + PI) / (2.0 * PI)).floor());
+    }
+    let mid = 0.5 * (lim.lower + lim.upper);
+    let t = v + 2.0 * PI * ((mid - v) / (2.0 * PI)).round();
+    const EPS: f64 = 1e-10;
+    if t >= lim.lower - EPS && t <= lim.upper + EPS {
+        Some(t.clamp(lim.lower, lim.upper))
+    } else {
+        None
+    }
+}
+
+/// Position (m) and orientation (rad) distance between two poses, accurate for tiny errors.
+#[inline]
+pub(crate) fn pose_distance(a: &Pose, b: &Pose) -> (f64, f64) {
+    let dp = (a.translation.vector - b.translation.vector).norm();
+    let q = a.rotation.inverse() * b.rotation;
+    let (w, v) = (q.scalar(), q.imag());
+    let ang = 2.0 * v.norm().atan2(w.abs());
+    (dp, ang)
+}
+
+/// Least-squares intersection point of three lines and the largest distance of a line from it.
+fn intersect3(k: &[Vector3<f64>], p: &[Vector3<f64>]) -> (Vector3<f64>, [f64; 3]) {
+    let mut a = Matrix3::zeros();
+    let mut b = Vector3::zeros();
+    for i in 0..3 {
+        let m = Matrix3::identity() - k[i] * k[i].transpose();
+        a += m;
+        b += m * p[i];
+    }
+    let c = a.try_inverse().map(|ai| ai * b).unwrap_or(p[0]);
+    let mut d = [0.0; 3];
+    for i in 0..3 {
+        let r = c - p[i];
+        d[i] = (r - k[i] * k[i].dot(&r)).norm();
+    }
+    (c, d)
+}
+
+impl SrsArm {
+    /// Analyses `chain` and precomputes the zero-configuration PoE data in the chain-base frame.
+    pub fn new(robot: &Robot, chain: &Chain) -> Result<SrsArm, SrsError> {
+        let base = robot.links[chain.base_link].name.clone();
+        let tip = robot.links[chain.tip_link].name.clone();
+        let movable: Vec<usize> = chain
+            .joints
+            .iter()
+            .copied()
+            .filter(|&j| robot.joints[j].kind != JointKind::Fixed)
+            .collect();
+        if movable.len() != 7 {
+            return Err(SrsError::JointCount {
+                base,
+                tip,
+                found: movable.len(),
+            });
+        }
+        for &j in &movable {
+            let jt = &robot.joints[j];
+            if !matches!(jt.kind, JointKind::Revolute | JointKind::Continuous) {
+                return Err(SrsError::NotRevolute {
+                    joint: jt.name.clone(),
+                    kind: jt.kind.name(),
+                });
+            }
+            if jt.var.is_none() {
+                return Err(SrsError::Mimic {
+                    joint: jt.name.clone(),
+                });
+            }
+        }
+        // Fold fixed joints into per-joint pre-transforms and a tail.
+        let mut pre = [Pose::identity(); 7];
+        let mut local_axis = [Vector3::z_axis(); 7];
+        let mut acc = Pose::identity();
+        let mut i = 0;
+        for &j in &chain.joints {
+            let jt = &robot.joints[j];
+            if jt.kind == JointKind::Fixed {
+                acc *= jt.origin;
+            } else {
+                pre[i] = acc * jt.origin;
+                local_axis[i] = jt.axis;
+                acc = Pose::identity();
+                i += 1;
+            }
+        }
+        let tail = acc;
+        let vars: [usize; 7] = std::array::from_fn(|i| robot.joints[movable[i]].var.unwrap());
+        let names: [String; 7] = std::array::from_fn(|i| robot.joints[movable[i]].name.clone());
+        let limits: [Limits; 7] = std::array::from_fn(|i| robot.joints[movable[i]].limits);
+        // Zero-configuration spatial axes.
+        let mut k = [Vector3::zeros(); 7];
+        let mut p = [Vector3::zeros(); 7];
+        let mut f = Pose::identity();
+        for i in 0..7 {
+            f *= pre[i];
+            k[i] = (f.rotation * local_axis[i].into_inner()).normalize();
+            p[i] = f.translation.vector;
+        }
+        let tip0 = f * tail;
+        for (part, (a, b)) in [
+            ("shoulder", (0, 1)),
+            ("shoulder", (1, 2)),
+            ("wrist", (4, 5)),
+            ("wrist", (5, 6)),
+        ] {
+            if k[a].cross(&k[b]).norm() < 1e-6 {
+                return Err(SrsError::ParallelAxes {
+                    part,
+                    a: names[a].clone(),
+                    b: names[b].clone(),
+                });
+            }
+        }
+        let centre = |part: &'static str, r: std::ops::Range<usize>| {
+            let (c, d) = intersect3(&k[r.clone()], &p[r.clone()]);
+            let (wi, wd) = d
+                .iter()
+                .enumerate()
+                .fold((0, 0.0f64), |m, (i, &x)| if x > m.1 { (i, x) } else { m });
+            if !(wd <= AXIS_INTERSECTION_TOLERANCE) {
+                return Err(SrsError::NotIntersecting {
+                    part,
+                    a: names[r.start].clone(),
+                    b: names[r.start + 1].clone(),
+                    c: names[r.start + 2].clone(),
+                    worst: names[r.start + wi].clone(),
+                    distance: wd,
+                });
+            }
+            Ok(c)
+        };
+        let s = centre("shoulder", 0..3)?;
+        let w = centre("wrist", 4..7)?;
+        // Elbow: the distance |e^{ξ4θ} w − s| ranges over [|a'| − |b'||, |a'| + |b'|] in the
+        // plane ⟂ k4, plus the fixed axial offset.
+        let (k4, p4) = (k[3], p[3]);
+        let xw = w - p4;
+        let xs = s - p4;
+        let xwp = xw - k4 * k4.dot(&xw);
+        let xsp = xs - k4 * k4.dot(&xs);
+        let axial = k4.dot(&(w - s));
+        let (rw, rs) = (xwp.norm(), xsp.norm());
+        if rw < 1e-9 || rs < 1e-9 {
+            return Err(SrsError::DegenerateElbow {
+                joint: names[3].clone(),
+            });
+        }
+        let reach_max = (axial * axial + (rw + rs) * (rw + rs)).sqrt();
+        let reach_min = (axial * axial + (rw - rs) * (rw - rs)).sqrt();
+        let tip0_inv = tip0.inverse();
+        Ok(SrsArm {
+            chain: chain.clone(),
+            vars,
+            names,
+            limits,
+            pre,
+            local_axis,
+            tail,
+            k,
+            p,
+            s,
+            w,
+            w_in_tip: tip0_inv * Point3::from(w),
+            tip0_rot_inv: tip0_inv.rotation.to_rotation_matrix().into_inner(),
+            reach_min,
+            reach_max,
+        })
+    }
+
+    /// The arm of an SRDF chain group (e.g. `left_arm`).
+    pub fn from_group(robot: &Robot, group: &str) -> Result<SrsArm, SrsError> {
+        let chain =
+            Chain::from_group(robot, group).ok_or_else(|| SrsError::NoChain(group.to_string()))?;
+        SrsArm::new(robot, &chain)
+    }
+
+    /// The chain this arm was built from.
+    pub fn chain(&self) -> &Chain {
+        &self.chain
+    }
+
+    /// Robot configuration variable of each of the 7 arm joints (chain order).
+    pub fn vars(&self) -> &[usize; 7] {
+        &self.vars
+    }
+
+    /// Names of the 7 arm joints.
+    pub fn joint_names(&self) -> &[String; 7] {
+        &self.names
+    }
+
+    /// Limits of the 7 arm joints.
+    pub fn limits(&self) -> &[Limits; 7] {
+        &self.limits
+    }
+
+    /// Shoulder centre (chain-base frame, zero configuration; it never moves).
+    pub fn shoulder_centre(&self) -> Vector3<f64> {
+        self.s
+    }
+
+    /// Wrist centre at the zero configuration (chain-base frame).
+    pub fn wrist_centre(&self) -> Vector3<f64> {
+        self.w
+    }
+
+    /// Maximum shoulder–wrist distance (stretched elbow), joint limits ignored.
+    pub fn reach(&self) -> f64 {
+        self.reach_max
+    }
+
+    /// Minimum shoulder–wrist distance (folded elbow), joint limits ignored.
+    pub fn min_reach(&self) -> f64 {
+        self.reach_min
+    }
+
+    /// Writes an arm solution into a full robot configuration.
+    pub fn to_config(&self, sol: &[f64; 7], q: &mut [f64]) {
+        for (i, &v) in self.vars.iter().enumerate() {
+            q[v] = sol[i];
+        }
+    }
+
+    /// Reads the 7 arm values out of a full robot configuration.
+    pub fn from_config(&self, q: &[f64]) -> [f64; 7] {
+        std::array::from_fn(|i| q[self.vars[i]])
+    }
+
+    /// True when every value is within its joint's limits.
+    pub fn within_limits(&self, q7: &[f64; 7]) -> bool {
+        q7.iter()
+            .zip(&self.limits)
+            .all(|(&v, l)| v.is_finite() && l.contains(v))
+    }
+
+    /// Tip pose in the chain-base frame (same as `Chain::tip_pose`, without the robot).
+    pub fn fk(&self, q7: &[f64; 7]) -> Pose {
+        let mut t = Pose::identity();
+        for i in 0..7 {
+            t = t * self.pre[i] * joint_motion(JointKind::Revolute, &self.local_axis[i], q7[i]);
+        }
+        t * self.tail
+    }
+
+    /// Unit target direction u and the ψ = 0 direction n (⟂ u).
+    #[inline]
+    fn target_frame(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        let r = -Vector3::z();
+        let mut n = r - u * u.dot(&r);
+        if n.norm() < 1e-6 {
+            let r = Vector3::x();
+            n = r - u * u.dot(&r);
+        }
+        (n.normalize(), u.cross(&n.normalize()))
+    }
+
+    /// Arm frame `[â, p, m]` for elbow angle θ4 (shoulder at zero); `None` if the elbow axis is
+    /// parallel to the shoulder–wrist line.
+    #[inline]
+    fn arm_frame(&self, theta4: f64) -> Option<Matrix3<f64>> {
+        let (k4, p4) = (&self.k[3], &self.p[3]);
+        let w4 = rot(k4, theta4) * (self.w - p4) + p4;
+        let a = (w4 - self.s).try_normalize(1e-12)?;
+        let m = (k4 - a * a.dot(k4)).try_normalize(1e-9)?;
+        let p = m.cross(&a);
+        Some(Matrix3::from_columns(&[a, p, m]))
+    }
+
+    /// The arm angle ψ of a configuration (see the module docs): `solve(fk(q), arm_angle(q))`
+    /// contains `q`. Returns 0 when ψ is undefined (wrist at the shoulder, elbow axis along
+    /// the shoulder–wrist line).
+    pub fn arm_angle(&self, q7: &[f64; 7]) -> f64 {
+        let Some(f) = self.arm_frame(q7[3]) else {
+            return 0.0;
+        };
+        let rsh = rot(&self.k[0], q7[0]) * rot(&self.k[1], q7[1]) * rot(&self.k[2], q7[2]);
+        let u = rsh * f.column(0);
+        let d = rsh * f.column(1);
+        let (n, un) = Self::target_frame(&u);
+        d.dot(&un).atan2(d.dot(&n))
+    }
+
+    /// All solutions for a target tip pose (chain-base frame) at swivel angle ψ, within the joint
+    /// limits and verified by FK to 1e-9 m / 1e-9 rad. Writes them to `out` (chain variable
+    /// order) and returns their number (0 when out of reach). Allocates nothing.
+    pub fn solve(&self, target: &Pose, psi: f64, out: &mut [[f64; 7]; 8]) -> usize {
+        let mut n = 0;
+        let wt = (target * self.w_in_tip).coords;
+        let dv = wt - self.s;
+        let dist = dv.norm();
+        if !dist.is_finite() || !psi.is_finite() || dist < 1e-12 {
+            return 0;
+        }
+        let u = dv / dist;
+        // θ4: subproblem 3, |e^{ξ4θ4} w − s| = dist.
+        let (k4, p4) = (&self.k[3], &self.p[3]);
+        let xw = self.w - p4;
+        let xs = self.s - p4;
+        let xwp = xw - k4 * k4.dot(&xw);
+        let xsp = xs - k4 * k4.dot(&xs);
+        let axial = k4.dot(&(self.w - self.s));
+        let dp2 = dist * dist - axial * axial;
+        if dp2 < -1e-12 {
+            return 0;
+        }
+        let dp2 = dp2.max(0.0);
+        let (rw, rs) = (xwp.norm(), xsp.norm());
+        let c = (rw * rw + rs * rs - dp2) / (2.0 * rw * rs);
+        if !(c.abs() <= 1.0 + 1e-9) {
+            return 0;
+        }
+        let c = c.clamp(-1.0, 1.0);
+        let th0 = k4.dot(&xwp.cross(&xsp)).atan2(xwp.dot(&xsp));
+        let al = c.acos();
+        let mut th4s = [th0 - al, th0 + al];
+        let n4 = if al < 1e-12 || PI - al < 1e-12 {
+            th4s[0] = th0 + al;
+            1
+        } else {
+            2
+        };
+        // Target frame for ψ.
+        let (nv, un) = Self::target_frame(&u);
+        let (sp, cp) = psi.sin_cos();
+        let d = nv * cp + un * sp;
+        let b = Matrix3::from_columns(&[u, d, u.cross(&d)]);
+        let rt = target.rotation.to_rotation_matrix().into_inner();
+        let rt_tip = rt * self.tip0_rot_inv;
+        let mut sh = [[0.0; 3]; 2];
+        let mut wr = [[0.0; 3]; 2];
+        for &th4 in &th4s[..n4] {
+            let Some(q4) = into_limits(th4, &self.limits[3]) else {
+                continue;
+            };
+            let Some(a) = self.arm_frame(th4) else {
+                continue;
+            };
+            let rsh = b * a.transpose();
+            let ns = euler3(&self.k[0], &self.k[1], &self.k[2], &rsh, &mut sh);
+            let r4 = rot(k4, th4);
+            for s3 in &sh[..ns] {
+                let Some(q1) = into_limits(s3[0], &self.limits[0]) else {
+                    continue;
+                };
+                let Some(q2) = into_limits(s3[1], &self.limits[1]) else {
+                    continue;
+                };
+                let Some(q3) = into_limits(s3[2], &self.limits[2]) else {
+                    continue;
+                };
+                let r123 = rot(&self.k[0], s3[0]) * rot(&self.k[1], s3[1]) * rot(&self.k[2], s3[2]);
+                let rw = (r123 * r4).transpose() * rt_tip;
+                let nw = euler3(&self.k[4], &self.k[5], &self.k[6], &rw, &mut wr);
+                for w3 in &wr[..nw] {
+                    let Some(q5) = into_limits(w3[0], &self.limits[4]) else {
+                        continue;
+                    };
+                    let Some(q6) = into_limits(w3[1], &self.limits[5]) else {
+                        continue;
+                    };
+                    let Some(q7) = into_limits(w3[2], &self.limits[6]) else {
+                        continue;
+                    };
+                    let sol = [q1, q2, q3, q4, q5, q6, q7];
+                    let (ep, er) = pose_distance(&self.fk(&sol), target);
+                    if ep <= SOLUTION_TOLERANCE && er <= SOLUTION_TOLERANCE && n < out.len() {
+                        out[n] = sol;
+                        n += 1;
+                    }
+                }
+            }
+        }
+        n
+    }
+
+    /// Convenience wrapper of [`SrsArm::solve`] returning a `Vec`.
+    pub fn solve_all(&self, target: &Pose, psi: f64) -> Vec<[f64; 7]> {
+        let mut out = [[0.0; 7]; 8];
+        let n = self.solve(target, psi, &mut out);
+        out[..n].to_vec()
+    }
+
+    fn feasible_at(&self, target: &Pose, psi: f64, out: &mut [[f64; 7]; 8]) -> bool {
+        self.solve(target, psi, out) > 0
+    }
+
+    /// Intervals `(from, to)` of ψ ∈ [−π, π) for which at least one solution within the limits
+    /// exists: ψ is sampled at `samples` points, then each interval end is refined by bisection
+    /// to 1e-6 rad. Intervals touching ±π are reported as two intervals (`(-π, a)`, `(b, π)`);
+    /// an interval found at a single sample only is reported as a point-sized interval. This is
+    /// the swivel-angle enumeration of paper 000 §II-A.
+    pub fn feasible_psi(&self, target: &Pose, samples: usize) -> Vec<(f64, f64)> {
+        let samples = samples.max(1);
+        let mut out = [[0.0; 7]; 8];
+        let step = 2.0 * PI / samples as f64;
+        let psi_at = |i: usize| -PI + step * i as f64;
+        let feas: Vec<bool> = (0..samples)
+            .map(|i| self.feasible_at(target, psi_at(i), &mut out))
+            .collect();
+        let mut res = Vec::new();
+        // Bisection between a feasible ψ `good` and an infeasible ψ `bad`.
+        let mut refine = |mut good: f64, mut bad: f64| -> f64 {
+            while (good - bad).abs() > 1e-6 {
+                let mid = 0.5 * (good + bad);
+                if self.feasible_at(target, mid, &mut out) {
+                    good = mid;
+                } else {
+                    bad = mid;
+                }
+            }
+            good
+        };
+        let mut i = 0;
+        while i < samples {
+            if !feas[i] {
+                i += 1;
+                continue;
+            }
+            let start = i;
+            while i < samples && feas[i] {
+                i += 1;
+            }
+            let end = i - 1; // last feasible sample
+            let lo = if start == 0 {
+                -PI
+            } else {
+                refine(psi_at(start), psi_at(start - 1))
+            };
+            let hi = if end == samples - 1 {
+                PI
+            } else {
+                refine(psi_at(end), psi_at(end + 1))
+            };
+            res.push((lo, hi));
+        }
+        res
+    }
+
+    /// All solutions for ψ enumerated over [−π, π) in `psi_steps` steps, ordered as asked.
+    pub fn solve_enumerate<R: Rng + ?Sized>(
+        &self,
+        target: &Pose,
+        psi_steps: usize,
+        order: SolutionOrder,
+        rng: &mut R,
+    ) -> Vec<[f64; 7]> {
+        let steps = psi_steps.max(1);
+        let mut out = [[0.0; 7]; 8];
+        let mut all = Vec::new();
+        for i in 0..steps {
+            let psi = -PI + 2.0 * PI * i as f64 / steps as f64;
+            let n = self.solve(target, psi, &mut out);
+            all.extend_from_slice(&out[..n]);
+        }
+        let sort_by = |all: &mut Vec<[f64; 7]>, seed: &[f64; 7], wts: &[f64; 7]| {
+            let dist = |q: &[f64; 7]| -> f64 {
+                (0..7).map(|j| wts[j] * (q[j] - seed[j]).powi(2)).sum()
+            };
+            all.sort_by(|a, b| dist(a).total_cmp(&dist(b)));
+        };
+        match order {
+            SolutionOrder::AsFound => {}
+            SolutionOrder::Random => all.shuffle(rng),
+            SolutionOrder::NearestTo(seed) => sort_by(&mut all, &seed, &[1.0; 7]),
+            SolutionOrder::NearestToWeighted { seed, weights } => {
+                sort_by(&mut all, &seed, &weights)
+            }
+        }
+        all
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn euler3_roundtrip() {
+        let k1 = Vector3::z();
+        let k2 = Vector3::new(0.3, 1.0, 0.1).normalize();
+        let k3 = Vector3::new(1.0, -0.2, 0.4).normalize();
+        let r = rot(&k1, 0.7) * rot(&k2, -1.1) * rot(&k3, 2.5);
+        let mut out = [[0.0; 3]; 2];
+        let n = euler3(&k1, &k2, &k3, &r, &mut out);
+        assert!(n >= 1);
+        for s in &out[..n] {
+            let r2 = rot(&k1, s[0]) * rot(&k2, s[1]) * rot(&k3, s[2]);
+            assert!((r2 - r).norm() < 1e-12);
+        }
+        assert!(out[..n]
+            .iter()
+            .any(|s| (s[0] - 0.7).abs() < 1e-9 && (s[1] + 1.1).abs() < 1e-9));
+    }
+
+    #[test]
+    fn limits_mapping() {
+        let l = Limits {
+            lower: -0.5,
+            upper: 1.0,
+            velocity: 1.0,
+            effort: 1.0,
+            bounded: true,
+        };
+        assert_eq!(into_limits(0.2 + 2.0 * PI, &l).map(|v| (v - 0.2).abs() < 1e-12), Some(true));
+        assert_eq!(into_limits(2.0, &l), None);
+    }
+}

@@ -4,13 +4,18 @@
 //! kinematics algorithms, collision checking or planning.
 
 mod error;
+mod library;
 mod robot;
 mod scene;
 mod srdf;
 mod urdf;
 
 pub use error::ModelError;
+pub use library::{data_root, load_robot_dir, load_scene_dir};
 pub use robot::{
     EndEffector, Group, GroupState, Joint, JointKind, Limits, Link, Mimic, Robot, RobotLibrary,
 };
-pub use scene::{Body, ContactPoint, Grasp, GraspType, Object, RobotPlacement, Scene, SceneJson};
+pub use scene::{
+    Body, BodyJson, ContactPoint, GeometryJson, Grasp, GraspJson, GraspType, Object, RobotPlacement,
+    RobotPlacementJson, Scene, SceneJson,
+};

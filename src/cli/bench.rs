@@ -1,0 +1,242 @@
+//! `manyhands bench …`: medians over many seeded runs, printed beside the targets.
+
+use std::time::Instant;
+
+use anyhow::{anyhow, Result};
+use clap::Subcommand;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::json;
+
+use manyhands::collision::{random_boxes, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, RandomBoxes};
+use manyhands::geometry::Pose;
+use manyhands::kinematics::numeric::NumericIk;
+use manyhands::kinematics::srs::SrsArm;
+use manyhands::kinematics::{forward, Chain};
+use manyhands::{Robot, Scene};
+
+use super::commands::Ctx;
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCmd {
+    /// Fast and exact collision checks of `armar` in `kitchen` and among 30 random boxes, plus FK and IK.
+    Collision {
+        /// Random configurations per measurement.
+        #[arg(long, default_value_t = 20_000)]
+        samples: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// FK and IK (analytic S-R-S, numeric DLS) only.
+    Kinematics {
+        #[arg(long, default_value_t = 20_000)]
+        samples: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+}
+
+pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
+    match cmd {
+        BenchCmd::Collision { samples, seed } => {
+            let mut rows = collision_rows(ctx, *samples, *seed)?;
+            rows.extend(kinematics_rows(ctx, *samples, *seed)?);
+            print_rows(ctx, &rows);
+        }
+        BenchCmd::Kinematics { samples, seed } => {
+            let rows = kinematics_rows(ctx, *samples, *seed)?;
+            print_rows(ctx, &rows);
+        }
+    }
+    Ok(())
+}
+
+struct Row {
+    what: String,
+    median_ns: f64,
+    mean_ns: f64,
+    n: usize,
+    note: String,
+    target: &'static str,
+}
+
+fn print_rows(ctx: &Ctx, rows: &[Row]) {
+    if ctx.json {
+        let v: Vec<_> = rows.iter().map(|r| json!({"what": r.what, "median_ns": r.median_ns, "mean_ns": r.mean_ns, "n": r.n, "note": r.note, "target": r.target})).collect();
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        return;
+    }
+    println!("{:<46} {:>12} {:>12} {:>8}  {:<14} note", "measurement", "median", "mean", "n", "target");
+    for r in rows {
+        println!("{:<46} {:>12} {:>12} {:>8}  {:<14} {}", r.what, fmt_ns(r.median_ns), fmt_ns(r.mean_ns), r.n, r.target, r.note);
+    }
+}
+
+fn fmt_ns(ns: f64) -> String {
+    if ns < 10_000.0 {
+        format!("{ns:.0} ns")
+    } else {
+        format!("{:.1} µs", ns / 1000.0)
+    }
+}
+
+/// Times `f` once per input and returns (median, mean) in ns.
+fn time_each<T>(inputs: &[T], mut f: impl FnMut(&T)) -> (f64, f64) {
+    // Warm-up.
+    for x in inputs.iter().take(100) {
+        f(x);
+    }
+    let mut t: Vec<f64> = Vec::with_capacity(inputs.len());
+    for x in inputs {
+        let s = Instant::now();
+        f(x);
+        t.push(s.elapsed().as_nanos() as f64);
+    }
+    let mean = t.iter().sum::<f64>() / t.len().max(1) as f64;
+    t.sort_by(|a, b| a.total_cmp(b));
+    (t.get(t.len() / 2).copied().unwrap_or(0.0), mean)
+}
+
+/// Random world configurations: every robot near its start pose on the floor (base joints
+/// ±0.3 m, ±0.5 rad around the start), all other joints uniform within their limits.
+fn random_configs(scene: &Scene, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+    let start = CollisionWorld::start_config(scene);
+    let base_vars: Vec<Vec<usize>> = scene
+        .robots
+        .iter()
+        .map(|p| p.robot.group("base").map(|g| g.vars.clone()).unwrap_or_default())
+        .collect();
+    (0..n)
+        .map(|_| {
+            let mut q = start.clone();
+            let mut off = 0;
+            for (ri, p) in scene.robots.iter().enumerate() {
+                let r = &p.robot;
+                for v in 0..r.dof() {
+                    let l = r.var_limits(v);
+                    q[off + v] = if base_vars[ri].contains(&v) {
+                        let w = if r.joints[r.vars[v]].kind == manyhands::model::JointKind::Prismatic { 0.3 } else { 0.5 };
+                        (start[off + v] + rng.random_range(-w..w)).clamp(l.lower, l.upper)
+                    } else {
+                        rng.random_range(l.lower..=l.upper)
+                    };
+                }
+                off += r.dof();
+            }
+            q
+        })
+        .collect()
+}
+
+fn collision_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
+    let lib = ctx.library()?;
+    let kitchen = ctx.scene("kitchen")?;
+    let empty = ctx.scene("empty")?;
+    let boxes = random_boxes(&empty, &RandomBoxes { count: 30, seed, lo: [-1.2, -1.2, 0.1], hi: [1.2, 1.2, 1.8], ..RandomBoxes::default() }, &lib)?;
+    let mut rows = Vec::new();
+    for (label, scene) in [("kitchen", &kitchen), ("30 random boxes", &boxes)] {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let world = CollisionWorld::from_scene(scene);
+        let configs = random_configs(scene, samples, &mut rng);
+        let mut fast = FastChecker::new(&world);
+        let mut exact = ExactChecker::new(&world);
+        let mut fast_hits = 0usize;
+        let (fm, fmean) = time_each(&configs, |q| {
+            if !fast.is_free(q) {
+                fast_hits += 1;
+            }
+        });
+        let n_exact = (samples / 5).max(100).min(configs.len());
+        let mut exact_hits = 0usize;
+        let (em, emean) = time_each(&configs[..n_exact], |q| {
+            if !exact.is_free(q) {
+                exact_hits += 1;
+            }
+        });
+        let dof = world.dof();
+        rows.push(Row {
+            what: format!("fast check, armar ({dof} DoF) in {label}"),
+            median_ns: fm,
+            mean_ns: fmean,
+            n: configs.len(),
+            note: format!("{:.0} % in collision (incl. warm-up), {} body pairs", 100.0 * fast_hits as f64 / (configs.len() + 100) as f64, fast.pair_count()),
+            target: "≤ 2 µs",
+        });
+        rows.push(Row {
+            what: format!("exact check (parry), armar in {label}"),
+            median_ns: em,
+            mean_ns: emean,
+            n: n_exact,
+            note: format!("{:.0} % in collision", 100.0 * exact_hits as f64 / (n_exact + 100) as f64),
+            target: "reference",
+        });
+    }
+    Ok(rows)
+}
+
+fn kinematics_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
+    let armar = ctx.robot("armar")?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let configs: Vec<Vec<f64>> = (0..samples).map(|_| uniform(&armar, &mut rng)).collect();
+    let mut rows = Vec::new();
+    let mut poses = vec![Pose::identity(); armar.links.len()];
+    let (m, mean) = time_each(&configs, |q| {
+        forward(&armar, &Pose::identity(), q, &mut poses);
+        std::hint::black_box(&poses);
+    });
+    rows.push(Row { what: format!("FK, all {} links of armar", armar.links.len()), median_ns: m, mean_ns: mean, n: samples, note: String::new(), target: "≤ 1 µs" });
+
+    let chain = Chain::from_group(&armar, "right_arm").ok_or_else(|| anyhow!("armar has no right_arm chain"))?;
+    let arm = SrsArm::new(&armar, &chain)?;
+    let targets: Vec<(Pose, f64)> = configs
+        .iter()
+        .map(|q| {
+            let mut q7 = [0.0; 7];
+            for (i, &v) in arm.vars().iter().enumerate() {
+                q7[i] = q[v];
+            }
+            (chain.tip_pose(&armar, q), arm.arm_angle(&q7))
+        })
+        .collect();
+    let mut out = [[0.0; 7]; 8];
+    let mut found = 0usize;
+    let (m, mean) = time_each(&targets, |(t, psi)| {
+        found += arm.solve(t, *psi, &mut out);
+    });
+    rows.push(Row {
+        what: "analytic S-R-S IK, armar right arm (one ψ)".into(),
+        median_ns: m,
+        mean_ns: mean,
+        n: samples,
+        note: format!("{:.2} solutions per call within limits", found as f64 / (samples + 100) as f64),
+        target: "≤ 5 µs",
+    });
+
+    let mut ik = NumericIk::new(&armar, &chain);
+    let n_num = (samples / 20).clamp(50, 2000);
+    let seed_q = armar.named_config("home").unwrap_or_else(|| armar.zero_config());
+    let mut ok = 0usize;
+    let (m, mean) = time_each(&targets[..n_num], |(t, _)| {
+        if ik.solve(t, &seed_q, &mut rng).is_ok() {
+            ok += 1;
+        }
+    });
+    rows.push(Row {
+        what: "numeric DLS IK, armar right arm".into(),
+        median_ns: m,
+        mean_ns: mean,
+        n: n_num,
+        note: format!("{:.0} % solved", 100.0 * ok as f64 / (n_num + n_num.min(100)) as f64),
+        target: "—",
+    });
+    Ok(rows)
+}
+
+fn uniform(r: &Robot, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    (0..r.dof())
+        .map(|v| {
+            let l = r.var_limits(v);
+            rng.random_range(l.lower..=l.upper)
+        })
+        .collect()
+}

@@ -1,0 +1,84 @@
+//! Command-line front end (clap). Thin: parses arguments, calls the library, prints text or JSON.
+
+mod bench;
+mod commands;
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser, Debug)]
+#[command(name = "manyhands", version, about = "Multi-robot grasp-and-motion planning")]
+pub struct Cli {
+    /// Folder of robot models (NAME.urdf + NAME.srdf). Default: ./robots, else the shipped ones.
+    #[arg(long, global = true, env = "MANYHANDS_ROBOTS")]
+    pub robots: Option<PathBuf>,
+    /// Folder of scenes (*.json). Default: ./scenes, else the shipped ones.
+    #[arg(long, global = true, env = "MANYHANDS_SCENES")]
+    pub scenes: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long, global = true)]
+    pub json: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Inspect robot models.
+    Robot {
+        #[command(subcommand)]
+        cmd: RobotCmd,
+    },
+    /// Forward kinematics: poses of links for a configuration.
+    Fk(commands::FkArgs),
+    /// Inverse kinematics of a group's chain for a TCP pose (analytic S-R-S or numeric).
+    Ik(commands::IkArgs),
+    /// Collision check of a scene at a configuration (which pair collides).
+    Check(commands::CheckArgs),
+    /// Scene tools.
+    Scene {
+        #[command(subcommand)]
+        cmd: SceneCmd,
+    },
+    /// Benchmarks (medians over many seeded runs).
+    Bench {
+        #[command(subcommand)]
+        cmd: bench::BenchCmd,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum RobotCmd {
+    /// List the robot models found.
+    List,
+    /// DoF, joints with limits, groups, end effectors, links and collision shapes.
+    Show {
+        /// Model name (from the robots folder) or a path to a .urdf file.
+        robot: String,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum SceneCmd {
+    /// List the scenes found.
+    List,
+    /// Writes a scene with N random boxes that touch no robot at its start configuration.
+    RandomBoxes(commands::RandomBoxesArgs),
+}
+
+pub fn run() -> Result<()> {
+    let cli = Cli::parse();
+    let ctx = commands::Ctx::new(&cli);
+    match &cli.command {
+        Command::Robot { cmd: RobotCmd::List } => commands::robot_list(&ctx),
+        Command::Robot { cmd: RobotCmd::Show { robot } } => commands::robot_show(&ctx, robot),
+        Command::Fk(a) => commands::fk(&ctx, a),
+        Command::Ik(a) => commands::ik(&ctx, a),
+        Command::Check(a) => commands::check(&ctx, a),
+        Command::Scene { cmd: SceneCmd::List } => commands::scene_list(&ctx),
+        Command::Scene { cmd: SceneCmd::RandomBoxes(a) } => commands::random_boxes(&ctx, a),
+        Command::Bench { cmd } => bench::run(&ctx, cmd),
+    }
+}
