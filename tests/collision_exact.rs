@@ -511,6 +511,23 @@ fn mesh_uses_its_convex_hull() {
     assert!(c.is_free(&[0.61, 0.0, 0.0]));
     assert!(!c.is_free(&[0.0, 0.0, 0.49]));
     assert!(c.is_free(&[0.0, 0.0, 0.51]));
+
+    // Four points on a line (x in [-0.1, 0.2]): no hull; the box of its bounds is used.
+    std::fs::write(
+        dir.join("line.obj"),
+        "v -0.1 0 0\nv 0 0 0\nv 0.1 0 0\nv 0.2 0 0\nf 1 2 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let mut c = probe_with_base(
+        r#"<geometry><mesh filename="line.obj"/></geometry>"#,
+        cuboid([0.5; 3]),
+        &dir,
+    );
+    assert!(!c.is_free(&[0.59, 0.0, 0.0]));
+    assert!(c.is_free(&[0.61, 0.0, 0.0]));
+    assert!(!c.is_free(&[-0.69, 0.0, 0.0]));
+    assert!(c.is_free(&[-0.71, 0.0, 0.0]));
+    assert!(c.is_free(&[0.0, 0.51, 0.0]));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

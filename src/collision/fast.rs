@@ -14,7 +14,8 @@ use nalgebra::{Matrix3, Vector3};
 use super::world::{BodyId, CollisionWorld, PlacedRobot};
 use super::{CollisionChecker, Contact};
 use crate::geometry::{Pose, Shape};
-use crate::kinematics::forward;
+
+use crate::kinematics::{FkModel, Frame};
 
 /// Settings of the fast model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -230,8 +231,8 @@ struct Mount {
 struct MovingBody {
     id: BodyId,
     mount: Mount,
-    /// Offset of the body frame in the link frame (identity for links).
-    rel: Pose,
+    /// Offset of the body frame in the link frame (`None` for links).
+    rel: Option<Frame>,
     /// Primitives in the body frame.
     local: Vec<Prim>,
     /// Bounding sphere in the body frame.
@@ -244,9 +245,31 @@ struct MovingBody {
 #[derive(Debug, Clone)]
 struct StaticBodyModel {
     id: BodyId,
-    prims: Vec<Prim>,
-    bc: Vector3<f64>,
-    br: f64,
+    /// Primitives in the world with their world-aligned boxes `(prim, lo, hi)`.
+    prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)>,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+}
+
+/// World-aligned box around a primitive.
+fn aabb(p: &Prim) -> (Vector3<f64>, Vector3<f64>) {
+    match *p {
+        Prim::Sphere { c, r } => (c.add_scalar(-r), c.add_scalar(r)),
+        _ => {
+            let (c, rot, half) = p.as_obb();
+            let ext = rot.abs() * half;
+            (c - ext, c + ext)
+        }
+    }
+}
+
+/// Squared distance from a point to a world-aligned box.
+#[inline]
+fn dist2_point_aabb(c: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> f64 {
+    let dx = (lo.x - c.x).max(0.0).max(c.x - hi.x);
+    let dy = (lo.y - c.y).max(0.0).max(c.y - hi.y);
+    let dz = (lo.z - c.z).max(0.0).max(c.z - hi.z);
+    dx * dx + dy * dy + dz * dz
 }
 
 /// Pair to test: moving body index, and either a static (is_static) or another moving body.
@@ -264,8 +287,10 @@ pub struct FastChecker {
     moving: Vec<MovingBody>,
     statics: Vec<StaticBodyModel>,
     pairs: Vec<Pair>,
+    fk: Vec<FkModel>,
+    bases: Vec<Frame>,
     // Per-check buffers.
-    link_poses: Vec<Vec<Pose>>,
+    link_poses: Vec<Vec<Frame>>,
     body_rot: Vec<Matrix3<f64>>,
     body_t: Vec<Vector3<f64>>,
     body_bc: Vec<Vector3<f64>>,
@@ -286,7 +311,7 @@ impl FastChecker {
         let mut index_of = std::collections::HashMap::new();
         let mut start = 0;
         let mut overapprox: f64 = 0.0;
-        let mut push_body = |id: BodyId, mount: Mount, rel: Pose, shapes: &[crate::geometry::Geometry], moving: &mut Vec<MovingBody>| {
+        let mut push_body = |id: BodyId, mount: Mount, rel: Option<Frame>, shapes: &[crate::geometry::Geometry], moving: &mut Vec<MovingBody>| {
             let local: Vec<Prim> = shapes
                 .iter()
                 .map(|g| Prim::from_shape(&g.origin, &g.shape, settings.padding))
@@ -300,13 +325,13 @@ impl FastChecker {
         for (r, p) in world.robots.iter().enumerate() {
             for (l, link) in p.robot.links.iter().enumerate() {
                 if !link.collision.is_empty() {
-                    push_body(BodyId::Link { robot: r, link: l }, Mount { robot: r, link: l }, Pose::identity(), &link.collision, &mut moving);
+                    push_body(BodyId::Link { robot: r, link: l }, Mount { robot: r, link: l }, None, &link.collision, &mut moving);
                 }
             }
         }
         for (a, at) in world.attached.iter().enumerate() {
             if !at.shapes.is_empty() {
-                push_body(BodyId::Attached(a), Mount { robot: at.robot, link: at.link }, at.rel, &at.shapes, &mut moving);
+                push_body(BodyId::Attached(a), Mount { robot: at.robot, link: at.link }, Some(Frame::from_pose(&at.rel)), &at.shapes, &mut moving);
             }
         }
         let mut statics = Vec::new();
@@ -315,14 +340,19 @@ impl FastChecker {
             if st.shapes.is_empty() {
                 continue;
             }
-            let prims: Vec<Prim> = st
+            let prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = st
                 .shapes
                 .iter()
-                .map(|g| Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0))
+                .map(|g| {
+                    let p = Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0);
+                    let (lo, hi) = aabb(&p);
+                    (p, lo, hi)
+                })
                 .collect();
-            let (bc, br) = bounding_of(&prims);
+            let lo = prims.iter().fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(&p.1));
+            let hi = prims.iter().fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(&p.2));
             static_index.insert(BodyId::Static(s), statics.len());
-            statics.push(StaticBodyModel { id: BodyId::Static(s), prims, bc, br });
+            statics.push(StaticBodyModel { id: BodyId::Static(s), prims, lo, hi });
         }
         // Over-approximation of the box form of cylinders and capsules (met only by boxes).
         let shapes = world
@@ -353,14 +383,18 @@ impl FastChecker {
         let link_poses = world
             .robots
             .iter()
-            .map(|p: &PlacedRobot| vec![Pose::identity(); p.robot.links.len()])
+            .map(|p: &PlacedRobot| vec![Frame::identity(); p.robot.links.len()])
             .collect();
+        let fk = world.robots.iter().map(|p| FkModel::new(&p.robot)).collect();
+        let bases = world.robots.iter().map(|p| Frame::from_pose(&p.base)).collect();
         let nb = moving.len();
         FastChecker {
             world: world.clone(),
             moving,
             statics,
             pairs,
+            fk,
+            bases,
             link_poses,
             body_rot: vec![Matrix3::identity(); nb],
             body_t: vec![Vector3::zeros(); nb],
@@ -393,16 +427,17 @@ impl FastChecker {
     fn prepare(&mut self, q: &[f64]) {
         for (r, p) in self.world.robots.iter().enumerate() {
             let dof = p.robot.dof();
-            forward(&p.robot, &p.base, &q[p.offset..p.offset + dof], &mut self.link_poses[r]);
+            self.fk[r].compute(&self.bases[r], &q[p.offset..p.offset + dof], &mut self.link_poses[r]);
         }
         for (i, b) in self.moving.iter().enumerate() {
             let lp = &self.link_poses[b.mount.robot][b.mount.link];
-            let pose = if matches!(b.id, BodyId::Attached(_)) { lp * b.rel } else { *lp };
-            let rot = *pose.rotation.to_rotation_matrix().matrix();
-            let t = pose.translation.vector;
-            self.body_bc[i] = rot * b.bc + t;
-            self.body_rot[i] = rot;
-            self.body_t[i] = t;
+            let f = match &b.rel {
+                Some(rel) => lp.mul(rel),
+                None => *lp,
+            };
+            self.body_bc[i] = f.rot * b.bc + f.t;
+            self.body_rot[i] = f.rot;
+            self.body_t[i] = f.t;
         }
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
@@ -435,16 +470,20 @@ impl FastChecker {
             let ra = self.moving[a].br;
             if p.b_static {
                 let s = &self.statics[b];
-                let rr = ra + s.br;
-                if (self.body_bc[a] - s.bc).norm_squared() > rr * rr {
+                if dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) > ra * ra {
                     continue;
                 }
                 self.ensure_prims(a);
                 let ma = &self.moving[a];
                 let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
                 let s = &self.statics[b];
-                if pa.iter().any(|x| s.prims.iter().any(|y| prims_hit(x, y))) {
-                    return Some(pi);
+                for x in pa {
+                    let (xc, xr) = x.bounding();
+                    for (y, lo, hi) in &s.prims {
+                        if dist2_point_aabb(&xc, lo, hi) <= xr * xr && prims_hit(x, y) {
+                            return Some(pi);
+                        }
+                    }
                 }
             } else {
                 let rr = ra + self.moving[b].br;

@@ -5,6 +5,8 @@
 
 mod pose;
 mod shape;
+mod trig;
 
 pub use pose::{iso_from_rpy, quat_to_rpy, Pose, PoseJson};
 pub use shape::{Geometry, Mesh, Shape};
+pub use trig::sin_cos;

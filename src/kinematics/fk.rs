@@ -74,3 +74,178 @@ impl ForwardKinematics {
         &self.poses
     }
 }
+
+/// A rigid frame as rotation matrix + translation: cheaper to compose than quaternions, and the
+/// form the collision checker consumes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    pub rot: nalgebra::Matrix3<f64>,
+    pub t: nalgebra::Vector3<f64>,
+}
+
+impl Frame {
+    pub fn identity() -> Frame {
+        Frame {
+            rot: nalgebra::Matrix3::identity(),
+            t: nalgebra::Vector3::zeros(),
+        }
+    }
+
+    pub fn from_pose(p: &Pose) -> Frame {
+        Frame {
+            rot: *p.rotation.to_rotation_matrix().matrix(),
+            t: p.translation.vector,
+        }
+    }
+
+    pub fn to_pose(&self) -> Pose {
+        Pose::from_parts(
+            Translation3::from(self.t),
+            UnitQuaternion::from_matrix(&self.rot),
+        )
+    }
+
+    #[inline]
+    pub fn mul(&self, o: &Frame) -> Frame {
+        Frame {
+            rot: self.rot * o.rot,
+            t: self.rot * o.t + self.t,
+        }
+    }
+
+    #[inline]
+    pub fn transform_point(&self, p: &nalgebra::Vector3<f64>) -> nalgebra::Vector3<f64> {
+        self.rot * p + self.t
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum AxisKind {
+    X,
+    Y,
+    Z,
+    General,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct FkJoint {
+    parent: u32,
+    child: u32,
+    kind: JointKind,
+    axis_kind: AxisKind,
+    axis: nalgebra::Vector3<f64>,
+    origin: Frame,
+    origin_rot_identity: bool,
+    /// Variable index and (multiplier, offset) for mimic joints (1, 0 otherwise).
+    var: u32,
+    mul: f64,
+    off: f64,
+}
+
+/// Forward kinematics precompiled for one robot: joints with principal axes rotate with six
+/// multiplications, fixed joints with identity rotation only translate. Allocation-free.
+#[derive(Debug, Clone)]
+pub struct FkModel {
+    joints: Vec<FkJoint>,
+    links: usize,
+}
+
+impl FkModel {
+    pub fn new(robot: &Robot) -> FkModel {
+        let joints = robot
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(ji, j)| {
+                let a = j.axis.into_inner();
+                let axis_kind = if (a - nalgebra::Vector3::x()).norm() < 1e-15 {
+                    AxisKind::X
+                } else if (a - nalgebra::Vector3::y()).norm() < 1e-15 {
+                    AxisKind::Y
+                } else if (a - nalgebra::Vector3::z()).norm() < 1e-15 {
+                    AxisKind::Z
+                } else {
+                    AxisKind::General
+                };
+                let (var, mul, off) = match (j.var, j.mimic) {
+                    (Some(v), _) => (v as u32, 1.0, 0.0),
+                    (None, Some(m)) => (m.var as u32, m.multiplier, m.offset),
+                    _ => (u32::MAX, 0.0, 0.0),
+                };
+                let _ = ji;
+                let origin = Frame::from_pose(&j.origin);
+                FkJoint {
+                    parent: j.parent as u32,
+                    child: j.child as u32,
+                    kind: if var == u32::MAX { JointKind::Fixed } else { j.kind },
+                    axis_kind,
+                    axis: a,
+                    origin,
+                    origin_rot_identity: (origin.rot - nalgebra::Matrix3::identity()).abs().max() < 1e-15,
+                    var,
+                    mul,
+                    off,
+                }
+            })
+            .collect();
+        FkModel {
+            joints,
+            links: robot.links.len(),
+        }
+    }
+
+    /// Number of links (length of the output slice).
+    pub fn links(&self) -> usize {
+        self.links
+    }
+
+    /// Frames of all links: `out[l] = base · T_root→l(q)`.
+    #[inline]
+    pub fn compute(&self, base: &Frame, q: &[f64], out: &mut [Frame]) {
+        out[0] = *base;
+        for j in &self.joints {
+            let p = out[j.parent as usize];
+            let mut t = p.rot * j.origin.t + p.t;
+            let r0 = if j.origin_rot_identity {
+                p.rot
+            } else {
+                p.rot * j.origin.rot
+            };
+            let rot = match j.kind {
+                JointKind::Fixed => r0,
+                JointKind::Prismatic => {
+                    let v = j.mul * q[j.var as usize] + j.off;
+                    t += r0 * (j.axis * v);
+                    r0
+                }
+                JointKind::Revolute | JointKind::Continuous => {
+                    let v = j.mul * q[j.var as usize] + j.off;
+                    let (s, c) = crate::geometry::sin_cos(v);
+                    rotate_about_axis(&r0, j.axis_kind, &j.axis, v, s, c)
+                }
+            };
+            out[j.child as usize] = Frame { rot, t };
+        }
+    }
+}
+
+/// `r · R_axis(v)` given `(s, c) = sin_cos(v)`: for a principal axis only two columns change.
+#[inline(always)]
+fn rotate_about_axis(
+    r: &nalgebra::Matrix3<f64>,
+    kind: AxisKind,
+    axis: &nalgebra::Vector3<f64>,
+    v: f64,
+    s: f64,
+    c: f64,
+) -> nalgebra::Matrix3<f64> {
+    let (x, y, z) = (r.column(0), r.column(1), r.column(2));
+    match kind {
+        AxisKind::Z => nalgebra::Matrix3::from_columns(&[x * c + y * s, y * c - x * s, z.into_owned()]),
+        AxisKind::Y => nalgebra::Matrix3::from_columns(&[x * c - z * s, y.into_owned(), x * s + z * c]),
+        AxisKind::X => nalgebra::Matrix3::from_columns(&[x.into_owned(), y * c + z * s, z * c - y * s]),
+        AxisKind::General => {
+            r * nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_unchecked(*axis), v).matrix()
+        }
+    }
+}

@@ -9,6 +9,6 @@ pub mod numeric;
 pub mod srs;
 
 pub use chain::Chain;
-pub use fk::{forward, link_pose, ForwardKinematics};
+pub use fk::{forward, link_pose, FkModel, ForwardKinematics, Frame};
 pub use numeric::{pose_error, IkFailure, IkSettings, IkStats, NumericIk};
 pub use srs::{SolutionOrder, SrsArm, SrsError};

@@ -39,9 +39,9 @@ impl Default for IkSettings {
     fn default() -> Self {
         IkSettings {
             tolerance: 1e-10,
-            max_iterations: 100,
-            max_restarts: 30,
-            damping: 1e-3,
+            max_iterations: 50,
+            max_restarts: 100,
+            damping: 1e-2,
             position_only: false,
             weights: [1.0; 6],
         }
@@ -109,6 +109,7 @@ pub struct NumericIk {
     x_try: Vec<f64>,
     best_x: Vec<f64>,
     delta: Vec<f64>,
+    free: Vec<bool>,
     jac: Matrix6xX<f64>,
     frames: Vec<(Vector3<f64>, Vector3<f64>)>,
 }
@@ -147,10 +148,22 @@ impl NumericIk {
         let lim = |i: usize| robot.var_limits(chain.vars[i]);
         let bounded: Vec<bool> = (0..n).map(|i| lim(i).bounded).collect();
         let lower: Vec<f64> = (0..n)
-            .map(|i| if bounded[i] { lim(i).lower } else { -std::f64::consts::PI })
+            .map(|i| {
+                if bounded[i] {
+                    lim(i).lower
+                } else {
+                    -std::f64::consts::PI
+                }
+            })
             .collect();
         let upper: Vec<f64> = (0..n)
-            .map(|i| if bounded[i] { lim(i).upper } else { std::f64::consts::PI })
+            .map(|i| {
+                if bounded[i] {
+                    lim(i).upper
+                } else {
+                    std::f64::consts::PI
+                }
+            })
             .collect();
         NumericIk {
             settings: IkSettings::default(),
@@ -167,6 +180,7 @@ impl NumericIk {
             x_try: vec![0.0; n],
             best_x: vec![0.0; n],
             delta: vec![0.0; n],
+            free: vec![true; n],
             jac: Matrix6xX::zeros(n),
         }
     }
@@ -237,11 +251,67 @@ impl NumericIk {
     }
 
     fn clamp_into(&self, x: &mut [f64]) {
-        for i in 0..x.len() {
+        for (i, v) in x.iter_mut().enumerate() {
             if self.bounded[i] {
-                x[i] = x[i].clamp(self.lower[i], self.upper[i]);
+                *v = v.clamp(self.lower[i], self.upper[i]);
             }
         }
+    }
+
+    /// Damped least-squares step `Δ = J̃ᵀ (J̃ J̃ᵀ + λ I)⁻¹ ẽ` into `self.delta`, with an active
+    /// set for the joint limits: a joint at a limit whose step would push it outward is frozen
+    /// (its column dropped) and the step recomputed, so the other joints keep making progress.
+    /// Returns false if the system could not be factorised.
+    fn damped_step(&mut self, e: &Vector6<f64>, rows: usize, lambda: f64) -> bool {
+        let n = self.vars.len();
+        let w = self.settings.weights;
+        self.free.iter_mut().for_each(|f| *f = true);
+        for _ in 0..=n {
+            let mut a = Matrix6::<f64>::zeros();
+            for r in 0..rows {
+                for c in 0..=r {
+                    let mut s = 0.0;
+                    for k in 0..n {
+                        if self.free[k] {
+                            s += self.jac[(r, k)] * self.jac[(c, k)];
+                        }
+                    }
+                    let v = s * w[r] * w[c];
+                    a[(r, c)] = v;
+                    a[(c, r)] = v;
+                }
+            }
+            for r in 0..6 {
+                a[(r, r)] += if r < rows { lambda } else { 1.0 };
+            }
+            let Some(ch) = a.cholesky() else {
+                return false;
+            };
+            let y = ch.solve(e);
+            let mut changed = false;
+            for k in 0..n {
+                if !self.free[k] {
+                    self.delta[k] = 0.0;
+                    continue;
+                }
+                let mut s = 0.0;
+                for r in 0..rows {
+                    s += self.jac[(r, k)] * w[r] * y[r];
+                }
+                self.delta[k] = s;
+                if self.bounded[k]
+                    && ((self.x[k] <= self.lower[k] && s < 0.0)
+                        || (self.x[k] >= self.upper[k] && s > 0.0))
+                {
+                    self.free[k] = false;
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        true
     }
 
     /// Solves for a tip pose `target` in the chain-base frame. `seed` is a full robot
@@ -253,11 +323,14 @@ impl NumericIk {
         seed: &[f64],
         rng: &mut R,
     ) -> Result<Vec<f64>, IkFailure> {
-        assert_eq!(seed.len(), self.dof, "seed must be a full robot configuration");
+        assert_eq!(
+            seed.len(),
+            self.dof,
+            "seed must be a full robot configuration"
+        );
         let n = self.vars.len();
         let tol = self.settings.tolerance;
         let rows = if self.settings.position_only { 3 } else { 6 };
-        let w = self.settings.weights;
         let mut best = (f64::INFINITY, f64::INFINITY, f64::INFINITY); // (cost, ep, er)
         let mut iterations = 0;
         let mut attempts = 0;
@@ -277,7 +350,7 @@ impl NumericIk {
                 }
             }
             let mut lambda = self.settings.damping;
-            let mut tip = self.fk_jac();
+            let tip = self.fk_jac();
             let (mut e, mut cost, mut ep, mut er) = self.error(&tip, target);
             let mut it = 0;
             loop {
@@ -293,33 +366,9 @@ impl NumericIk {
                     break;
                 }
                 it += 1;
-                // Weighted Jacobian rows.
-                let mut a = Matrix6::<f64>::zeros();
-                for r in 0..rows {
-                    for c in 0..=r {
-                        let mut s = 0.0;
-                        for k in 0..n {
-                            s += self.jac[(r, k)] * self.jac[(c, k)];
-                        }
-                        let v = s * w[r] * w[c];
-                        a[(r, c)] = v;
-                        a[(c, r)] = v;
-                    }
-                }
-                for r in 0..6 {
-                    a[(r, r)] += if r < rows { lambda } else { 1.0 };
-                }
-                let Some(ch) = a.cholesky() else {
+                if !self.damped_step(&e, rows, lambda) {
                     lambda *= 10.0;
                     continue;
-                };
-                let y = ch.solve(&e);
-                for k in 0..n {
-                    let mut s = 0.0;
-                    for r in 0..rows {
-                        s += self.jac[(r, k)] * w[r] * y[r];
-                    }
-                    self.delta[k] = s;
                 }
                 for k in 0..n {
                     self.x_try[k] = self.x[k] + self.delta[k];
@@ -331,8 +380,7 @@ impl NumericIk {
                 let (e2, cost2, ep2, er2) = self.error(&tip_try, target);
                 if cost2 < cost {
                     std::mem::swap(&mut self.x, &mut self.x_try);
-                    tip = self.fk_jac();
-                    let _ = tip;
+                    self.fk_jac();
                     e = e2;
                     cost = cost2;
                     ep = ep2;

@@ -71,9 +71,7 @@ pub enum SrsError {
     NotRevolute { joint: String, kind: &'static str },
     #[error("not an S-R-S arm: joint '{joint}' is a mimic joint")]
     Mimic { joint: String },
-    #[error(
-        "not an S-R-S arm: axes of consecutive {part} joints '{a}' and '{b}' are parallel"
-    )]
+    #[error("not an S-R-S arm: axes of consecutive {part} joints '{a}' and '{b}' are parallel")]
     ParallelAxes {
         part: &'static str,
         a: String,
@@ -172,7 +170,7 @@ fn euler3(
     let cr = k1.cross(k2);
     let cr2 = cr.norm_squared();
     let g2 = (1.0 - alpha * alpha - beta * beta - 2.0 * alpha * beta * k12) / cr2;
-    if !(g2 >= -1e-12) {
+    if g2.is_nan() || g2 < -1e-12 {
         return 0; // orientation not reachable by this axis triple (or NaN)
     }
     let g = g2.max(0.0).sqrt();
@@ -330,7 +328,7 @@ impl SrsArm {
                 .iter()
                 .enumerate()
                 .fold((0, 0.0f64), |m, (i, &x)| if x > m.1 { (i, x) } else { m });
-            if !(wd <= AXIS_INTERSECTION_TOLERANCE) {
+            if wd.is_nan() || wd > AXIS_INTERSECTION_TOLERANCE {
                 return Err(SrsError::NotIntersecting {
                     part,
                     a: names[r.start].clone(),
@@ -417,6 +415,11 @@ impl SrsArm {
         self.w
     }
 
+    /// Elbow axis at the zero configuration: (unit direction, a point on it), chain-base frame.
+    pub fn elbow_axis(&self) -> (Vector3<f64>, Vector3<f64>) {
+        (self.k[3], self.p[3])
+    }
+
     /// Maximum shoulder–wrist distance (stretched elbow), joint limits ignored.
     pub fn reach(&self) -> f64 {
         self.reach_max
@@ -449,8 +452,8 @@ impl SrsArm {
     /// Tip pose in the chain-base frame (same as `Chain::tip_pose`, without the robot).
     pub fn fk(&self, q7: &[f64; 7]) -> Pose {
         let mut t = Pose::identity();
-        for i in 0..7 {
-            t = t * self.pre[i] * joint_motion(JointKind::Revolute, &self.local_axis[i], q7[i]);
+        for ((pre, axis), &v) in self.pre.iter().zip(&self.local_axis).zip(q7) {
+            t = t * pre * joint_motion(JointKind::Revolute, axis, v);
         }
         t * self.tail
     }
@@ -519,19 +522,25 @@ impl SrsArm {
         let dp2 = dp2.max(0.0);
         let (rw, rs) = (xwp.norm(), xsp.norm());
         let c = (rw * rw + rs * rs - dp2) / (2.0 * rw * rs);
-        if !(c.abs() <= 1.0 + 1e-9) {
+        if c.is_nan() || c.abs() > 1.0 + 1e-9 {
             return 0;
         }
         let c = c.clamp(-1.0, 1.0);
         let th0 = k4.dot(&xwp.cross(&xsp)).atan2(xwp.dot(&xsp));
-        let al = c.acos();
-        let mut th4s = [th0 - al, th0 + al];
-        let n4 = if al < 1e-12 || PI - al < 1e-12 {
-            th4s[0] = th0 + al;
+        // Near the stretched (α = π) and folded (α = 0) elbow, acos amplifies rounding
+        // (δc ≈ 1e-16 → δα ≈ 1e-8); snap to a single branch there. The distance error of the
+        // snap is ≲ r_w r_s / d · (1e-6)² / 2, far below the 1e-9 verification tolerance.
+        let mut al = c.acos();
+        let n4 = if al < 1e-6 {
+            al = 0.0;
+            1
+        } else if PI - al < 1e-6 {
+            al = PI;
             1
         } else {
             2
         };
+        let th4s = [th0 + al, th0 - al];
         // Target frame for ψ.
         let (nv, un) = Self::target_frame(&u);
         let (sp, cp) = psi.sin_cos();
@@ -666,9 +675,8 @@ impl SrsArm {
             all.extend_from_slice(&out[..n]);
         }
         let sort_by = |all: &mut Vec<[f64; 7]>, seed: &[f64; 7], wts: &[f64; 7]| {
-            let dist = |q: &[f64; 7]| -> f64 {
-                (0..7).map(|j| wts[j] * (q[j] - seed[j]).powi(2)).sum()
-            };
+            let dist =
+                |q: &[f64; 7]| -> f64 { (0..7).map(|j| wts[j] * (q[j] - seed[j]).powi(2)).sum() };
             all.sort_by(|a, b| dist(a).total_cmp(&dist(b)));
         };
         match order {
@@ -714,7 +722,10 @@ mod tests {
             effort: 1.0,
             bounded: true,
         };
-        assert_eq!(into_limits(0.2 + 2.0 * PI, &l).map(|v| (v - 0.2).abs() < 1e-12), Some(true));
+        assert_eq!(
+            into_limits(0.2 + 2.0 * PI, &l).map(|v| (v - 0.2).abs() < 1e-12),
+            Some(true)
+        );
         assert_eq!(into_limits(2.0, &l), None);
     }
 }
