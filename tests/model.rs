@@ -11,15 +11,32 @@ fn root() -> PathBuf {
 
 fn load(name: &str) -> Robot {
     let d = root().join("robots");
-    Robot::from_files(&d.join(format!("{name}.urdf")), Some(&d.join(format!("{name}.srdf")))).unwrap()
+    Robot::from_files(
+        &d.join(format!("{name}.urdf")),
+        Some(&d.join(format!("{name}.srdf"))),
+    )
+    .unwrap()
 }
 
 #[test]
 fn armar_has_20_dof_and_its_groups() {
     let r = load("armar");
     assert_eq!(r.dof(), 20);
-    for (g, n) in [("left_arm", 7), ("right_arm", 7), ("hip", 3), ("base", 3), ("both_arms", 14), ("torso_left_arm", 10), ("torso_right_arm", 10), ("whole_body", 20)] {
-        assert_eq!(r.group(g).unwrap_or_else(|| panic!("group {g}")).vars.len(), n, "group {g}");
+    for (g, n) in [
+        ("left_arm", 7),
+        ("right_arm", 7),
+        ("hip", 3),
+        ("base", 3),
+        ("both_arms", 14),
+        ("torso_left_arm", 10),
+        ("torso_right_arm", 10),
+        ("whole_body", 20),
+    ] {
+        assert_eq!(
+            r.group(g).unwrap_or_else(|| panic!("group {g}")).vars.len(),
+            n,
+            "group {g}"
+        );
     }
     assert!(r.group("right_arm").unwrap().chain.is_some());
     assert!(r.end_effector("left_hand").is_some() && r.end_effector("right_hand").is_some());
@@ -47,7 +64,10 @@ fn shipped_robots_round_trip_through_urdf() {
         for (a, b) in r.joints.iter().zip(&r2.joints) {
             assert_eq!(a.name, b.name);
             assert_eq!(a.kind, b.kind);
-            assert!((a.limits.lower - b.limits.lower).abs() < 1e-12 && (a.limits.upper - b.limits.upper).abs() < 1e-12);
+            assert!(
+                (a.limits.lower - b.limits.lower).abs() < 1e-12
+                    && (a.limits.upper - b.limits.upper).abs() < 1e-12
+            );
             assert!((a.origin.translation.vector - b.origin.translation.vector).norm() < 1e-12);
             assert!(a.origin.rotation.angle_to(&b.origin.rotation) < 1e-9);
         }
@@ -63,19 +83,39 @@ fn to_urdf(r: &Robot) -> String {
     let origin = |p: &manyhands::geometry::Pose| {
         let t = p.translation.vector;
         let rpy = quat_to_rpy(&p.rotation);
-        format!("<origin xyz=\"{:.17} {:.17} {:.17}\" rpy=\"{:.17} {:.17} {:.17}\"/>", t.x, t.y, t.z, rpy[0], rpy[1], rpy[2])
+        format!(
+            "<origin xyz=\"{:.17} {:.17} {:.17}\" rpy=\"{:.17} {:.17} {:.17}\"/>",
+            t.x, t.y, t.z, rpy[0], rpy[1], rpy[2]
+        )
     };
     for l in &r.links {
         s += &format!("<link name=\"{}\">", l.name);
         for g in &l.collision {
             let geo = match &g.shape {
-                Shape::Box { half_extents: h } => format!("<box size=\"{} {} {}\"/>", 2.0 * h.x, 2.0 * h.y, 2.0 * h.z),
-                Shape::Cylinder { radius, half_length } => format!("<cylinder radius=\"{radius}\" length=\"{}\"/>", 2.0 * half_length),
+                Shape::Box { half_extents: h } => {
+                    format!("<box size=\"{} {} {}\"/>", 2.0 * h.x, 2.0 * h.y, 2.0 * h.z)
+                }
+                Shape::Cylinder {
+                    radius,
+                    half_length,
+                } => format!(
+                    "<cylinder radius=\"{radius}\" length=\"{}\"/>",
+                    2.0 * half_length
+                ),
                 Shape::Sphere { radius } => format!("<sphere radius=\"{radius}\"/>"),
-                Shape::Capsule { radius, half_length } => format!("<capsule radius=\"{radius}\" length=\"{}\"/>", 2.0 * half_length),
+                Shape::Capsule {
+                    radius,
+                    half_length,
+                } => format!(
+                    "<capsule radius=\"{radius}\" length=\"{}\"/>",
+                    2.0 * half_length
+                ),
                 Shape::Mesh(_) => unreachable!("shipped robots use primitives"),
             };
-            s += &format!("<collision>{}<geometry>{geo}</geometry></collision>", origin(&g.origin));
+            s += &format!(
+                "<collision>{}<geometry>{geo}</geometry></collision>",
+                origin(&g.origin)
+            );
         }
         s += "</link>\n";
     }
@@ -110,24 +150,39 @@ fn good_minimal_urdf_loads() {
 fn missing_link_is_named() {
     let e = urdf_err(&GOOD.replace("<child link=\"b\"/>", "<child link=\"nope\"/>"));
     let s = e.to_string();
-    assert!(s.contains("joint name=\"j\"") && s.contains("unknown link 'nope'"), "{s}");
+    assert!(
+        s.contains("joint name=\"j\"") && s.contains("unknown link 'nope'"),
+        "{s}"
+    );
 }
 
 #[test]
 fn bad_limit_is_named() {
     let e = urdf_err(&GOOD.replace("lower=\"-1\" upper=\"1\"", "lower=\"2\" upper=\"1\""));
-    assert!(e.to_string().contains("<limit>") && e.to_string().contains("lower 2 > upper 1"), "{e}");
+    assert!(
+        e.to_string().contains("<limit>") && e.to_string().contains("lower 2 > upper 1"),
+        "{e}"
+    );
     let e = urdf_err(&GOOD.replace("upper=\"1\"", "upper=\"abc\""));
-    assert!(e.to_string().contains("upper=\"abc\" is not a number"), "{e}");
+    assert!(
+        e.to_string().contains("upper=\"abc\" is not a number"),
+        "{e}"
+    );
     let e = urdf_err(&GOOD.replace(" velocity=\"1\"", ""));
     assert!(e.to_string().contains("missing attribute velocity"), "{e}");
 }
 
 #[test]
 fn unknown_mesh_is_named() {
-    let e = urdf_err(&GOOD.replace("<box size=\"0.1 0.1 0.1\"/>", "<mesh filename=\"package://x/meshes/missing.stl\"/>"));
+    let e = urdf_err(&GOOD.replace(
+        "<box size=\"0.1 0.1 0.1\"/>",
+        "<mesh filename=\"package://x/meshes/missing.stl\"/>",
+    ));
     let s = e.to_string();
-    assert!(s.contains("<mesh>") && s.contains("missing.stl") && s.contains("not found"), "{s}");
+    assert!(
+        s.contains("<mesh>") && s.contains("missing.stl") && s.contains("not found"),
+        "{s}"
+    );
 }
 
 #[test]
@@ -145,7 +200,10 @@ fn missing_joint_in_srdf_is_named() {
     let srdf = r#"<robot name="t"><group name="g"><joint name="ghost"/></group></robot>"#;
     let e = Robot::from_strings(GOOD, Some(srdf), Path::new(".")).unwrap_err();
     let s = e.to_string();
-    assert!(s.contains("group name=\"g\"") && s.contains("ghost") && s.contains("unknown joint"), "{s}");
+    assert!(
+        s.contains("group name=\"g\"") && s.contains("ghost") && s.contains("unknown joint"),
+        "{s}"
+    );
 }
 
 #[test]
@@ -158,7 +216,8 @@ fn unsupported_and_malformed_input() {
     assert!(s.contains("malformed"), "{s}");
     let s = urdf_err(&GOOD.replace("<box size=\"0.1 0.1 0.1\"/>", "<cone r=\"1\"/>")).to_string();
     assert!(s.contains("unknown geometry 'cone'"), "{s}");
-    let s = urdf_err(&GOOD.replace("<link name=\"b\"/>", "<link name=\"b\"/><link name=\"c\"/>")).to_string();
+    let s = urdf_err(&GOOD.replace("<link name=\"b\"/>", "<link name=\"b\"/><link name=\"c\"/>"))
+        .to_string();
     assert!(s.contains("separate trees"), "{s}");
 }
 
@@ -186,7 +245,13 @@ fn shipped_scenes_load() {
     }
     let k = &scenes["kitchen"];
     let wok = k.object("wok").expect("wok");
-    assert_eq!(wok.grasps.iter().filter(|g| g.end_effector == "right_hand").count(), 15);
+    assert_eq!(
+        wok.grasps
+            .iter()
+            .filter(|g| g.end_effector == "right_hand")
+            .count(),
+        15
+    );
     assert!(k.object("plate").is_some());
     assert_eq!(k.robots[0].robot.dof(), 20);
 }
@@ -199,23 +264,56 @@ fn scene_errors_name_the_field() {
     v["robots"][0]["configs"]["start"]["right_elbow"] = serde_json::json!(4.2);
     let json: SceneJson = serde_json::from_value(v.clone()).unwrap();
     let e = Scene::from_json(json, "k.json", Path::new("."), &lib).unwrap_err();
-    assert_eq!(e.element(), Some("robots[0].configs.start.right_elbow"), "{e}");
+    assert_eq!(
+        e.element(),
+        Some("robots[0].configs.start.right_elbow"),
+        "{e}"
+    );
     assert!(e.to_string().contains("outside limit"), "{e}");
 
     let mut v2 = v.clone();
     v2["robots"][0]["configs"]["start"] = serde_json::json!({});
     v2["robots"][0]["model"] = serde_json::json!("r2d2");
-    let e = Scene::from_json(serde_json::from_value(v2).unwrap(), "k.json", Path::new("."), &lib).unwrap_err();
+    let e = Scene::from_json(
+        serde_json::from_value(v2).unwrap(),
+        "k.json",
+        Path::new("."),
+        &lib,
+    )
+    .unwrap_err();
     assert_eq!(e.element(), Some("robots[0].model"), "{e}");
 
     let mut v3 = v;
     v3["robots"][0]["configs"]["start"] = serde_json::json!({});
-    v3["obstacles"][0]["shapes"][0] = serde_json::json!({"type": "box", "half_extents": [0.1, -0.2, 0.3]});
-    let e = Scene::from_json(serde_json::from_value(v3).unwrap(), "k.json", Path::new("."), &lib).unwrap_err();
-    assert_eq!(e.element(), Some("obstacles[0].shapes[0].half_extents[1]"), "{e}");
+    v3["obstacles"][0]["shapes"][0] =
+        serde_json::json!({"type": "box", "half_extents": [0.1, -0.2, 0.3]});
+    let e = Scene::from_json(
+        serde_json::from_value(v3).unwrap(),
+        "k.json",
+        Path::new("."),
+        &lib,
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.element(),
+        Some("obstacles[0].shapes[0].half_extents[1]"),
+        "{e}"
+    );
 
-    let e = Scene::from_str("{\"name\": \"x\", \"obstacles\": [{\"name\": 3}]}", "bad.json", Path::new("."), &lib).unwrap_err();
+    let e = Scene::from_str(
+        "{\"name\": \"x\", \"obstacles\": [{\"name\": 3}]}",
+        "bad.json",
+        Path::new("."),
+        &lib,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("bad.json"), "{e}");
-    let e = Scene::from_str("{\"name\": \"x\", \"bogus\": 1}", "bad.json", Path::new("."), &lib).unwrap_err();
+    let e = Scene::from_str(
+        "{\"name\": \"x\", \"bogus\": 1}",
+        "bad.json",
+        Path::new("."),
+        &lib,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("bogus"), "{e}");
 }

@@ -8,7 +8,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::json;
 
-use manyhands::collision::{random_boxes, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, RandomBoxes};
+use manyhands::collision::{
+    random_boxes, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, RandomBoxes,
+};
 use manyhands::geometry::Pose;
 use manyhands::kinematics::numeric::NumericIk;
 use manyhands::kinematics::srs::SrsArm;
@@ -66,9 +68,20 @@ fn print_rows(ctx: &Ctx, rows: &[Row]) {
         println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
         return;
     }
-    println!("{:<46} {:>12} {:>12} {:>8}  {:<14} note", "measurement", "median", "mean", "n", "target");
+    println!(
+        "{:<46} {:>12} {:>12} {:>8}  {:<14} note",
+        "measurement", "median", "mean", "n", "target"
+    );
     for r in rows {
-        println!("{:<46} {:>12} {:>12} {:>8}  {:<14} {}", r.what, fmt_ns(r.median_ns), fmt_ns(r.mean_ns), r.n, r.target, r.note);
+        println!(
+            "{:<46} {:>12} {:>12} {:>8}  {:<14} {}",
+            r.what,
+            fmt_ns(r.median_ns),
+            fmt_ns(r.mean_ns),
+            r.n,
+            r.target,
+            r.note
+        );
     }
 }
 
@@ -80,17 +93,27 @@ fn fmt_ns(ns: f64) -> String {
     }
 }
 
-/// Times `f` once per input and returns (median, mean) in ns.
+/// Times `f` once per input and returns (median, mean) in ns, with the clock's own cost (the
+/// median of timing an empty call) subtracted.
 fn time_each<T>(inputs: &[T], mut f: impl FnMut(&T)) -> (f64, f64) {
     // Warm-up.
     for x in inputs.iter().take(100) {
         f(x);
     }
+    let mut overhead: Vec<f64> = (0..1000)
+        .map(|_| {
+            let s = Instant::now();
+            std::hint::black_box(());
+            s.elapsed().as_nanos() as f64
+        })
+        .collect();
+    overhead.sort_by(|a, b| a.total_cmp(b));
+    let clock = overhead[overhead.len() / 2];
     let mut t: Vec<f64> = Vec::with_capacity(inputs.len());
     for x in inputs {
         let s = Instant::now();
         f(x);
-        t.push(s.elapsed().as_nanos() as f64);
+        t.push((s.elapsed().as_nanos() as f64 - clock).max(0.0));
     }
     let mean = t.iter().sum::<f64>() / t.len().max(1) as f64;
     t.sort_by(|a, b| a.total_cmp(b));
@@ -104,7 +127,12 @@ fn random_configs(scene: &Scene, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>
     let base_vars: Vec<Vec<usize>> = scene
         .robots
         .iter()
-        .map(|p| p.robot.group("base").map(|g| g.vars.clone()).unwrap_or_default())
+        .map(|p| {
+            p.robot
+                .group("base")
+                .map(|g| g.vars.clone())
+                .unwrap_or_default()
+        })
         .collect();
     (0..n)
         .map(|_| {
@@ -115,7 +143,12 @@ fn random_configs(scene: &Scene, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>
                 for v in 0..r.dof() {
                     let l = r.var_limits(v);
                     q[off + v] = if base_vars[ri].contains(&v) {
-                        let w = if r.joints[r.vars[v]].kind == manyhands::model::JointKind::Prismatic { 0.3 } else { 0.5 };
+                        let w =
+                            if r.joints[r.vars[v]].kind == manyhands::model::JointKind::Prismatic {
+                                0.3
+                            } else {
+                                0.5
+                            };
                         (start[off + v] + rng.random_range(-w..w)).clamp(l.lower, l.upper)
                     } else {
                         rng.random_range(l.lower..=l.upper)
@@ -132,7 +165,15 @@ fn collision_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
     let lib = ctx.library()?;
     let kitchen = ctx.scene("kitchen")?;
     let empty = ctx.scene("empty")?;
-    let boxes = random_boxes(&empty, &RandomBoxes { count: 30, seed, lo: [-1.2, -1.2, 0.1], hi: [1.2, 1.2, 1.8], ..RandomBoxes::default() }, &lib)?;
+    let boxes = random_boxes(
+        &empty,
+        &RandomBoxes {
+            count: 30,
+            seed,
+            ..RandomBoxes::default()
+        },
+        &lib,
+    )?;
     let mut rows = Vec::new();
     for (label, scene) in [("kitchen", &kitchen), ("30 random boxes", &boxes)] {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -146,7 +187,11 @@ fn collision_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
                 fast_hits += 1;
             }
         });
-        let free: Vec<Vec<f64>> = configs.iter().filter(|q| fast.is_free(q)).cloned().collect();
+        let free: Vec<Vec<f64>> = configs
+            .iter()
+            .filter(|q| fast.is_free(q))
+            .cloned()
+            .collect();
         let (ffm, ffmean) = time_each(&free, |q| {
             std::hint::black_box(fast.is_free(q));
         });
@@ -163,7 +208,11 @@ fn collision_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
             median_ns: fm,
             mean_ns: fmean,
             n: configs.len(),
-            note: format!("{:.0} % in collision (incl. warm-up), {} body pairs", 100.0 * fast_hits as f64 / (configs.len() + 100) as f64, fast.pair_count()),
+            note: format!(
+                "{:.0} % in collision (incl. warm-up), {} body pairs",
+                100.0 * fast_hits as f64 / (configs.len() + 100) as f64,
+                fast.pair_count()
+            ),
             target: "≤ 2 µs",
         });
         rows.push(Row {
@@ -179,7 +228,10 @@ fn collision_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
             median_ns: em,
             mean_ns: emean,
             n: n_exact,
-            note: format!("{:.0} % in collision", 100.0 * exact_hits as f64 / (n_exact + 100) as f64),
+            note: format!(
+                "{:.0} % in collision",
+                100.0 * exact_hits as f64 / (n_exact + 100) as f64
+            ),
             target: "reference",
         });
     }
@@ -196,16 +248,31 @@ fn kinematics_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
         forward(&armar, &Pose::identity(), q, &mut poses);
         std::hint::black_box(&poses);
     });
-    rows.push(Row { what: format!("FK as isometries, all {} links of armar", armar.links.len()), median_ns: m, mean_ns: mean, n: samples, note: "kinematics::forward".into(), target: "≤ 1 µs" });
+    rows.push(Row {
+        what: format!("FK as isometries, all {} links of armar", armar.links.len()),
+        median_ns: m,
+        mean_ns: mean,
+        n: samples,
+        note: "kinematics::forward".into(),
+        target: "≤ 1 µs",
+    });
     let model = FkModel::new(&armar);
     let mut frames = vec![Frame::identity(); armar.links.len()];
     let (m, mean) = time_each(&configs, |q| {
         model.compute(&Frame::identity(), q, &mut frames);
         std::hint::black_box(&frames);
     });
-    rows.push(Row { what: format!("FK as frames, all {} links of armar", armar.links.len()), median_ns: m, mean_ns: mean, n: samples, note: "kinematics::FkModel (collision hot path)".into(), target: "≤ 1 µs" });
+    rows.push(Row {
+        what: format!("FK as frames, all {} links of armar", armar.links.len()),
+        median_ns: m,
+        mean_ns: mean,
+        n: samples,
+        note: "kinematics::FkModel (collision hot path)".into(),
+        target: "≤ 1 µs",
+    });
 
-    let chain = Chain::from_group(&armar, "right_arm").ok_or_else(|| anyhow!("armar has no right_arm chain"))?;
+    let chain = Chain::from_group(&armar, "right_arm")
+        .ok_or_else(|| anyhow!("armar has no right_arm chain"))?;
     let arm = SrsArm::new(&armar, &chain)?;
     let targets: Vec<(Pose, f64)> = configs
         .iter()
@@ -227,13 +294,18 @@ fn kinematics_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
         median_ns: m,
         mean_ns: mean,
         n: samples,
-        note: format!("{:.2} solutions per call within limits", found as f64 / (samples + 100) as f64),
+        note: format!(
+            "{:.2} solutions per call within limits",
+            found as f64 / (samples + 100) as f64
+        ),
         target: "≤ 5 µs",
     });
 
     let mut ik = NumericIk::new(&armar, &chain);
     let n_num = (samples / 20).clamp(50, 2000);
-    let seed_q = armar.named_config("home").unwrap_or_else(|| armar.zero_config());
+    let seed_q = armar
+        .named_config("home")
+        .unwrap_or_else(|| armar.zero_config());
     let mut ok = 0usize;
     let (m, mean) = time_each(&targets[..n_num], |(t, _)| {
         if ik.solve(t, &seed_q, &mut rng).is_ok() {
@@ -245,7 +317,10 @@ fn kinematics_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
         median_ns: m,
         mean_ns: mean,
         n: n_num,
-        note: format!("{:.0} % solved", 100.0 * ok as f64 / (n_num + n_num.min(100)) as f64),
+        note: format!(
+            "{:.0} % solved",
+            100.0 * ok as f64 / (n_num + n_num.min(100)) as f64
+        ),
         target: "—",
     });
     Ok(rows)

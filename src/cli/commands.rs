@@ -47,7 +47,10 @@ impl Ctx {
         let p = Path::new(name);
         if p.extension().and_then(|e| e.to_str()) == Some("urdf") {
             let srdf = p.with_extension("srdf");
-            return Ok(Arc::new(Robot::from_files(p, srdf.is_file().then_some(srdf.as_path()))?));
+            return Ok(Arc::new(Robot::from_files(
+                p,
+                srdf.is_file().then_some(srdf.as_path()),
+            )?));
         }
         let lib = self.library()?;
         lib.get(name).cloned().ok_or_else(|| {
@@ -72,7 +75,11 @@ impl Ctx {
     /// Prints JSON (with `--json`) or text; a closed pipe (`| head`) is not an error.
     pub fn print(&self, v: &Value, text: impl FnOnce() -> String) {
         use std::io::Write;
-        let s = if self.json { serde_json::to_string_pretty(v).unwrap_or_default() } else { text() };
+        let s = if self.json {
+            serde_json::to_string_pretty(v).unwrap_or_default()
+        } else {
+            text()
+        };
         let _ = writeln!(std::io::stdout().lock(), "{s}");
     }
 }
@@ -81,18 +88,37 @@ pub fn robot_list(ctx: &Ctx) -> Result<()> {
     let lib = ctx.library()?;
     let mut names: Vec<_> = lib.iter().map(|(k, r)| (k.clone(), r.dof())).collect();
     names.sort();
-    let v = json!(names.iter().map(|(n, d)| json!({"name": n, "dof": d})).collect::<Vec<_>>());
-    ctx.print(&v, || names.iter().map(|(n, d)| format!("{n}\t{d} DoF")).collect::<Vec<_>>().join("\n"));
+    let v = json!(names
+        .iter()
+        .map(|(n, d)| json!({"name": n, "dof": d}))
+        .collect::<Vec<_>>());
+    ctx.print(&v, || {
+        names
+            .iter()
+            .map(|(n, d)| format!("{n}\t{d} DoF"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    });
     Ok(())
 }
 
 fn shape_json(s: &Shape) -> Value {
     match s {
-        Shape::Box { half_extents } => json!({"type": "box", "half_extents": [half_extents.x, half_extents.y, half_extents.z]}),
-        Shape::Cylinder { radius, half_length } => json!({"type": "cylinder", "radius": radius, "length": 2.0 * half_length}),
+        Shape::Box { half_extents } => {
+            json!({"type": "box", "half_extents": [half_extents.x, half_extents.y, half_extents.z]})
+        }
+        Shape::Cylinder {
+            radius,
+            half_length,
+        } => json!({"type": "cylinder", "radius": radius, "length": 2.0 * half_length}),
         Shape::Sphere { radius } => json!({"type": "sphere", "radius": radius}),
-        Shape::Capsule { radius, half_length } => json!({"type": "capsule", "radius": radius, "length": 2.0 * half_length}),
-        Shape::Mesh(m) => json!({"type": "mesh", "source": m.source, "vertices": m.vertices.len(), "triangles": m.triangles.len()}),
+        Shape::Capsule {
+            radius,
+            half_length,
+        } => json!({"type": "capsule", "radius": radius, "length": 2.0 * half_length}),
+        Shape::Mesh(m) => {
+            json!({"type": "mesh", "source": m.source, "vertices": m.vertices.len(), "triangles": m.triangles.len()})
+        }
     }
 }
 
@@ -134,27 +160,52 @@ pub fn robot_show(ctx: &Ctx, name: &str) -> Result<()> {
         .iter()
         .map(|e| json!({"name": e.name, "parent_link": r.links[e.parent_link].name, "group": e.group, "parent_group": e.parent_group}))
         .collect();
-    let states: Vec<Value> = r.group_states.iter().map(|s| json!({"name": s.name, "group": s.group})).collect();
+    let states: Vec<Value> = r
+        .group_states
+        .iter()
+        .map(|s| json!({"name": s.name, "group": s.group}))
+        .collect();
     let v = json!({
         "name": r.name, "dof": r.dof(), "links": links, "joints": joints, "groups": groups,
         "end_effectors": eefs, "group_states": states,
         "disabled_collision_pairs": r.disabled_reasons.len(), "warnings": r.warnings,
     });
     ctx.print(&v, || {
-        let mut s = format!("robot {}: {} DoF, {} links, {} joints\n", r.name, r.dof(), r.links.len(), r.joints.len());
+        let mut s = format!(
+            "robot {}: {} DoF, {} links, {} joints\n",
+            r.name,
+            r.dof(),
+            r.links.len(),
+            r.joints.len()
+        );
         s += "joints (variables):\n";
         for v in 0..r.dof() {
             let j = &r.joints[r.vars[v]];
-            s += &format!("  {:2} {:<22} {:<10} [{:>8.4}, {:>8.4}]  vel {:.2} effort {:.1}\n", v, j.name, j.kind.name(), j.limits.lower, j.limits.upper, j.limits.velocity, j.limits.effort);
+            s += &format!(
+                "  {:2} {:<22} {:<10} [{:>8.4}, {:>8.4}]  vel {:.2} effort {:.1}\n",
+                v,
+                j.name,
+                j.kind.name(),
+                j.limits.lower,
+                j.limits.upper,
+                j.limits.velocity,
+                j.limits.effort
+            );
         }
         s += "groups:\n";
         for g in &r.groups {
-            let chain = g.chain.map(|(b, t)| format!(" chain {} → {}", r.links[b].name, r.links[t].name)).unwrap_or_default();
+            let chain = g
+                .chain
+                .map(|(b, t)| format!(" chain {} → {}", r.links[b].name, r.links[t].name))
+                .unwrap_or_default();
             s += &format!("  {:<18} {:2} DoF{}\n", g.name, g.vars.len(), chain);
         }
         s += "end effectors:\n";
         for e in &r.end_effectors {
-            s += &format!("  {} at {} (group {})\n", e.name, r.links[e.parent_link].name, e.group);
+            s += &format!(
+                "  {} at {} (group {})\n",
+                e.name, r.links[e.parent_link].name, e.group
+            );
         }
         s += "named states: ";
         let mut names: Vec<&str> = r.group_states.iter().map(|s| s.name.as_str()).collect();
@@ -162,7 +213,11 @@ pub fn robot_show(ctx: &Ctx, name: &str) -> Result<()> {
         s += &names.join(", ");
         s += "\nlinks and collision shapes:\n";
         for l in &r.links {
-            let shapes: Vec<String> = l.collision.iter().map(|g| g.shape.kind().to_string()).collect();
+            let shapes: Vec<String> = l
+                .collision
+                .iter()
+                .map(|g| g.shape.kind().to_string())
+                .collect();
             s += &format!("  {:<24} {}\n", l.name, shapes.join(" "));
         }
         s += &format!("disabled collision pairs: {}", r.disabled_reasons.len());
@@ -177,42 +232,74 @@ pub fn robot_show(ctx: &Ctx, name: &str) -> Result<()> {
 /// Parses a configuration: either `dof` numbers (comma/space separated) or `joint=value` pairs
 /// applied on top of `base`.
 pub fn parse_config(robot: &Robot, text: &str, base: &[f64]) -> Result<Vec<f64>> {
-    let parts: Vec<&str> = text.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()).collect();
+    let parts: Vec<&str> = text
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .collect();
     if parts.iter().all(|p| !p.contains('=')) {
-        let q: Vec<f64> = parts.iter().map(|p| p.parse::<f64>().with_context(|| format!("--config: '{p}' is not a number"))).collect::<Result<_>>()?;
-        robot.check_config(&q).map_err(|e| anyhow!("--config: {e}"))?;
+        let q: Vec<f64> = parts
+            .iter()
+            .map(|p| {
+                p.parse::<f64>()
+                    .with_context(|| format!("--config: '{p}' is not a number"))
+            })
+            .collect::<Result<_>>()?;
+        robot
+            .check_config(&q)
+            .map_err(|e| anyhow!("--config: {e}"))?;
         return Ok(q);
     }
     let mut map = std::collections::BTreeMap::new();
     for p in parts {
-        let (k, v) = p.split_once('=').ok_or_else(|| anyhow!("--config: '{p}' is not joint=value"))?;
-        map.insert(k.to_string(), v.parse::<f64>().with_context(|| format!("--config: '{v}' is not a number"))?);
+        let (k, v) = p
+            .split_once('=')
+            .ok_or_else(|| anyhow!("--config: '{p}' is not joint=value"))?;
+        map.insert(
+            k.to_string(),
+            v.parse::<f64>()
+                .with_context(|| format!("--config: '{v}' is not a number"))?,
+        );
     }
-    robot.config_from_map(base, &map).map_err(|e| anyhow!("--config: {e}"))
+    robot
+        .config_from_map(base, &map)
+        .map_err(|e| anyhow!("--config: {e}"))
 }
 
 fn parse_pose(text: &str) -> Result<Pose> {
     let v: Vec<f64> = text
         .split(|c: char| c == ',' || c.is_whitespace())
         .filter(|s| !s.is_empty())
-        .map(|p| p.parse::<f64>().with_context(|| format!("--pose: '{p}' is not a number")))
+        .map(|p| {
+            p.parse::<f64>()
+                .with_context(|| format!("--pose: '{p}' is not a number"))
+        })
         .collect::<Result<_>>()?;
     if v.iter().any(|x| !x.is_finite()) {
         bail!("--pose: values must be finite");
     }
     match v.len() {
         6 => Ok(iso_from_rpy([v[0], v[1], v[2]], [v[3], v[4], v[5]])),
-        7 => manyhands::geometry::PoseJson { position: Some([v[0], v[1], v[2]]), rpy: None, quat_xyzw: Some([v[3], v[4], v[5], v[6]]) }
-            .to_pose()
-            .map_err(|e| anyhow!("--pose: {e}")),
-        n => bail!("--pose: expected 6 values (x y z roll pitch yaw) or 7 (x y z qx qy qz qw), got {n}"),
+        7 => manyhands::geometry::PoseJson {
+            position: Some([v[0], v[1], v[2]]),
+            rpy: None,
+            quat_xyzw: Some([v[3], v[4], v[5], v[6]]),
+        }
+        .to_pose()
+        .map_err(|e| anyhow!("--pose: {e}")),
+        n => bail!(
+            "--pose: expected 6 values (x y z roll pitch yaw) or 7 (x y z qx qy qz qw), got {n}"
+        ),
     }
 }
 
 fn start_config(robot: &Robot, named: Option<&str>, config: Option<&str>) -> Result<Vec<f64>> {
     let base = match named {
-        Some(n) => robot.named_config(n).ok_or_else(|| anyhow!("--named: robot '{}' has no group state '{n}'", robot.name))?,
-        None => robot.named_config("home").unwrap_or_else(|| robot.zero_config()),
+        Some(n) => robot
+            .named_config(n)
+            .ok_or_else(|| anyhow!("--named: robot '{}' has no group state '{n}'", robot.name))?,
+        None => robot
+            .named_config("home")
+            .unwrap_or_else(|| robot.zero_config()),
     };
     match config {
         Some(c) => parse_config(robot, c, &base),
@@ -241,7 +328,9 @@ pub fn fk(ctx: &Ctx, a: &FkArgs) -> Result<()> {
     let mut poses = vec![Pose::identity(); r.links.len()];
     forward(&r, &Pose::identity(), &q, &mut poses);
     let links: Vec<usize> = match &a.link {
-        Some(l) => vec![r.link(l).ok_or_else(|| anyhow!("--link: unknown link '{l}'"))?],
+        Some(l) => vec![r
+            .link(l)
+            .ok_or_else(|| anyhow!("--link: unknown link '{l}'"))?],
         None => (0..r.links.len()).collect(),
     };
     let v = json!({"robot": r.name, "config": q, "links": links.iter().map(|&l| json!({"link": r.links[l].name, "pose": pose_json(&poses[l])})).collect::<Vec<_>>()});
@@ -251,7 +340,10 @@ pub fn fk(ctx: &Ctx, a: &FkArgs) -> Result<()> {
             .map(|&l| {
                 let t = poses[l].translation.vector;
                 let rpy = quat_to_rpy(&poses[l].rotation);
-                format!("{:<24} xyz [{:>8.4} {:>8.4} {:>8.4}]  rpy [{:>7.4} {:>7.4} {:>7.4}]", r.links[l].name, t.x, t.y, t.z, rpy[0], rpy[1], rpy[2])
+                format!(
+                    "{:<24} xyz [{:>8.4} {:>8.4} {:>8.4}]  rpy [{:>7.4} {:>7.4} {:>7.4}]",
+                    r.links[l].name, t.x, t.y, t.z, rpy[0], rpy[1], rpy[2]
+                )
             })
             .collect::<Vec<_>>()
             .join("\n")
@@ -294,7 +386,13 @@ pub struct IkArgs {
 pub fn ik(ctx: &Ctx, a: &IkArgs) -> Result<()> {
     let r = ctx.robot(&a.robot)?;
     let q0 = start_config(&r, None, a.config.as_deref())?;
-    let chain = Chain::from_group(&r, &a.group).ok_or_else(|| anyhow!("--group: '{}' is not a chain group of robot '{}'", a.group, r.name))?;
+    let chain = Chain::from_group(&r, &a.group).ok_or_else(|| {
+        anyhow!(
+            "--group: '{}' is not a chain group of robot '{}'",
+            a.group,
+            r.name
+        )
+    })?;
     let target_in = parse_pose(&a.pose)?;
     let base_pose = manyhands::kinematics::link_pose(&r, &q0, chain.base_link);
     let target = match a.frame.as_str() {
@@ -373,13 +471,22 @@ pub fn check(ctx: &Ctx, a: &CheckArgs) -> Result<()> {
     let mut q = CollisionWorld::start_config(&scene);
     if !scene.robots.is_empty() {
         let ri = match &a.robot {
-            Some(n) => scene.robots.iter().position(|r| &r.name == n).ok_or_else(|| anyhow!("--robot: no robot '{n}' in scene"))?,
+            Some(n) => scene
+                .robots
+                .iter()
+                .position(|r| &r.name == n)
+                .ok_or_else(|| anyhow!("--robot: no robot '{n}' in scene"))?,
             None => 0,
         };
         let p = &scene.robots[ri];
         let mut base = p.start_config();
         if let Some(n) = &a.named {
-            base = p.configs.get(n).cloned().or_else(|| p.robot.named_config(n)).ok_or_else(|| anyhow!("--named: no configuration '{n}'"))?;
+            base = p
+                .configs
+                .get(n)
+                .cloned()
+                .or_else(|| p.robot.named_config(n))
+                .ok_or_else(|| anyhow!("--named: no configuration '{n}'"))?;
         }
         let qr = match &a.config {
             Some(c) => parse_config(&p.robot, c, &base)?,
@@ -396,7 +503,10 @@ pub fn check(ctx: &Ctx, a: &CheckArgs) -> Result<()> {
         "fast_checker": {"collision": cf.is_some(), "pair": cf.as_ref().map(|c| [c.a.clone(), c.b.clone()])}});
     ctx.print(&v, || match (&ce, &cf) {
         (Some(c), _) => format!("collision: {} <-> {}", c.a, c.b),
-        (None, Some(c)) => format!("free (exact); the fast checker's conservative model touches {} <-> {}", c.a, c.b),
+        (None, Some(c)) => format!(
+            "free (exact); the fast checker's conservative model touches {} <-> {}",
+            c.a, c.b
+        ),
         (None, None) => "free".to_string(),
     });
     Ok(())
@@ -406,7 +516,22 @@ pub fn scene_list(ctx: &Ctx) -> Result<()> {
     let lib = ctx.library()?;
     let scenes = load_scene_dir(&ctx.scenes_dir, &lib)?;
     let v = json!(scenes.values().map(|s| json!({"name": s.name, "robots": s.robots.len(), "obstacles": s.obstacles.len(), "objects": s.objects.len()})).collect::<Vec<_>>());
-    ctx.print(&v, || scenes.values().map(|s| format!("{:<12} {} robots, {} obstacles, {} objects — {}", s.name, s.robots.len(), s.obstacles.len(), s.objects.len(), s.description)).collect::<Vec<_>>().join("\n"));
+    ctx.print(&v, || {
+        scenes
+            .values()
+            .map(|s| {
+                format!(
+                    "{:<12} {} robots, {} obstacles, {} objects — {}",
+                    s.name,
+                    s.robots.len(),
+                    s.obstacles.len(),
+                    s.objects.len(),
+                    s.description
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    });
     Ok(())
 }
 
@@ -427,7 +552,15 @@ pub struct RandomBoxesArgs {
 pub fn random_boxes(ctx: &Ctx, a: &RandomBoxesArgs) -> Result<()> {
     let lib = ctx.library()?;
     let base = ctx.scene(&a.base)?;
-    let s = gen_boxes(&base, &RandomBoxes { count: a.boxes, seed: a.seed, ..RandomBoxes::default() }, &lib)?;
+    let s = gen_boxes(
+        &base,
+        &RandomBoxes {
+            count: a.boxes,
+            seed: a.seed,
+            ..RandomBoxes::default()
+        },
+        &lib,
+    )?;
     let text = serde_json::to_string_pretty(&s.json)?;
     match &a.out {
         Some(p) => std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?,

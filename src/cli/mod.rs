@@ -9,7 +9,11 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser, Debug)]
-#[command(name = "manyhands", version, about = "Multi-robot grasp-and-motion planning")]
+#[command(
+    name = "manyhands",
+    version,
+    about = "Multi-robot grasp-and-motion planning"
+)]
 pub struct Cli {
     /// Folder of robot models (NAME.urdf + NAME.srdf). Default: ./robots, else the shipped ones.
     #[arg(long, global = true, env = "MANYHANDS_ROBOTS")]
@@ -72,13 +76,21 @@ pub fn run() -> Result<()> {
     let cli = Cli::parse();
     let ctx = commands::Ctx::new(&cli);
     match &cli.command {
-        Command::Robot { cmd: RobotCmd::List } => commands::robot_list(&ctx),
-        Command::Robot { cmd: RobotCmd::Show { robot } } => commands::robot_show(&ctx, robot),
+        Command::Robot {
+            cmd: RobotCmd::List,
+        } => commands::robot_list(&ctx),
+        Command::Robot {
+            cmd: RobotCmd::Show { robot },
+        } => commands::robot_show(&ctx, robot),
         Command::Fk(a) => commands::fk(&ctx, a),
         Command::Ik(a) => commands::ik(&ctx, a),
         Command::Check(a) => commands::check(&ctx, a),
-        Command::Scene { cmd: SceneCmd::List } => commands::scene_list(&ctx),
-        Command::Scene { cmd: SceneCmd::RandomBoxes(a) } => commands::random_boxes(&ctx, a),
+        Command::Scene {
+            cmd: SceneCmd::List,
+        } => commands::scene_list(&ctx),
+        Command::Scene {
+            cmd: SceneCmd::RandomBoxes(a),
+        } => commands::random_boxes(&ctx, a),
         Command::Bench { cmd } => bench::run(&ctx, cmd),
     }
 }

@@ -1,13 +1,13 @@
 //! The planners' collision checker: a conservative primitive model, no allocation per check.
 //!
-//! Every shape becomes one primitive: spheres stay spheres, boxes stay oriented boxes (OBB),
-//! meshes become the box around their vertices, cylinders and capsules keep their exact form
-//! where the other side is a sphere and use their enclosing box where it is a box. Each body
-//! (link, attached object, fixed body) has a bounding sphere tested first; the pair list is
-//! precomputed from [`CollisionWorld::pairs`]. Because each primitive contains the exact shape,
+//! Every shape becomes one primitive with an exact, closed-form or support-function test:
+//! spheres, oriented boxes (separating axes), cylinders and capsules (closed form against
+//! spheres, boolean GJK against boxes and each other); meshes become the box around their
+//! vertices (a conservative superset). Each body (link, attached object, fixed body) has a
+//! bounding sphere, fixed bodies a world-aligned box; these are tested first, and the pair list
+//! is precomputed from [`CollisionWorld::pairs`]. Every primitive is inflated by 1e-9 m, so
 //! whenever [`super::ExactChecker`] reports a collision this checker does too; the largest
-//! over-approximation is reported by [`FastChecker::max_overapproximation`] (0.415 · radius of the
-//! largest cylinder or capsule met by a box).
+//! over-approximation is reported by [`FastChecker::max_overapproximation`] (≈ 0 without meshes).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -64,19 +64,28 @@ impl Prim {
         let c = origin.translation.vector;
         let rot = *origin.rotation.to_rotation_matrix().matrix();
         match shape {
-            Shape::Sphere { radius } => Prim::Sphere { c, r: radius + pad + EPS },
+            Shape::Sphere { radius } => Prim::Sphere {
+                c,
+                r: radius + pad + EPS,
+            },
             Shape::Box { half_extents } => Prim::Obb {
                 c,
                 rot,
                 half: half_extents.add_scalar(pad + EPS),
             },
-            Shape::Cylinder { radius, half_length } => Prim::Cylinder {
+            Shape::Cylinder {
+                radius,
+                half_length,
+            } => Prim::Cylinder {
                 c,
                 rot,
                 r: radius + pad + EPS,
                 h: half_length + pad + EPS,
             },
-            Shape::Capsule { radius, half_length } => Prim::Capsule {
+            Shape::Capsule {
+                radius,
+                half_length,
+            } => Prim::Capsule {
                 c,
                 rot,
                 r: radius + pad + EPS,
@@ -103,10 +112,27 @@ impl Prim {
     #[inline]
     fn transformed(&self, r: &Matrix3<f64>, t: &Vector3<f64>) -> Prim {
         match *self {
-            Prim::Sphere { c, r: rad } => Prim::Sphere { c: r * c + t, r: rad },
-            Prim::Obb { c, rot, half } => Prim::Obb { c: r * c + t, rot: r * rot, half },
-            Prim::Cylinder { c, rot, r: rad, h } => Prim::Cylinder { c: r * c + t, rot: r * rot, r: rad, h },
-            Prim::Capsule { c, rot, r: rad, h } => Prim::Capsule { c: r * c + t, rot: r * rot, r: rad, h },
+            Prim::Sphere { c, r: rad } => Prim::Sphere {
+                c: r * c + t,
+                r: rad,
+            },
+            Prim::Obb { c, rot, half } => Prim::Obb {
+                c: r * c + t,
+                rot: r * rot,
+                half,
+            },
+            Prim::Cylinder { c, rot, r: rad, h } => Prim::Cylinder {
+                c: r * c + t,
+                rot: r * rot,
+                r: rad,
+                h,
+            },
+            Prim::Capsule { c, rot, r: rad, h } => Prim::Capsule {
+                c: r * c + t,
+                rot: r * rot,
+                r: rad,
+                h,
+            },
         }
     }
 
@@ -116,6 +142,50 @@ impl Prim {
             Prim::Obb { c, half, .. } => (c, half.norm()),
             Prim::Cylinder { c, r, h, .. } => (c, (r * r + h * h).sqrt()),
             Prim::Capsule { c, r, h, .. } => (c, r + h),
+        }
+    }
+
+    /// Farthest point of the primitive in direction `d` (for GJK).
+    #[inline]
+    fn support(&self, d: &Vector3<f64>) -> Vector3<f64> {
+        match *self {
+            Prim::Sphere { c, r } => {
+                let n = d.norm();
+                if n > 0.0 {
+                    c + d * (r / n)
+                } else {
+                    c
+                }
+            }
+            Prim::Obb { c, rot, half } => {
+                let l = rot.tr_mul(d);
+                c + rot
+                    * Vector3::new(
+                        half.x.copysign(l.x),
+                        half.y.copysign(l.y),
+                        half.z.copysign(l.z),
+                    )
+            }
+            Prim::Cylinder { c, rot, r, h } => {
+                let l = rot.tr_mul(d);
+                let rad = (l.x * l.x + l.y * l.y).sqrt();
+                let (x, y) = if rad > 0.0 {
+                    (l.x * r / rad, l.y * r / rad)
+                } else {
+                    (0.0, 0.0)
+                };
+                c + rot * Vector3::new(x, y, h.copysign(l.z))
+            }
+            Prim::Capsule { c, rot, r, h } => {
+                let n = d.norm();
+                let ax = rot.column(2).into_owned();
+                let end = if ax.dot(d) >= 0.0 { ax * h } else { -ax * h };
+                if n > 0.0 {
+                    c + end + d * (r / n)
+                } else {
+                    c + end
+                }
+            }
         }
     }
 
@@ -144,14 +214,24 @@ fn sphere_hits(c: &Vector3<f64>, r: f64, other: &Prim) -> bool {
             );
             d.norm_squared() <= r * r
         }
-        Prim::Cylinder { c: c2, rot, r: rc, h } => {
+        Prim::Cylinder {
+            c: c2,
+            rot,
+            r: rc,
+            h,
+        } => {
             let p = rot.tr_mul(&(c - c2));
             let radial = (p.x * p.x + p.y * p.y).sqrt();
             let dr = (radial - rc).max(0.0);
             let dz = (p.z.abs() - h).max(0.0);
             dr * dr + dz * dz <= r * r
         }
-        Prim::Capsule { c: c2, rot, r: rc, h } => {
+        Prim::Capsule {
+            c: c2,
+            rot,
+            r: rc,
+            h,
+        } => {
             let p = rot.tr_mul(&(c - c2));
             let z = p.z.clamp(-h, h);
             let d2 = p.x * p.x + p.y * p.y + (p.z - z) * (p.z - z);
@@ -211,11 +291,19 @@ fn obb_obb(
 #[inline]
 fn prims_hit(a: &Prim, b: &Prim) -> bool {
     match (a, b) {
-        (Prim::Sphere { c, r }, other) | (other, Prim::Sphere { c, r }) => sphere_hits(c, *r, other),
+        (Prim::Sphere { c, r }, other) | (other, Prim::Sphere { c, r }) => {
+            sphere_hits(c, *r, other)
+        }
         _ => {
             let (ca, ra, ha) = a.as_obb();
             let (cb, rb, hb) = b.as_obb();
-            obb_obb(&ca, &ra, &ha, &cb, &rb, &hb)
+            if !obb_obb(&ca, &ra, &ha, &cb, &rb, &hb) {
+                return false;
+            }
+            if matches!((a, b), (Prim::Obb { .. }, Prim::Obb { .. })) {
+                return true;
+            }
+            super::gjk::intersect(|d| a.support(d), |d| b.support(d), cb - ca)
         }
     }
 }
@@ -287,6 +375,13 @@ pub struct FastChecker {
     moving: Vec<MovingBody>,
     statics: Vec<StaticBodyModel>,
     pairs: Vec<Pair>,
+    /// `(static body, first pair, end pair)` for the pairs against fixed bodies.
+    static_groups: Vec<(u32, u32, u32)>,
+    /// Index of the first moving–moving pair.
+    self_start: usize,
+    /// Box around the bounding spheres of all moving bodies (per check).
+    moving_lo: Vector3<f64>,
+    moving_hi: Vector3<f64>,
     fk: Vec<FkModel>,
     bases: Vec<Frame>,
     // Per-check buffers.
@@ -311,7 +406,11 @@ impl FastChecker {
         let mut index_of = std::collections::HashMap::new();
         let mut start = 0;
         let mut overapprox: f64 = 0.0;
-        let mut push_body = |id: BodyId, mount: Mount, rel: Option<Frame>, shapes: &[crate::geometry::Geometry], moving: &mut Vec<MovingBody>| {
+        let mut push_body = |id: BodyId,
+                             mount: Mount,
+                             rel: Option<Frame>,
+                             shapes: &[crate::geometry::Geometry],
+                             moving: &mut Vec<MovingBody>| {
             let local: Vec<Prim> = shapes
                 .iter()
                 .map(|g| Prim::from_shape(&g.origin, &g.shape, settings.padding))
@@ -319,19 +418,42 @@ impl FastChecker {
             let (bc, br) = bounding_of(&local);
             index_of.insert(id, moving.len());
             let n = local.len();
-            moving.push(MovingBody { id, mount, rel, local, bc, br, start });
+            moving.push(MovingBody {
+                id,
+                mount,
+                rel,
+                local,
+                bc,
+                br,
+                start,
+            });
             start += n;
         };
         for (r, p) in world.robots.iter().enumerate() {
             for (l, link) in p.robot.links.iter().enumerate() {
                 if !link.collision.is_empty() {
-                    push_body(BodyId::Link { robot: r, link: l }, Mount { robot: r, link: l }, None, &link.collision, &mut moving);
+                    push_body(
+                        BodyId::Link { robot: r, link: l },
+                        Mount { robot: r, link: l },
+                        None,
+                        &link.collision,
+                        &mut moving,
+                    );
                 }
             }
         }
         for (a, at) in world.attached.iter().enumerate() {
             if !at.shapes.is_empty() {
-                push_body(BodyId::Attached(a), Mount { robot: at.robot, link: at.link }, Some(Frame::from_pose(&at.rel)), &at.shapes, &mut moving);
+                push_body(
+                    BodyId::Attached(a),
+                    Mount {
+                        robot: at.robot,
+                        link: at.link,
+                    },
+                    Some(Frame::from_pose(&at.rel)),
+                    &at.shapes,
+                    &mut moving,
+                );
             }
         }
         let mut statics = Vec::new();
@@ -349,12 +471,21 @@ impl FastChecker {
                     (p, lo, hi)
                 })
                 .collect();
-            let lo = prims.iter().fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(&p.1));
-            let hi = prims.iter().fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(&p.2));
+            let lo = prims
+                .iter()
+                .fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(&p.1));
+            let hi = prims
+                .iter()
+                .fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(&p.2));
             static_index.insert(BodyId::Static(s), statics.len());
-            statics.push(StaticBodyModel { id: BodyId::Static(s), prims, lo, hi });
+            statics.push(StaticBodyModel {
+                id: BodyId::Static(s),
+                prims,
+                lo,
+                hi,
+            });
         }
-        // Over-approximation of the box form of cylinders and capsules (met only by boxes).
+        // Only meshes (replaced by the box around their vertices) are over-approximated.
         let shapes = world
             .robots
             .iter()
@@ -363,21 +494,57 @@ impl FastChecker {
             .chain(world.statics.iter().flat_map(|s| s.shapes.iter()));
         for g in shapes {
             let o = match g.shape {
-                Shape::Cylinder { radius, .. } => radius * (2f64.sqrt() - 1.0),
-                Shape::Capsule { radius, .. } => radius * (3f64.sqrt() - 1.0),
                 Shape::Mesh(_) => f64::INFINITY,
-                _ => 0.0,
+                _ => 2.0 * EPS,
             };
             overapprox = overapprox.max(o);
         }
         overapprox += settings.padding;
         let mut pairs = Vec::new();
         for (a, b) in world.pairs() {
-            match (index_of.get(&a), index_of.get(&b), static_index.get(&b), static_index.get(&a)) {
-                (Some(&ia), Some(&ib), _, _) => pairs.push(Pair { a: ia as u32, b: ib as u32, b_static: false }),
-                (Some(&ia), None, Some(&sb), _) => pairs.push(Pair { a: ia as u32, b: sb as u32, b_static: true }),
-                (None, Some(&ib), _, Some(&sa)) => pairs.push(Pair { a: ib as u32, b: sa as u32, b_static: true }),
+            match (
+                index_of.get(&a),
+                index_of.get(&b),
+                static_index.get(&b),
+                static_index.get(&a),
+            ) {
+                (Some(&ia), Some(&ib), _, _) => pairs.push(Pair {
+                    a: ia as u32,
+                    b: ib as u32,
+                    b_static: false,
+                }),
+                (Some(&ia), None, Some(&sb), _) => pairs.push(Pair {
+                    a: ia as u32,
+                    b: sb as u32,
+                    b_static: true,
+                }),
+                (None, Some(&ib), _, Some(&sa)) => pairs.push(Pair {
+                    a: ib as u32,
+                    b: sa as u32,
+                    b_static: true,
+                }),
                 _ => {}
+            }
+        }
+        // Pairs against fixed bodies grouped per fixed body (a whole group is skipped when the
+        // body's box misses the box around all moving bodies), then moving–moving pairs.
+        pairs.sort_by_key(|p| {
+            if p.b_static {
+                (0, p.b, p.a)
+            } else {
+                (1, p.a, p.b)
+            }
+        });
+        let mut static_groups: Vec<(u32, u32, u32)> = Vec::new();
+        let mut self_start = pairs.len();
+        for (i, p) in pairs.iter().enumerate() {
+            if !p.b_static {
+                self_start = i;
+                break;
+            }
+            match static_groups.last_mut() {
+                Some(g) if g.0 == p.b => g.2 = i as u32 + 1,
+                _ => static_groups.push((p.b, i as u32, i as u32 + 1)),
             }
         }
         let link_poses = world
@@ -385,21 +552,39 @@ impl FastChecker {
             .iter()
             .map(|p: &PlacedRobot| vec![Frame::identity(); p.robot.links.len()])
             .collect();
-        let fk = world.robots.iter().map(|p| FkModel::new(&p.robot)).collect();
-        let bases = world.robots.iter().map(|p| Frame::from_pose(&p.base)).collect();
+        let fk = world
+            .robots
+            .iter()
+            .map(|p| FkModel::new(&p.robot))
+            .collect();
+        let bases = world
+            .robots
+            .iter()
+            .map(|p| Frame::from_pose(&p.base))
+            .collect();
         let nb = moving.len();
         FastChecker {
             world: world.clone(),
             moving,
             statics,
             pairs,
+            static_groups,
+            self_start,
+            moving_lo: Vector3::zeros(),
+            moving_hi: Vector3::zeros(),
             fk,
             bases,
             link_poses,
             body_rot: vec![Matrix3::identity(); nb],
             body_t: vec![Vector3::zeros(); nb],
             body_bc: vec![Vector3::zeros(); nb],
-            world_prims: vec![Prim::Sphere { c: Vector3::zeros(), r: 0.0 }; start],
+            world_prims: vec![
+                Prim::Sphere {
+                    c: Vector3::zeros(),
+                    r: 0.0
+                };
+                start
+            ],
             prims_ready: vec![0; nb],
             epoch: 0,
             checks: 0,
@@ -427,18 +612,29 @@ impl FastChecker {
     fn prepare(&mut self, q: &[f64]) {
         for (r, p) in self.world.robots.iter().enumerate() {
             let dof = p.robot.dof();
-            self.fk[r].compute(&self.bases[r], &q[p.offset..p.offset + dof], &mut self.link_poses[r]);
+            self.fk[r].compute(
+                &self.bases[r],
+                &q[p.offset..p.offset + dof],
+                &mut self.link_poses[r],
+            );
         }
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
         for (i, b) in self.moving.iter().enumerate() {
             let lp = &self.link_poses[b.mount.robot][b.mount.link];
             let f = match &b.rel {
                 Some(rel) => lp.mul(rel),
                 None => *lp,
             };
-            self.body_bc[i] = f.rot * b.bc + f.t;
+            let c = f.rot * b.bc + f.t;
+            lo = lo.inf(&c.add_scalar(-b.br));
+            hi = hi.sup(&c.add_scalar(b.br));
+            self.body_bc[i] = c;
             self.body_rot[i] = f.rot;
             self.body_t[i] = f.t;
         }
+        self.moving_lo = lo;
+        self.moving_hi = hi;
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
             self.prims_ready.iter_mut().for_each(|e| *e = 0);
@@ -463,44 +659,59 @@ impl FastChecker {
     fn find(&mut self, q: &[f64]) -> Option<usize> {
         self.checks += 1;
         self.prepare(q);
-        for pi in 0..self.pairs.len() {
-            let p = self.pairs[pi];
-            let a = p.a as usize;
-            let b = p.b as usize;
-            let ra = self.moving[a].br;
-            if p.b_static {
-                let s = &self.statics[b];
-                if dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) > ra * ra {
-                    continue;
-                }
-                self.ensure_prims(a);
-                let ma = &self.moving[a];
-                let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
-                let s = &self.statics[b];
-                for x in pa {
-                    let (xc, xr) = x.bounding();
-                    for (y, lo, hi) in &s.prims {
-                        if dist2_point_aabb(&xc, lo, hi) <= xr * xr && prims_hit(x, y) {
-                            return Some(pi);
-                        }
-                    }
-                }
-            } else {
-                let rr = ra + self.moving[b].br;
-                if (self.body_bc[a] - self.body_bc[b]).norm_squared() > rr * rr {
-                    continue;
-                }
-                self.ensure_prims(a);
-                self.ensure_prims(b);
-                let (ma, mb) = (&self.moving[a], &self.moving[b]);
-                let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
-                let pb = &self.world_prims[mb.start..mb.start + mb.local.len()];
-                if pa.iter().any(|x| pb.iter().any(|y| prims_hit(x, y))) {
+        for g in 0..self.static_groups.len() {
+            let (sb, first, end) = self.static_groups[g];
+            let s = &self.statics[sb as usize];
+            if (0..3).any(|k| s.lo[k] > self.moving_hi[k] || s.hi[k] < self.moving_lo[k]) {
+                continue;
+            }
+            for pi in first as usize..end as usize {
+                if self.static_pair_hits(pi) {
                     return Some(pi);
                 }
             }
         }
+        for pi in self.self_start..self.pairs.len() {
+            let p = self.pairs[pi];
+            let (a, b) = (p.a as usize, p.b as usize);
+            let rr = self.moving[a].br + self.moving[b].br;
+            if (self.body_bc[a] - self.body_bc[b]).norm_squared() > rr * rr {
+                continue;
+            }
+            self.ensure_prims(a);
+            self.ensure_prims(b);
+            let (ma, mb) = (&self.moving[a], &self.moving[b]);
+            let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
+            let pb = &self.world_prims[mb.start..mb.start + mb.local.len()];
+            if pa.iter().any(|x| pb.iter().any(|y| prims_hit(x, y))) {
+                return Some(pi);
+            }
+        }
         None
+    }
+
+    #[inline]
+    fn static_pair_hits(&mut self, pi: usize) -> bool {
+        let p = self.pairs[pi];
+        let (a, b) = (p.a as usize, p.b as usize);
+        let ra = self.moving[a].br;
+        let s = &self.statics[b];
+        if dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) > ra * ra {
+            return false;
+        }
+        self.ensure_prims(a);
+        let ma = &self.moving[a];
+        let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
+        let s = &self.statics[b];
+        for x in pa {
+            let (xc, xr) = x.bounding();
+            for (y, lo, hi) in &s.prims {
+                if dist2_point_aabb(&xc, lo, hi) <= xr * xr && prims_hit(x, y) {
+                    return true;
+                }
+            }
+        }
+        false
     }
 }
 
@@ -568,15 +779,28 @@ mod tests {
     fn obb_separation_on_edge_axes() {
         // Two unit cubes, one turned 45° about z: corner-to-face distances decide.
         let a = obb([0.0, 0.0, 0.0], 0.0, [0.5, 0.5, 0.5]);
-        let touching = obb([0.5 + 0.70, 0.0, 0.0], std::f64::consts::FRAC_PI_4, [0.5, 0.5, 0.5]);
-        let apart = obb([0.5 + 0.72, 0.0, 0.0], std::f64::consts::FRAC_PI_4, [0.5, 0.5, 0.5]);
+        let touching = obb(
+            [0.5 + 0.70, 0.0, 0.0],
+            std::f64::consts::FRAC_PI_4,
+            [0.5, 0.5, 0.5],
+        );
+        let apart = obb(
+            [0.5 + 0.72, 0.0, 0.0],
+            std::f64::consts::FRAC_PI_4,
+            [0.5, 0.5, 0.5],
+        );
         assert!(prims_hit(&a, &touching));
         assert!(!prims_hit(&a, &apart));
     }
 
     #[test]
     fn sphere_against_cylinder_is_exact() {
-        let cyl = Prim::Cylinder { c: Vector3::zeros(), rot: Matrix3::identity(), r: 0.1, h: 0.2 };
+        let cyl = Prim::Cylinder {
+            c: Vector3::zeros(),
+            rot: Matrix3::identity(),
+            r: 0.1,
+            h: 0.2,
+        };
         // Beside the mantle.
         assert!(sphere_hits(&Vector3::new(0.149, 0.0, 0.0), 0.05, &cyl));
         assert!(!sphere_hits(&Vector3::new(0.151, 0.0, 0.0), 0.05, &cyl));
@@ -587,7 +811,12 @@ mod tests {
 
     #[test]
     fn sphere_against_capsule_and_box() {
-        let cap = Prim::Capsule { c: Vector3::zeros(), rot: Matrix3::identity(), r: 0.1, h: 0.2 };
+        let cap = Prim::Capsule {
+            c: Vector3::zeros(),
+            rot: Matrix3::identity(),
+            r: 0.1,
+            h: 0.2,
+        };
         assert!(sphere_hits(&Vector3::new(0.0, 0.0, 0.349), 0.05, &cap));
         assert!(!sphere_hits(&Vector3::new(0.0, 0.0, 0.351), 0.05, &cap));
         let b = obb([0.0, 0.0, 0.0], 0.0, [0.1, 0.2, 0.3]);

@@ -40,7 +40,11 @@ impl Default for RandomBoxes {
 /// Adds `count` randomly placed and oriented boxes to `base`, rejecting every box that touches
 /// a robot at its start configuration (checked with the exact checker) or another box. The same
 /// seed gives the same scene.
-pub fn random_boxes(base: &Scene, p: &RandomBoxes, robots: &RobotLibrary) -> Result<Scene, ModelError> {
+pub fn random_boxes(
+    base: &Scene,
+    p: &RandomBoxes,
+    robots: &RobotLibrary,
+) -> Result<Scene, ModelError> {
     let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
     let mut json = base.json.clone();
     json.name = format!("{}_{}boxes_seed{}", base.name, p.count, p.seed);
@@ -57,7 +61,10 @@ pub fn random_boxes(base: &Scene, p: &RandomBoxes, robots: &RobotLibrary) -> Res
             return Err(ModelError::invalid(
                 "random_boxes",
                 "count",
-                format!("placed only {added} of {} boxes in {} tries", p.count, p.max_tries),
+                format!(
+                    "placed only {added} of {} boxes in {} tries",
+                    p.count, p.max_tries
+                ),
             ));
         }
         let mut pos = [0.0; 3];
@@ -88,10 +95,19 @@ pub fn random_boxes(base: &Scene, p: &RandomBoxes, robots: &RobotLibrary) -> Res
         };
         let mut trial = json.clone();
         trial.obstacles.push(body.clone());
-        let scene = Scene::from_json(trial.clone(), "random_boxes", std::path::Path::new("."), robots)?;
+        let scene = Scene::from_json(
+            trial.clone(),
+            "random_boxes",
+            std::path::Path::new("."),
+            robots,
+        )?;
         // The new box alone against robots and the other boxes.
         let mut world = CollisionWorld::from_scene(&scene);
-        let new_idx = world.statics.iter().position(|s| s.name == body.name).unwrap_or(0);
+        let new_idx = world
+            .statics
+            .iter()
+            .position(|s| s.name == body.name)
+            .unwrap_or(0);
         let new_box = world.statics.remove(new_idx);
         let others = std::mem::take(&mut world.statics);
         world.statics.push(new_box.clone());

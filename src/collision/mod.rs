@@ -11,6 +11,7 @@
 mod exact;
 mod fast;
 mod generate;
+mod gjk;
 mod motion;
 mod world;
 

@@ -53,7 +53,7 @@ impl PoseJson {
                     return Err("quat_xyzw: values must be finite".into());
                 }
                 let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-                if !(n > 1e-9) {
+                if n.is_nan() || n <= 1e-9 {
                     return Err("quat_xyzw: zero quaternion".into());
                 }
                 UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]))

@@ -7,6 +7,9 @@ use super::fk::joint_motion;
 use crate::geometry::Pose;
 use crate::model::{JointKind, Robot};
 
+/// Joint axis in the base frame, a point on it, Jacobian column, multiplier, joint kind.
+type AxisEntry = (Vector3<f64>, Vector3<f64>, usize, f64, JointKind);
+
 /// A serial chain between two links of a robot.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chain {
@@ -77,7 +80,7 @@ impl Chain {
         jac.fill(0.0);
         // Joint frames along the chain.
         let mut pose = Pose::identity();
-        let mut axes: [(Vector3<f64>, Vector3<f64>, usize, f64, JointKind); 64] =
+        let mut axes: [AxisEntry; 64] =
             [(Vector3::zeros(), Vector3::zeros(), 0, 0.0, JointKind::Fixed); 64];
         let mut n = 0;
         for &ji in &self.joints {

@@ -177,11 +177,16 @@ impl FkModel {
                 FkJoint {
                     parent: j.parent as u32,
                     child: j.child as u32,
-                    kind: if var == u32::MAX { JointKind::Fixed } else { j.kind },
+                    kind: if var == u32::MAX {
+                        JointKind::Fixed
+                    } else {
+                        j.kind
+                    },
                     axis_kind,
                     axis: a,
                     origin,
-                    origin_rot_identity: (origin.rot - nalgebra::Matrix3::identity()).abs().max() < 1e-15,
+                    origin_rot_identity: (origin.rot - nalgebra::Matrix3::identity()).abs().max()
+                        < 1e-15,
                     var,
                     mul,
                     off,
@@ -241,11 +246,18 @@ fn rotate_about_axis(
 ) -> nalgebra::Matrix3<f64> {
     let (x, y, z) = (r.column(0), r.column(1), r.column(2));
     match kind {
-        AxisKind::Z => nalgebra::Matrix3::from_columns(&[x * c + y * s, y * c - x * s, z.into_owned()]),
-        AxisKind::Y => nalgebra::Matrix3::from_columns(&[x * c - z * s, y.into_owned(), x * s + z * c]),
-        AxisKind::X => nalgebra::Matrix3::from_columns(&[x.into_owned(), y * c + z * s, z * c - y * s]),
+        AxisKind::Z => {
+            nalgebra::Matrix3::from_columns(&[x * c + y * s, y * c - x * s, z.into_owned()])
+        }
+        AxisKind::Y => {
+            nalgebra::Matrix3::from_columns(&[x * c - z * s, y.into_owned(), x * s + z * c])
+        }
+        AxisKind::X => {
+            nalgebra::Matrix3::from_columns(&[x.into_owned(), y * c + z * s, z * c - y * s])
+        }
         AxisKind::General => {
-            r * nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_unchecked(*axis), v).matrix()
+            r * nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_unchecked(*axis), v)
+                .matrix()
         }
     }
 }

@@ -12,7 +12,11 @@ use super::{ModelError, Robot, RobotLibrary, Scene};
 pub fn load_robot_dir(dir: &Path) -> Result<RobotLibrary, ModelError> {
     let mut lib = RobotLibrary::new();
     for p in sorted_files(dir, "urdf")? {
-        let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("robot").to_string();
+        let stem = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("robot")
+            .to_string();
         let srdf = p.with_extension("srdf");
         let robot = Robot::from_files(&p, srdf.is_file().then_some(srdf.as_path()))?;
         lib.insert(stem, Arc::new(robot));
@@ -21,10 +25,17 @@ pub fn load_robot_dir(dir: &Path) -> Result<RobotLibrary, ModelError> {
 }
 
 /// Loads `dir/*.json` as scenes, keyed by file stem.
-pub fn load_scene_dir(dir: &Path, robots: &RobotLibrary) -> Result<BTreeMap<String, Scene>, ModelError> {
+pub fn load_scene_dir(
+    dir: &Path,
+    robots: &RobotLibrary,
+) -> Result<BTreeMap<String, Scene>, ModelError> {
     let mut out = BTreeMap::new();
     for p in sorted_files(dir, "json")? {
-        let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
+        let stem = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("scene")
+            .to_string();
         out.insert(stem, Scene::from_file(&p, robots)?);
     }
     Ok(out)

@@ -16,6 +16,6 @@ pub use robot::{
     EndEffector, Group, GroupState, Joint, JointKind, Limits, Link, Mimic, Robot, RobotLibrary,
 };
 pub use scene::{
-    Body, BodyJson, ContactPoint, GeometryJson, Grasp, GraspJson, GraspType, Object, RobotPlacement,
-    RobotPlacementJson, Scene, SceneJson,
+    Body, BodyJson, ContactPoint, GeometryJson, Grasp, GraspJson, GraspType, Object,
+    RobotPlacement, RobotPlacementJson, Scene, SceneJson,
 };

@@ -1,0 +1,178 @@
+//! The `manyhands` command on real inputs: robot show, fk, ik, check, scene random-boxes.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_manyhands"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run manyhands");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn json(args: &[&str]) -> Value {
+    let (code, out, err) = run(args);
+    assert_eq!(code, 0, "{args:?}: {err}");
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("{args:?}: {e}: {out}"))
+}
+
+#[test]
+fn robot_show_lists_dof_joints_groups_and_shapes() {
+    let v = json(&["robot", "show", "armar", "--json"]);
+    assert_eq!(v["dof"], 20);
+    let groups: Vec<&str> = v["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| g["name"].as_str().unwrap())
+        .collect();
+    for g in [
+        "left_arm",
+        "right_arm",
+        "hip",
+        "base",
+        "both_arms",
+        "torso_left_arm",
+        "torso_right_arm",
+        "whole_body",
+    ] {
+        assert!(groups.contains(&g), "{g}");
+    }
+    let elbow = v["joints"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|j| j["name"] == "right_elbow")
+        .unwrap();
+    assert!(
+        elbow["limits"]["lower"].as_f64().unwrap() < elbow["limits"]["upper"].as_f64().unwrap()
+    );
+    assert!(v["links"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|l| !l["collision"].as_array().unwrap().is_empty()));
+    let (code, out, _) = run(&["robot", "show", "justin"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("43 DoF"), "{out}");
+    let v = json(&[
+        "robot",
+        "show",
+        "../shared/benchmarks/mbm/panda/panda_spherized.urdf",
+        "--json",
+    ]);
+    assert_eq!(v["dof"], 7);
+}
+
+#[test]
+fn fk_then_ik_returns_the_pose() {
+    let fk = json(&[
+        "fk",
+        "armar",
+        "--config",
+        "right_shoulder_1=-1.0,right_elbow=-1.2,right_wrist_1=0.4",
+        "--link",
+        "right_tcp",
+        "--json",
+    ]);
+    let p = &fk["links"][0]["pose"];
+    let vals: Vec<String> = p["position"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .chain(p["rpy"].as_array().unwrap())
+        .map(|x| x.to_string())
+        .collect();
+    let pose = vals.join(",");
+    for extra in [vec![], vec!["--numeric"]] {
+        let mut args = vec!["ik", "armar", "--group", "right_arm", "--json"];
+        let pose_arg = format!("--pose={pose}");
+        args.push(&pose_arg);
+        args.extend(extra.iter().copied());
+        let ik = json(&args);
+        let sols = ik["solutions"].as_array().unwrap();
+        assert!(!sols.is_empty(), "{ik}");
+        // Check the first solution by FK.
+        let names = ik["joints"].as_array().unwrap();
+        let cfg: Vec<String> = names
+            .iter()
+            .zip(sols[0].as_array().unwrap())
+            .map(|(n, v)| format!("{}={}", n.as_str().unwrap(), v))
+            .collect();
+        let back = json(&[
+            "fk",
+            "armar",
+            "--config",
+            &cfg.join(","),
+            "--link",
+            "right_tcp",
+            "--json",
+        ]);
+        let a = &back["links"][0]["pose"]["position"];
+        for k in 0..3 {
+            assert!(
+                (a[k].as_f64().unwrap() - p["position"][k].as_f64().unwrap()).abs() < 1e-9,
+                "{a} vs {}",
+                p["position"]
+            );
+        }
+    }
+}
+
+#[test]
+fn ik_of_an_unreachable_pose_fails_cleanly() {
+    let (code, _, err) = run(&["ik", "armar", "--group", "right_arm", "--pose=3,0,1,0,0,0"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("no IK solution"), "{err}");
+    let (code, _, err) = run(&["ik", "armar", "--group", "nope", "--pose=0,0,1,0,0,0"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--group"), "{err}");
+}
+
+#[test]
+fn check_names_the_colliding_pair() {
+    let v = json(&["check", "kitchen", "--json"]);
+    assert_eq!(v["collision"], false);
+    let v = json(&["check", "kitchen", "--config", "base_x=0.5", "--json"]);
+    assert_eq!(v["collision"], true);
+    let pair = v["pair"].as_array().unwrap();
+    assert!(pair.iter().any(|p| p == "obstacle:counter"), "{v}");
+    assert_eq!(v["fast_checker"]["collision"], true);
+    let (code, _, err) = run(&["check", "kitchen", "--config", "right_elbow=4.2"]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("right_elbow") && err.contains("outside limit"),
+        "{err}"
+    );
+}
+
+#[test]
+fn random_boxes_scene_is_written_and_loads() {
+    let path = std::env::temp_dir().join(format!("manyhands-boxes-{}.json", std::process::id()));
+    let p = path.to_str().unwrap();
+    let (code, _, err) = run(&[
+        "scene",
+        "random-boxes",
+        "--base",
+        "empty",
+        "--boxes",
+        "12",
+        "--seed",
+        "4",
+        "--out",
+        p,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v = json(&["check", p, "--json"]);
+    assert_eq!(v["collision"], false);
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.matches("box_").count() >= 12);
+    let _ = std::fs::remove_file(&path);
+}

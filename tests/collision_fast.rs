@@ -1,0 +1,196 @@
+//! The fast checker against the exact one: never "free" where exact says collision, and "free"
+//! wherever exact says free with a margin of at least the fast model's over-approximation.
+
+use std::path::PathBuf;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use manyhands::collision::{
+    random_boxes, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, MotionValidator,
+    RandomBoxes,
+};
+use manyhands::model::{load_robot_dir, JointKind, RobotLibrary};
+use manyhands::Scene;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn library() -> RobotLibrary {
+    load_robot_dir(&root().join("robots")).unwrap()
+}
+
+fn scene(name: &str, lib: &RobotLibrary) -> Scene {
+    Scene::from_file(&root().join(format!("scenes/{name}.json")), lib).unwrap()
+}
+
+/// Base joints near the start (±0.3 m, ±0.5 rad), every other joint uniform in its limits.
+fn random_config(
+    scene: &Scene,
+    world: &CollisionWorld,
+    start: &[f64],
+    rng: &mut ChaCha8Rng,
+) -> Vec<f64> {
+    let mut q = start.to_vec();
+    for (ri, p) in world.robots.iter().enumerate() {
+        let r = &p.robot;
+        let base: Vec<usize> = scene.robots[ri]
+            .robot
+            .group("base")
+            .map(|g| g.vars.clone())
+            .unwrap_or_default();
+        for v in 0..r.dof() {
+            let l = r.var_limits(v);
+            let i = p.offset + v;
+            q[i] = if base.contains(&v) {
+                let w = if r.joints[r.vars[v]].kind == JointKind::Prismatic {
+                    0.3
+                } else {
+                    0.5
+                };
+                (start[i] + rng.random_range(-w..w)).clamp(l.lower, l.upper)
+            } else {
+                rng.random_range(l.lower..=l.upper)
+            };
+        }
+    }
+    q
+}
+
+/// Compares both checkers on `n` random configurations; returns (collisions, free-with-margin).
+fn compare(scene: &Scene, world: &CollisionWorld, n: usize, seed: u64) -> (usize, usize) {
+    let mut fast = FastChecker::new(world);
+    let mut exact = ExactChecker::new(world);
+    let margin = fast.max_overapproximation() + 1e-9;
+    assert!(
+        margin.is_finite() && margin < 0.1,
+        "over-approximation {margin}"
+    );
+    let start = CollisionWorld::start_config(scene);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (mut hits, mut clear) = (0, 0);
+    for k in 0..n {
+        let q = random_config(scene, world, &start, &mut rng);
+        let f = fast.is_free(&q);
+        if !exact.is_free(&q) {
+            hits += 1;
+            assert!(
+                !f,
+                "sample {k}: exact finds {:?} but fast says free; q = {q:?}",
+                exact.first_contact(&q)
+            );
+        } else if exact.is_free_with_margin(&q, margin) {
+            clear += 1;
+            assert!(
+                f,
+                "sample {k}: exact is free by {margin} m but fast finds {:?}; q = {q:?}",
+                fast.first_contact(&q)
+            );
+        }
+    }
+    assert_eq!(fast.checks(), n as u64);
+    (hits, clear)
+}
+
+#[test]
+fn fast_agrees_with_exact_on_100k_armar_configurations_in_kitchen() {
+    let lib = library();
+    let s = scene("kitchen", &lib);
+    let world = CollisionWorld::from_scene(&s);
+    let (hits, clear) = compare(&s, &world, 100_000, 7);
+    // Both outcomes must be well represented, or the test proves little.
+    assert!(
+        hits > 20_000 && clear > 20_000,
+        "collisions {hits}, free with margin {clear}"
+    );
+}
+
+#[test]
+fn fast_agrees_with_exact_among_random_boxes_and_two_robots_with_a_held_object() {
+    let lib = library();
+    let empty = scene("empty", &lib);
+    let boxes = random_boxes(
+        &empty,
+        &RandomBoxes {
+            count: 30,
+            seed: 3,
+            ..RandomBoxes::default()
+        },
+        &lib,
+    )
+    .unwrap();
+    let world = CollisionWorld::from_scene(&boxes);
+    let (hits, clear) = compare(&boxes, &world, 20_000, 11);
+    assert!(hits > 1000 && clear > 1000, "{hits} {clear}");
+
+    // Two robots; the wok held in armar_a's right hand.
+    let s = scene("handoff", &lib);
+    let mut world = CollisionWorld::from_scene(&s);
+    let q0 = CollisionWorld::start_config(&s);
+    let r = &world.robots[0].robot;
+    let tcp = r.link("right_tcp").unwrap();
+    let hand: Vec<usize> = r
+        .group("right_hand")
+        .map(|g| g.links.clone())
+        .unwrap_or_default();
+    let obj = s.objects[0].body.name.clone();
+    world.attach(&obj, 0, tcp, &q0, hand).expect("attach");
+    let (hits, clear) = compare(&s, &world, 20_000, 13);
+    assert!(hits > 1000 && clear > 1000, "{hits} {clear}");
+}
+
+#[test]
+fn random_boxes_are_seeded_and_leave_the_start_free() {
+    let lib = library();
+    let empty = scene("empty", &lib);
+    let p = RandomBoxes {
+        count: 30,
+        seed: 5,
+        ..RandomBoxes::default()
+    };
+    let a = random_boxes(&empty, &p, &lib).unwrap();
+    let b = random_boxes(&empty, &p, &lib).unwrap();
+    assert_eq!(a.json, b.json);
+    assert_eq!(a.obstacles.len(), empty.obstacles.len() + 30);
+    let c = random_boxes(&empty, &RandomBoxes { seed: 6, ..p }, &lib).unwrap();
+    assert_ne!(a.json, c.json);
+    let world = CollisionWorld::from_scene(&a);
+    let q0 = CollisionWorld::start_config(&a);
+    assert!(ExactChecker::new(&world).is_free(&q0));
+}
+
+#[test]
+fn motion_validator_rejects_a_sweep_through_the_counter() {
+    let lib = library();
+    let s = scene("kitchen", &lib);
+    let world = CollisionWorld::from_scene(&s);
+    let q0 = CollisionWorld::start_config(&s);
+    let mut exact = ExactChecker::new(&world);
+    assert!(
+        exact.is_free(&q0),
+        "kitchen start must be free: {:?}",
+        exact.first_contact(&q0)
+    );
+    let r = &world.robots[0].robot;
+    // Drive the base forward until the platform is inside the counter, or a wall.
+    let bx = r.var("base_x").unwrap();
+    let by = r.var("base_y").unwrap();
+    let mut far = None;
+    for dir in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
+        let mut q = q0.clone();
+        q[bx] += 2.5 * dir.0;
+        q[by] += 2.5 * dir.1;
+        if !exact.is_free(&q) {
+            far = Some(q);
+            break;
+        }
+    }
+    let far = far.expect("some direction hits furniture within 2.5 m");
+    let mut mv = MotionValidator::new(&world, FastChecker::new(&world), 0.5f64.to_radians(), 0.005);
+    assert!(!mv.is_valid(&q0, &far));
+    let mut tiny = q0.clone();
+    tiny[bx] += 0.001;
+    assert!(mv.is_valid(&q0, &tiny) == exact.is_free(&tiny));
+    assert_eq!(mv.steps(&q0, &far), 500);
+}
