@@ -24,7 +24,10 @@ fn main() {
         }
     }
     let t = std::time::Instant::now();
-    let reps = 200;
+    let reps: usize = std::env::args()
+        .nth(2)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200);
     for _ in 0..reps {
         for q in &free {
             std::hint::black_box(f.is_free(q));

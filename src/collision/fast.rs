@@ -402,6 +402,21 @@ impl FastChecker {
     }
 
     pub fn with_settings(world: &CollisionWorld, settings: FastModelSettings) -> FastChecker {
+        // Reduced FK: links behind fixed joints ride on the last moving link.
+        let fk_models: Vec<FkModel> = world
+            .robots
+            .iter()
+            .map(|p| FkModel::reduced(&p.robot))
+            .collect();
+        let mount_of = |robot: usize, link: usize, rel: Option<Frame>| -> (Mount, Option<Frame>) {
+            let (rep, off) = fk_models[robot].mount(link);
+            let rel = match (off, rel) {
+                (Some(o), Some(r)) => Some(o.mul(&r)),
+                (Some(o), None) => Some(o),
+                (None, r) => r,
+            };
+            (Mount { robot, link: rep }, rel)
+        };
         let mut moving = Vec::new();
         let mut index_of = std::collections::HashMap::new();
         let mut start = 0;
@@ -432,10 +447,11 @@ impl FastChecker {
         for (r, p) in world.robots.iter().enumerate() {
             for (l, link) in p.robot.links.iter().enumerate() {
                 if !link.collision.is_empty() {
+                    let (mount, rel) = mount_of(r, l, None);
                     push_body(
                         BodyId::Link { robot: r, link: l },
-                        Mount { robot: r, link: l },
-                        None,
+                        mount,
+                        rel,
                         &link.collision,
                         &mut moving,
                     );
@@ -444,16 +460,8 @@ impl FastChecker {
         }
         for (a, at) in world.attached.iter().enumerate() {
             if !at.shapes.is_empty() {
-                push_body(
-                    BodyId::Attached(a),
-                    Mount {
-                        robot: at.robot,
-                        link: at.link,
-                    },
-                    Some(Frame::from_pose(&at.rel)),
-                    &at.shapes,
-                    &mut moving,
-                );
+                let (mount, rel) = mount_of(at.robot, at.link, Some(Frame::from_pose(&at.rel)));
+                push_body(BodyId::Attached(a), mount, rel, &at.shapes, &mut moving);
             }
         }
         let mut statics = Vec::new();
@@ -552,11 +560,7 @@ impl FastChecker {
             .iter()
             .map(|p: &PlacedRobot| vec![Frame::identity(); p.robot.links.len()])
             .collect();
-        let fk = world
-            .robots
-            .iter()
-            .map(|p| FkModel::new(&p.robot))
-            .collect();
+        let fk = fk_models;
         let bases = world
             .robots
             .iter()

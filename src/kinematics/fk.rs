@@ -144,10 +144,17 @@ struct FkJoint {
 
 /// Forward kinematics precompiled for one robot: joints with principal axes rotate with six
 /// multiplications, fixed joints with identity rotation only translate. Allocation-free.
+///
+/// The *reduced* model ([`FkModel::reduced`]) folds every fixed joint into the next movable
+/// one: it computes only the frames of links that sit right after a movable joint (and the
+/// root); every other link is rigidly attached to one of those ([`FkModel::mount`]).
 #[derive(Debug, Clone)]
 pub struct FkModel {
     joints: Vec<FkJoint>,
     links: usize,
+    /// Per link: the computed link it is rigidly attached to, and its offset from it.
+    rep: Vec<u32>,
+    offset: Vec<Option<Frame>>,
 }
 
 impl FkModel {
@@ -193,10 +200,53 @@ impl FkModel {
                 }
             })
             .collect();
+        let n = robot.links.len();
         FkModel {
             joints,
-            links: robot.links.len(),
+            links: n,
+            rep: (0..n as u32).collect(),
+            offset: vec![None; n],
         }
+    }
+
+    /// The reduced model: only links after movable joints are computed.
+    pub fn reduced(robot: &Robot) -> FkModel {
+        let full = FkModel::new(robot);
+        let n = robot.links.len();
+        let mut rep: Vec<u32> = (0..n as u32).collect();
+        let mut offset: Vec<Option<Frame>> = vec![None; n];
+        let mut joints = Vec::new();
+        for j in &full.joints {
+            let (p, c) = (j.parent as usize, j.child as usize);
+            let (prep, poff) = (rep[p], offset[p]);
+            let origin = match &poff {
+                Some(o) => o.mul(&j.origin),
+                None => j.origin,
+            };
+            if j.kind == JointKind::Fixed {
+                rep[c] = prep;
+                offset[c] = Some(origin);
+            } else {
+                let mut fj = *j;
+                fj.parent = prep;
+                fj.origin = origin;
+                fj.origin_rot_identity =
+                    (origin.rot - nalgebra::Matrix3::identity()).abs().max() < 1e-15;
+                joints.push(fj);
+            }
+        }
+        FkModel {
+            joints,
+            links: n,
+            rep,
+            offset,
+        }
+    }
+
+    /// The computed link that `link` is rigidly attached to and its offset from it (`None` when
+    /// the link itself is computed).
+    pub fn mount(&self, link: usize) -> (usize, Option<Frame>) {
+        (self.rep[link] as usize, self.offset[link])
     }
 
     /// Number of links (length of the output slice).

@@ -1,0 +1,90 @@
+//! The three forward-kinematics paths agree: `forward` (isometries), `FkModel` (frames) and the
+//! reduced `FkModel` (fixed joints folded, links mounted on the last moving link).
+
+use std::path::PathBuf;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use manyhands::geometry::Pose;
+use manyhands::kinematics::{forward, link_pose, FkModel, Frame};
+use manyhands::Robot;
+
+fn robots() -> Vec<Robot> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let mbm = root.join("../shared/benchmarks/mbm");
+    let mut v = Vec::new();
+    for name in ["armar", "justin"] {
+        let d = root.join("robots");
+        v.push(
+            Robot::from_files(
+                &d.join(format!("{name}.urdf")),
+                Some(&d.join(format!("{name}.srdf"))),
+            )
+            .unwrap(),
+        );
+    }
+    v.push(
+        Robot::from_files(
+            &mbm.join("panda/panda_spherized.urdf"),
+            Some(&mbm.join("panda/panda.srdf")),
+        )
+        .unwrap(),
+    );
+    v.push(
+        Robot::from_files(
+            &mbm.join("baxter/baxter_spherized.urdf"),
+            Some(&mbm.join("baxter/baxter.srdf")),
+        )
+        .unwrap(),
+    );
+    v
+}
+
+#[test]
+fn all_fk_paths_agree() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for r in robots() {
+        let full = FkModel::new(&r);
+        let reduced = FkModel::reduced(&r);
+        let base = manyhands::geometry::iso_from_rpy([0.3, -0.2, 0.1], [0.1, 0.2, -0.7]);
+        let mut iso = vec![Pose::identity(); r.links.len()];
+        let mut f1 = vec![Frame::identity(); r.links.len()];
+        let mut f2 = vec![Frame::identity(); r.links.len()];
+        for _ in 0..200 {
+            let q: Vec<f64> = (0..r.dof())
+                .map(|v| {
+                    let l = r.var_limits(v);
+                    rng.random_range(l.lower..=l.upper)
+                })
+                .collect();
+            forward(&r, &base, &q, &mut iso);
+            full.compute(&Frame::from_pose(&base), &q, &mut f1);
+            reduced.compute(&Frame::from_pose(&base), &q, &mut f2);
+            for l in 0..r.links.len() {
+                let (rep, off) = reduced.mount(l);
+                let m = match off {
+                    Some(o) => f2[rep].mul(&o),
+                    None => f2[rep],
+                };
+                let want = Frame::from_pose(&iso[l]);
+                for got in [f1[l], m] {
+                    assert!(
+                        (got.t - want.t).norm() < 1e-12,
+                        "{} link {}",
+                        r.name,
+                        r.links[l].name
+                    );
+                    assert!(
+                        (got.rot - want.rot).abs().max() < 1e-12,
+                        "{} link {}",
+                        r.name,
+                        r.links[l].name
+                    );
+                }
+                let single = base * link_pose(&r, &q, l);
+                assert!((single.translation.vector - iso[l].translation.vector).norm() < 1e-12);
+            }
+        }
+    }
+}
