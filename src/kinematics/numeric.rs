@@ -92,6 +92,11 @@ pub fn pose_error(a: &Pose, b: &Pose) -> (f64, f64) {
     super::srs::pose_distance(a, b)
 }
 
+fn target_is_finite(p: &Pose) -> bool {
+    p.translation.vector.iter().all(|x| x.is_finite())
+        && p.rotation.coords.iter().all(|x| x.is_finite())
+}
+
 /// Numeric IK of one chain. Owns a compact copy of the chain kinematics and its work buffers.
 #[derive(Debug, Clone)]
 pub struct NumericIk {
@@ -323,11 +328,19 @@ impl NumericIk {
         seed: &[f64],
         rng: &mut R,
     ) -> Result<Vec<f64>, IkFailure> {
-        assert_eq!(
-            seed.len(),
-            self.dof,
-            "seed must be a full robot configuration"
-        );
+        if seed.len() != self.dof
+            || seed.iter().any(|x| !x.is_finite())
+            || !target_is_finite(target)
+        {
+            // A malformed request: nothing to iterate on.
+            return Err(IkFailure {
+                attempts: 0,
+                iterations: 0,
+                best_position_error: f64::INFINITY,
+                best_orientation_error: f64::INFINITY,
+                best: seed.to_vec(),
+            });
+        }
         let n = self.vars.len();
         let tol = self.settings.tolerance;
         let rows = if self.settings.position_only { 3 } else { 6 };
