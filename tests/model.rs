@@ -317,3 +317,57 @@ fn scene_errors_name_the_field() {
     .unwrap_err();
     assert!(e.to_string().contains("bogus"), "{e}");
 }
+
+/// Truncated and mutated robot and scene files give errors, never panics.
+#[test]
+fn mutated_inputs_never_panic() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let urdf = std::fs::read_to_string(root().join("robots/armar.urdf")).unwrap();
+    let srdf = std::fs::read_to_string(root().join("robots/armar.srdf")).unwrap();
+    let scene = std::fs::read_to_string(root().join("scenes/kitchen.json")).unwrap();
+    let lib = load_robot_dir(&root().join("robots")).unwrap();
+    let tokens = [
+        "-1", "nan", "inf", "1e309", "\"", "<", ">", "/>", "0 0", "", "x", "name", "link", "joint",
+        "[", "]", "{", "}", ",",
+    ];
+    let mutate = |text: &str, rng: &mut rand_chacha::ChaCha8Rng| -> String {
+        let mut s: Vec<char> = text.chars().collect();
+        for _ in 0..rng.random_range(1..4) {
+            let i = rng.random_range(0..s.len());
+            match rng.random_range(0..3) {
+                0 => s.truncate(i),
+                1 => {
+                    let end = (i + rng.random_range(1..20)).min(s.len());
+                    s.drain(i..end);
+                }
+                _ => {
+                    let t = tokens[rng.random_range(0..tokens.len())];
+                    for (k, c) in t.chars().enumerate() {
+                        s.insert((i + k).min(s.len()), c);
+                    }
+                }
+            }
+            if s.is_empty() {
+                break;
+            }
+        }
+        s.into_iter().collect()
+    };
+    let (mut ok, mut err) = (0, 0);
+    for _ in 0..600 {
+        let u = mutate(&urdf, &mut rng);
+        match Robot::from_strings(&u, Some(&srdf), Path::new(".")) {
+            Ok(_) => ok += 1,
+            Err(e) => {
+                assert!(!e.to_string().is_empty());
+                err += 1;
+            }
+        }
+        let s = mutate(&srdf, &mut rng);
+        let _ = Robot::from_strings(&urdf, Some(&s), Path::new("."));
+        let j = mutate(&scene, &mut rng);
+        let _ = Scene::from_str(&j, "k.json", Path::new("."), &lib);
+    }
+    assert!(err > 100 && ok + err == 600, "ok {ok} err {err}");
+}
