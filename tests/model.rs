@@ -52,81 +52,39 @@ fn justin_has_43_dof() {
     assert!(r.warnings.is_empty(), "{:?}", r.warnings);
 }
 
-/// Writes the parsed model back as URDF and reads it again: same tree, limits and shapes.
+/// Writes the parsed model back as URDF + SRDF and reads it again: same tree, limits, shapes,
+/// groups, end effectors, states and disabled pairs.
 #[test]
-fn shipped_robots_round_trip_through_urdf() {
+fn shipped_robots_round_trip_through_urdf_and_srdf() {
+    use manyhands::model::{to_srdf, to_urdf};
     for name in ["armar", "justin"] {
         let r = load(name);
-        let text = to_urdf(&r);
-        let r2 = Robot::from_strings(&text, None, Path::new(".")).unwrap();
+        let (u, s) = (to_urdf(&r), to_srdf(&r));
+        let r2 = Robot::from_strings(&u, Some(&s), Path::new(".")).unwrap();
         assert_eq!(r.dof(), r2.dof());
         assert_eq!(r.links.len(), r2.links.len());
         for (a, b) in r.joints.iter().zip(&r2.joints) {
             assert_eq!(a.name, b.name);
             assert_eq!(a.kind, b.kind);
-            assert!(
-                (a.limits.lower - b.limits.lower).abs() < 1e-12
-                    && (a.limits.upper - b.limits.upper).abs() < 1e-12
-            );
+            assert_eq!(a.limits, b.limits);
             assert!((a.origin.translation.vector - b.origin.translation.vector).norm() < 1e-12);
             assert!(a.origin.rotation.angle_to(&b.origin.rotation) < 1e-9);
         }
         for (a, b) in r.links.iter().zip(&r2.links) {
+            assert_eq!(a.name, b.name);
             assert_eq!(a.collision.len(), b.collision.len(), "link {}", a.name);
+            for (ga, gb) in a.collision.iter().zip(&b.collision) {
+                assert_eq!(ga.shape, gb.shape, "link {}", a.name);
+            }
         }
+        assert_eq!(r.groups, r2.groups);
+        assert_eq!(r.end_effectors, r2.end_effectors);
+        assert_eq!(r.group_states, r2.group_states);
+        assert_eq!(r.disabled, r2.disabled);
+        // A second round is textually stable.
+        assert_eq!(to_urdf(&r2), u);
+        assert_eq!(to_srdf(&r2), s);
     }
-}
-
-fn to_urdf(r: &Robot) -> String {
-    use manyhands::geometry::{quat_to_rpy, Shape};
-    let mut s = format!("<robot name=\"{}\">\n", r.name);
-    let origin = |p: &manyhands::geometry::Pose| {
-        let t = p.translation.vector;
-        let rpy = quat_to_rpy(&p.rotation);
-        format!(
-            "<origin xyz=\"{:.17} {:.17} {:.17}\" rpy=\"{:.17} {:.17} {:.17}\"/>",
-            t.x, t.y, t.z, rpy[0], rpy[1], rpy[2]
-        )
-    };
-    for l in &r.links {
-        s += &format!("<link name=\"{}\">", l.name);
-        for g in &l.collision {
-            let geo = match &g.shape {
-                Shape::Box { half_extents: h } => {
-                    format!("<box size=\"{} {} {}\"/>", 2.0 * h.x, 2.0 * h.y, 2.0 * h.z)
-                }
-                Shape::Cylinder {
-                    radius,
-                    half_length,
-                } => format!(
-                    "<cylinder radius=\"{radius}\" length=\"{}\"/>",
-                    2.0 * half_length
-                ),
-                Shape::Sphere { radius } => format!("<sphere radius=\"{radius}\"/>"),
-                Shape::Capsule {
-                    radius,
-                    half_length,
-                } => format!(
-                    "<capsule radius=\"{radius}\" length=\"{}\"/>",
-                    2.0 * half_length
-                ),
-                Shape::Mesh(_) => unreachable!("shipped robots use primitives"),
-            };
-            s += &format!(
-                "<collision>{}<geometry>{geo}</geometry></collision>",
-                origin(&g.origin)
-            );
-        }
-        s += "</link>\n";
-    }
-    for j in &r.joints {
-        let l = &j.limits;
-        s += &format!(
-            "<joint name=\"{}\" type=\"{}\"><parent link=\"{}\"/><child link=\"{}\"/>{}<axis xyz=\"{} {} {}\"/><limit lower=\"{:.17}\" upper=\"{:.17}\" velocity=\"{}\" effort=\"{}\"/></joint>\n",
-            j.name, j.kind.name(), r.links[j.parent].name, r.links[j.child].name, origin(&j.origin), j.axis.x, j.axis.y, j.axis.z, l.lower, l.upper, l.velocity, l.effort
-        );
-    }
-    s + "</robot>"
 }
 
 const GOOD: &str = r#"<robot name="t">

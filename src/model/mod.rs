@@ -9,13 +9,16 @@ mod robot;
 mod scene;
 mod srdf;
 mod urdf;
+mod write;
 
 pub use error::ModelError;
 pub use library::{data_root, load_robot_dir, load_scene_dir};
 pub use robot::{
-    EndEffector, Group, GroupState, Joint, JointKind, Limits, Link, Mimic, Robot, RobotLibrary,
+    EndEffector, Group, GroupMember, GroupState, Joint, JointKind, Limits, Link, Mimic, Robot,
+    RobotLibrary,
 };
 pub use scene::{
     Body, BodyJson, ContactPoint, GeometryJson, Grasp, GraspJson, GraspType, Object,
     RobotPlacement, RobotPlacementJson, Scene, SceneJson,
 };
+pub use write::{to_srdf, to_urdf};

@@ -89,9 +89,20 @@ pub struct Link {
     pub collision: Vec<Geometry>,
 }
 
+/// One element of an SRDF group definition, as written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum GroupMember {
+    Joint(String),
+    Link(String),
+    Chain { base_link: String, tip_link: String },
+    Group(String),
+}
+
 /// An SRDF planning group: an ordered set of configuration variables.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Group {
+    /// The elements the group was defined with (for writing it back).
+    pub members: Vec<GroupMember>,
     pub name: String,
     /// Configuration variables of the group, in tree order.
     pub vars: Vec<usize>,

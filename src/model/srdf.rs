@@ -5,7 +5,7 @@ use std::collections::{BTreeSet, HashMap};
 
 use roxmltree::{Document, Node};
 
-use super::robot::{EndEffector, Group, GroupState, Robot};
+use super::robot::{EndEffector, Group, GroupMember, GroupState, Robot};
 use super::ModelError;
 
 struct RawGroup<'a> {
@@ -192,6 +192,7 @@ fn resolve_group(
     let mut links: BTreeSet<usize> = BTreeSet::new();
     let mut chains: Vec<(usize, usize)> = Vec::new();
     let mut parts = 0usize;
+    let mut members = Vec::new();
     for c in raw[gi].node.children().filter(|c| c.is_element()) {
         parts += 1;
         match c.tag_name().name() {
@@ -204,6 +205,7 @@ fn resolve_group(
                     vars.insert(v);
                 }
                 links.insert(robot.joints[ji].child);
+                members.push(GroupMember::Joint(jn.to_string()));
             }
             "link" => {
                 let ln = c.attribute("name").unwrap_or("");
@@ -211,6 +213,7 @@ fn resolve_group(
                     .link(ln)
                     .ok_or_else(|| err(format!("<link name=\"{ln}\">: unknown link")))?;
                 links.insert(li);
+                members.push(GroupMember::Link(ln.to_string()));
                 if let Some(j) = robot.links[li].parent_joint {
                     if let Some(v) = robot.joints[j].var {
                         vars.insert(v);
@@ -241,6 +244,10 @@ fn resolve_group(
                     }
                 }
                 chains.push((bi, ti));
+                members.push(GroupMember::Chain {
+                    base_link: b.to_string(),
+                    tip_link: t.to_string(),
+                });
             }
             "group" => {
                 let sn = c.attribute("name").unwrap_or("");
@@ -248,6 +255,7 @@ fn resolve_group(
                     .get(sn)
                     .ok_or_else(|| err(format!("<group name=\"{sn}\">: unknown subgroup")))?;
                 resolve_group(robot, raw, index, si, resolved, visiting, file)?;
+                members.push(GroupMember::Group(sn.to_string()));
                 if let Some(sub) = &resolved[si] {
                     vars.extend(sub.vars.iter().copied());
                     links.extend(sub.links.iter().copied());
@@ -266,6 +274,7 @@ fn resolve_group(
     visiting.pop();
     let chain = (chains.len() == 1 && parts == 1 && chains[0].0 != usize::MAX).then(|| chains[0]);
     resolved[gi] = Some(Group {
+        members,
         name: name.clone(),
         vars: vars.into_iter().collect(),
         links: links.into_iter().collect(),
