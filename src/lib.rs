@@ -8,5 +8,6 @@ pub mod collision;
 pub mod geometry;
 pub mod kinematics;
 pub mod model;
+pub mod planning;
 
 pub use model::{Robot, Scene};

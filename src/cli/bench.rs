@@ -36,6 +36,8 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// MotionBenchMaker problem sets (Panda, Baxter) with RRT-Connect, paths verified exactly.
+    Mbm(super::mbm::MbmArgs),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -49,6 +51,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
             let rows = kinematics_rows(ctx, *samples, *seed)?;
             print_rows(ctx, &rows);
         }
+        BenchCmd::Mbm(a) => super::mbm::run(ctx, a)?,
     }
     Ok(())
 }

@@ -2,6 +2,7 @@
 
 mod bench;
 mod commands;
+mod mbm;
 
 use std::path::PathBuf;
 

@@ -176,8 +176,11 @@ impl CollisionWorld {
         self.allowed.push((a, b));
     }
 
-    /// True when the pair is not checked: same link, SRDF-disabled pair of one robot, touch
-    /// links of an attached object, or an allowed pair. Static–static pairs are never checked.
+    /// True when the pair is not checked: same link, SRDF-disabled pair of one robot, two links
+    /// of one robot joined only by fixed joints (their relative pose never changes, so a contact
+    /// is a modelling artefact — MoveIt's setup assistant disables such pairs too; e.g. the
+    /// spherized Baxter's finger links overlap in every configuration), touch links of an
+    /// attached object, or an allowed pair. Static–static pairs are never checked.
     pub fn is_allowed(&self, a: BodyId, b: BodyId) -> bool {
         use BodyId::*;
         match (a, b) {
@@ -191,7 +194,13 @@ impl CollisionWorld {
                     robot: r2,
                     link: l2,
                 },
-            ) if r1 == r2 && self.robots[r1].robot.is_disabled(l1, l2) => return true,
+            ) if r1 == r2
+                && (self.robots[r1].robot.is_disabled(l1, l2)
+                    || rigid_root(&self.robots[r1].robot, l1)
+                        == rigid_root(&self.robots[r1].robot, l2)) =>
+            {
+                return true
+            }
             (Attached(i), Link { robot, link }) | (Link { robot, link }, Attached(i)) => {
                 let at = &self.attached[i];
                 if at.robot == robot && (at.link == link || at.touch.contains(&link)) {
@@ -264,4 +273,16 @@ impl CollisionWorld {
         }
         out
     }
+}
+
+/// The nearest ancestor of `link` reached through fixed joints only (the link itself when its
+/// parent joint moves).
+fn rigid_root(robot: &Robot, mut link: usize) -> usize {
+    while let Some(j) = robot.links[link].parent_joint {
+        if robot.joints[j].is_movable() {
+            break;
+        }
+        link = robot.joints[j].parent;
+    }
+    link
 }

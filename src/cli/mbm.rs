@@ -1,0 +1,456 @@
+//! `manyhands bench mbm`: the MotionBenchMaker problem sets (Panda, Baxter) planned with
+//! RRT-Connect one problem at a time on one thread, every returned path re-checked by the exact
+//! checker; statistics per set and overall, printed beside VAMP's reference figures.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use serde::Serialize;
+use serde_json::json;
+
+use manyhands::collision::{ExactChecker, FastChecker, FastModelSettings};
+use manyhands::planning::mbm::{MbmFile, MbmProblem};
+use manyhands::planning::{
+    PlanError, RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
+};
+use manyhands::Robot;
+
+use super::commands::Ctx;
+
+#[derive(Args, Debug)]
+pub struct MbmArgs {
+    /// The robot's URDF (e.g. ../shared/benchmarks/mbm/panda/panda_spherized.urdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Its SRDF (default: the .srdf beside the URDF, when present).
+    #[arg(long)]
+    pub srdf: Option<PathBuf>,
+    /// The problems.json file.
+    #[arg(long)]
+    pub problems: PathBuf,
+    /// Only these sets (comma-separated); default all.
+    #[arg(long, value_delimiter = ',')]
+    pub sets: Vec<String>,
+    /// Runs per problem (different seeds).
+    #[arg(long, default_value_t = 1)]
+    pub trials: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// At most N valid problems per set (0 = all).
+    #[arg(long, default_value_t = 0)]
+    pub limit: usize,
+    /// Time limit per query, seconds.
+    #[arg(long, default_value_t = 10.0)]
+    pub time_limit: f64,
+    /// Planning motion-check resolution: largest joint step between checked states, degrees.
+    #[arg(long, default_value_t = 0.5)]
+    pub resolution: f64,
+    /// Resolution of the exact re-check of returned paths, degrees.
+    #[arg(long, default_value_t = 0.25)]
+    pub check_resolution: f64,
+    /// RRT-Connect range (joint-space distance); default 0.2 × the space's extent (OMPL).
+    #[arg(long)]
+    pub range: Option<f64>,
+    /// Padding added to every robot sphere of the planner's fast collision model, metres (a
+    /// safety margin against contacts between the checked states of a segment).
+    #[arg(long, default_value_t = 0.005)]
+    pub padding: f64,
+    /// Return raw paths (no shortcutting).
+    #[arg(long)]
+    pub no_simplify: bool,
+    /// Write per-problem results and the summaries as JSON to this file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct Run {
+    set: String,
+    index: usize,
+    trial: usize,
+    seed: u64,
+    solved: bool,
+    /// Solved by the planner but rejected by the exact re-check.
+    invalid: bool,
+    error: Option<String>,
+    setup_us: f64,
+    plan_us: f64,
+    simplify_us: f64,
+    iterations: u64,
+    collision_checks: u64,
+    start_tree: usize,
+    goal_tree: usize,
+    length_raw: f64,
+    length_simplified: f64,
+    vertices: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct Summary {
+    set: String,
+    runs: usize,
+    solved: usize,
+    invalid: usize,
+    median_us: f64,
+    mean_us: f64,
+    p95_us: f64,
+    max_us: f64,
+    simplify_median_us: f64,
+    total_median_us: f64,
+    length_raw_median: f64,
+    length_simplified_median: f64,
+    iterations_median: f64,
+    checks_median: f64,
+    setup_median_us: f64,
+    vamp_median_us: Option<f64>,
+}
+
+/// VAMP 0.6.4 RRT-Connect, one core, this machine type (shared/benchmarks/mbm/README.md):
+/// median planning µs per Panda set, and overall figures.
+const VAMP_PANDA: &[(&str, f64)] = &[
+    ("table_pick", 41.0),
+    ("table_under_pick", 77.0),
+    ("box", 108.0),
+    ("bookshelf_small", 45.0),
+    ("bookshelf_tall", 47.0),
+    ("bookshelf_thin", 50.0),
+    ("cage", 292.0),
+];
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[k.min(sorted.len() - 1)]
+}
+
+fn sorted(v: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = v.collect();
+    v.sort_by(|a, b| a.total_cmp(b));
+    v
+}
+
+fn summarize(set: &str, runs: &[&Run], vamp: Option<f64>) -> Summary {
+    let ok: Vec<&&Run> = runs.iter().filter(|r| r.solved).collect();
+    let t = sorted(ok.iter().map(|r| r.plan_us));
+    let med = |v: Vec<f64>| percentile(&v, 0.5);
+    Summary {
+        set: set.to_string(),
+        runs: runs.len(),
+        solved: ok.len(),
+        invalid: runs.iter().filter(|r| r.invalid).count(),
+        median_us: percentile(&t, 0.5),
+        mean_us: if t.is_empty() {
+            f64::NAN
+        } else {
+            t.iter().sum::<f64>() / t.len() as f64
+        },
+        p95_us: percentile(&t, 0.95),
+        max_us: t.last().copied().unwrap_or(f64::NAN),
+        simplify_median_us: med(sorted(ok.iter().map(|r| r.simplify_us))),
+        total_median_us: med(sorted(ok.iter().map(|r| r.plan_us + r.simplify_us))),
+        length_raw_median: med(sorted(ok.iter().map(|r| r.length_raw))),
+        length_simplified_median: med(sorted(ok.iter().map(|r| r.length_simplified))),
+        iterations_median: med(sorted(ok.iter().map(|r| r.iterations as f64))),
+        checks_median: med(sorted(ok.iter().map(|r| r.collision_checks as f64))),
+        setup_median_us: med(sorted(runs.iter().map(|r| r.setup_us))),
+        vamp_median_us: vamp,
+    }
+}
+
+/// A seed per (base seed, set, problem, trial) — SplitMix64 of the combination.
+fn derive_seed(seed: u64, set: usize, index: usize, trial: usize) -> u64 {
+    let mut z = seed
+        ^ (set as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (index as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9)
+        ^ (trial as u64).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn run_problem(
+    robot: &Arc<Robot>,
+    vars: &[usize],
+    p: &MbmProblem,
+    settings: &RrtConnectSettings,
+    a: &MbmArgs,
+    trial: usize,
+    seed: u64,
+) -> Result<Run> {
+    let t_setup = Instant::now();
+    let world = p.world(robot.clone());
+    let space = p.space(&world, vars)?;
+    let checker = FastChecker::with_settings(&world, FastModelSettings { padding: a.padding });
+    let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, *settings)?;
+    let setup_us = t_setup.elapsed().as_secs_f64() * 1e6;
+    let mut run = Run {
+        set: p.set.clone(),
+        index: p.index,
+        trial,
+        seed,
+        solved: false,
+        invalid: false,
+        error: None,
+        setup_us,
+        plan_us: f64::NAN,
+        simplify_us: f64::NAN,
+        iterations: 0,
+        collision_checks: 0,
+        start_tree: 0,
+        goal_tree: 0,
+        length_raw: f64::NAN,
+        length_simplified: f64::NAN,
+        vertices: 0,
+    };
+    let mut term = Termination::new().with_time_limit(Duration::from_secs_f64(a.time_limit));
+    match planner.plan(&p.start, &p.goals, &mut term, seed) {
+        Ok(r) => {
+            let s = &r.stats;
+            run.plan_us = s.time.as_secs_f64() * 1e6;
+            run.simplify_us = s.simplify_time.as_secs_f64() * 1e6;
+            run.iterations = s.iterations;
+            run.collision_checks = s.collision_checks;
+            run.start_tree = s.start_tree_size;
+            run.goal_tree = s.goal_tree_size;
+            run.length_raw = s.length_raw;
+            run.length_simplified = s.length_simplified;
+            run.vertices = r.path.len();
+            // The exact checker at the check resolution decides; ends must be the problem's.
+            let mut exact = SpaceValidator::new(
+                space,
+                &world,
+                ExactChecker::new(&world),
+                a.check_resolution.to_radians(),
+                0.005,
+            );
+            let ends_ok = r.path.first() == Some(&p.start)
+                && r.path.last().is_some_and(|q| p.goals.contains(q));
+            match exact.validate_path(&r.path) {
+                Ok(()) if ends_ok => run.solved = true,
+                Ok(()) => {
+                    run.invalid = true;
+                    run.error = Some("path does not join the start to a goal".into());
+                }
+                Err(k) => {
+                    run.invalid = true;
+                    run.error = Some(format!("exact check failed at state/segment {k}"));
+                }
+            }
+        }
+        Err(e) => {
+            if let Some(s) = e.stats() {
+                run.plan_us = s.time.as_secs_f64() * 1e6;
+                run.iterations = s.iterations;
+            }
+            run.error = Some(e.to_string());
+            if matches!(e, PlanError::PathInvalid { .. }) {
+                run.invalid = true;
+            }
+        }
+    }
+    Ok(run)
+}
+
+fn fmt_us(us: f64) -> String {
+    if us.is_nan() {
+        "—".into()
+    } else if us < 1000.0 {
+        format!("{us:.1} µs")
+    } else if us < 1e6 {
+        format!("{:.2} ms", us / 1e3)
+    } else {
+        format!("{:.2} s", us / 1e6)
+    }
+}
+
+pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
+    if !(a.time_limit.is_finite() && a.time_limit > 0.0) {
+        bail!("--time-limit must be > 0");
+    }
+    if !(a.padding.is_finite() && a.padding >= 0.0) {
+        bail!("--padding must be ≥ 0");
+    }
+    if a.trials == 0 {
+        bail!("--trials must be ≥ 1");
+    }
+    let file = MbmFile::load(&a.problems)?;
+    // Default SRDF: NAME.srdf beside the URDF, else ROBOT.srdf (the problem file's robot name).
+    let srdf = a.srdf.clone().or_else(|| {
+        [
+            a.robot.with_extension("srdf"),
+            a.robot.with_file_name(format!("{}.srdf", file.robot)),
+        ]
+        .into_iter()
+        .find(|s| s.is_file())
+    });
+    if srdf.is_none() && !ctx.json {
+        println!("warning: no SRDF found (give --srdf): no self-collision pair is disabled");
+    }
+    let robot = Arc::new(
+        Robot::from_files(&a.robot, srdf.as_deref())
+            .with_context(|| format!("loading {}", a.robot.display()))?,
+    );
+    let vars = file.joint_vars(&robot)?;
+    for s in &a.sets {
+        if file.set(s).is_none() {
+            let names: Vec<&str> = file.sets.iter().map(|s| s.name.as_str()).collect();
+            bail!("unknown set '{s}' (the file has {names:?})");
+        }
+    }
+    let settings = RrtConnectSettings {
+        range: a.range,
+        angular_resolution: a.resolution.to_radians(),
+        linear_resolution: 0.005,
+        direct_connect: true,
+        shortcut: (!a.no_simplify).then(ShortcutSettings::default),
+    };
+    let is_panda = file.robot == "panda";
+    let mut runs: Vec<Run> = Vec::new();
+    let mut summaries: Vec<Summary> = Vec::new();
+    if !ctx.json {
+        println!(
+            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, planning resolution {}°, padding {} m, exact re-check at {}°, {}",
+            file.robot,
+            vars.len(),
+            robot.dof(),
+            a.trials,
+            a.seed,
+            a.time_limit,
+            a.resolution,
+            a.padding,
+            a.check_resolution,
+            if a.no_simplify { "no simplification" } else { "shortcutting on" }
+        );
+        println!(
+            "{:<32} {:>9} {:>4} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9} {:>8} {:>10}",
+            "set",
+            "solved",
+            "inv",
+            "median",
+            "mean",
+            "p95",
+            "max",
+            "simplify",
+            "VAMP med",
+            "len raw",
+            "len simp",
+            "iters",
+            "setup"
+        );
+    }
+    for (si, set) in file.sets.iter().enumerate() {
+        if !a.sets.is_empty() && !a.sets.contains(&set.name) {
+            continue;
+        }
+        let problems: Vec<&MbmProblem> = set
+            .problems
+            .iter()
+            .filter(|p| p.valid)
+            .take(if a.limit == 0 { usize::MAX } else { a.limit })
+            .collect();
+        let first = runs.len();
+        for (pi, p) in problems.iter().enumerate() {
+            for trial in 0..a.trials {
+                let seed = derive_seed(a.seed, si, pi, trial);
+                runs.push(run_problem(&robot, &vars, p, &settings, a, trial, seed)?);
+            }
+        }
+        let vamp = if is_panda {
+            VAMP_PANDA.iter().find(|(n, _)| *n == set.name).map(|x| x.1)
+        } else {
+            None
+        };
+        let refs: Vec<&Run> = runs[first..].iter().collect();
+        let s = summarize(&set.name, &refs, vamp);
+        print_summary(ctx, &s);
+        summaries.push(s);
+    }
+    let all: Vec<&Run> = runs.iter().collect();
+    let vamp_all = if is_panda {
+        Some(65.8)
+    } else if file.robot == "baxter" {
+        Some(8380.0)
+    } else {
+        None
+    };
+    let overall = summarize("overall", &all, vamp_all);
+    print_summary(ctx, &overall);
+    if !ctx.json {
+        if is_panda {
+            println!("VAMP 0.6.4 (README, 699 problems, one core): median 65.8 µs, mean 145 µs, all solved; with simplification median 223 µs total. OMPL RRTConnect: median 5.2 ms.");
+        } else if file.robot == "baxter" {
+            println!("VAMP 0.6.4 (README, 1 470 problems, one core): 1 398 solved, median 8.38 ms, mean 15.2 ms, p95 53.8 ms, median 80 390 iterations.");
+        }
+        println!("times: planning = search + start/goal checks + re-validation of the raw path (setup of the collision model excluded, shown as 'setup'); obstacles' cylinders are exact cylinders.");
+        for r in runs.iter().filter(|r| r.invalid) {
+            println!(
+                "INVALID {}[{}] trial {}: {}",
+                r.set,
+                r.index,
+                r.trial,
+                r.error.as_deref().unwrap_or("")
+            );
+        }
+        for r in runs.iter().filter(|r| !r.solved && !r.invalid).take(20) {
+            println!(
+                "unsolved {}[{}] trial {}: {}",
+                r.set,
+                r.index,
+                r.trial,
+                r.error.as_deref().unwrap_or("")
+            );
+        }
+    }
+    let report = json!({
+        "robot": file.robot,
+        "settings": settings,
+        "trials": a.trials,
+        "seed": a.seed,
+        "time_limit_s": a.time_limit,
+        "check_resolution_deg": a.check_resolution,
+        "padding_m": a.padding,
+        "sets": summaries,
+        "overall": overall,
+        "runs": runs,
+    });
+    if ctx.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(
+                &json!({"sets": report["sets"], "overall": report["overall"]})
+            )?
+        );
+    }
+    if let Some(out) = &a.out {
+        std::fs::write(out, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(())
+}
+
+fn print_summary(ctx: &Ctx, s: &Summary) {
+    if ctx.json {
+        return;
+    }
+    println!(
+        "{:<32} {:>9} {:>4} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9.2} {:>9.2} {:>8.0} {:>10}",
+        s.set,
+        format!("{}/{}", s.solved, s.runs),
+        s.invalid,
+        fmt_us(s.median_us),
+        fmt_us(s.mean_us),
+        fmt_us(s.p95_us),
+        fmt_us(s.max_us),
+        fmt_us(s.simplify_median_us),
+        s.vamp_median_us.map(fmt_us).unwrap_or_else(|| "—".into()),
+        s.length_raw_median,
+        s.length_simplified_median,
+        s.iterations_median,
+        fmt_us(s.setup_median_us),
+    );
+}

@@ -1,0 +1,26 @@
+//! Motion planning, in OMPL's vocabulary (Şucan, Moll & Kavraki, "The Open Motion Planning
+//! Library", IEEE RAM 2012): a [`JointSpace`] (state space of some world variables), a
+//! [`Termination`] condition, RRT [`Tree`]s, the [`RrtConnect`] planner, path [`shortcut`]ting and a
+//! [`PlanResult`] carrying the path and its [`PlanStats`].
+//!
+//! This module owns planning. It uses `collision`, `kinematics` and `model`, and must not depend on
+//! the server (no tokio, no axum, no HTTP types): a planner is a function of (problem, settings,
+//! termination, seed) → result with statistics. [`mbm`] loads the MotionBenchMaker problem sets
+//! used as the outside benchmark.
+
+pub mod mbm;
+mod result;
+mod rrt_connect;
+pub mod shortcut;
+mod space;
+mod termination;
+mod tree;
+mod validity;
+
+pub use result::{PlanError, PlanResult, PlanStats};
+pub use rrt_connect::{RrtConnect, RrtConnectSettings};
+pub use shortcut::{ShortcutSettings, ShortcutStats};
+pub use space::JointSpace;
+pub use termination::{StopReason, Termination};
+pub use tree::{Tree, NO_PARENT};
+pub use validity::SpaceValidator;

@@ -1,0 +1,98 @@
+//! What a planner returns: the path and its statistics, or a [`PlanError`].
+
+use std::time::Duration;
+
+use serde::Serialize;
+use thiserror::Error;
+
+use super::termination::StopReason;
+
+/// Statistics of one planning query (OMPL's benchmark properties, in spirit).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct PlanStats {
+    /// Wall time of the search, from the call to the validated raw path (start and goal checks
+    /// and the final re-validation included).
+    pub time: Duration,
+    /// Wall time of path simplification (shortcutting and its re-validation).
+    pub simplify_time: Duration,
+    /// Planner iterations (random samples drawn).
+    pub iterations: u64,
+    /// Number of states in the start tree.
+    pub start_tree_size: usize,
+    /// Number of states in the goal tree (all goal roots included).
+    pub goal_tree_size: usize,
+    /// Configuration collision checks (start, goals, segments, final re-validation).
+    pub collision_checks: u64,
+    /// Segments given to the motion validator.
+    pub segments_checked: u64,
+    /// Length (space distance) of the raw path.
+    pub length_raw: f64,
+    /// Length of the simplified path (equal to `length_raw` without simplification).
+    pub length_simplified: f64,
+    /// Vertices of the raw path.
+    pub vertices_raw: usize,
+    /// Vertices of the returned path.
+    pub vertices_simplified: usize,
+}
+
+/// A solved query: a collision-free path from the start to one of the goals.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanResult {
+    /// States of the path in the space's coordinates; first = start, last = `goals[goal_index]`.
+    pub path: Vec<Vec<f64>>,
+    /// Index (in the goal list given to the planner) of the goal reached.
+    pub goal_index: usize,
+    pub stats: PlanStats,
+}
+
+/// Why a query was not solved.
+#[derive(Debug, Clone, Error)]
+pub enum PlanError {
+    /// The space or an input does not fit (dimension, bounds, non-finite values).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// The start state is outside the bounds or in collision.
+    #[error("start configuration invalid: {reason}")]
+    InvalidStart { reason: String },
+    /// No goal state is within the bounds and collision-free.
+    #[error("no valid goal configuration ({count} given): {reason}")]
+    InvalidGoal { count: usize, reason: String },
+    /// The time limit ran out before a path was found.
+    #[error("time limit reached after {:.3} ms and {} iterations", .stats.time.as_secs_f64() * 1e3, .stats.iterations)]
+    Timeout { stats: Box<PlanStats> },
+    /// The iteration limit was reached before a path was found.
+    #[error("iteration limit reached after {} iterations", .stats.iterations)]
+    IterationLimit { stats: Box<PlanStats> },
+    /// The external stop flag was raised.
+    #[error("stopped on request after {} iterations", .stats.iterations)]
+    Stopped { stats: Box<PlanStats> },
+    /// The path found failed its final re-validation (a bug in a planner, never expected).
+    #[error("path failed re-validation at segment {segment}")]
+    PathInvalid {
+        segment: usize,
+        stats: Box<PlanStats>,
+    },
+}
+
+impl PlanError {
+    /// The error for a termination condition that fired.
+    pub fn stopped(reason: StopReason, stats: PlanStats) -> PlanError {
+        let stats = Box::new(stats);
+        match reason {
+            StopReason::TimeLimit => PlanError::Timeout { stats },
+            StopReason::IterationLimit => PlanError::IterationLimit { stats },
+            StopReason::Requested => PlanError::Stopped { stats },
+        }
+    }
+
+    /// Statistics gathered before the failure, when the search ran.
+    pub fn stats(&self) -> Option<&PlanStats> {
+        match self {
+            PlanError::Timeout { stats }
+            | PlanError::IterationLimit { stats }
+            | PlanError::Stopped { stats }
+            | PlanError::PathInvalid { stats, .. } => Some(stats),
+            _ => None,
+        }
+    }
+}

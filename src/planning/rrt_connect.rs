@@ -1,0 +1,341 @@
+//! RRT-Connect: J. J. Kuffner and S. M. LaValle, "RRT-Connect: An efficient approach to
+//! single-query path planning", ICRA 2000. Two trees, one rooted at the start and one at the
+//! goals, alternately EXTEND toward a uniform random sample and CONNECT (repeated EXTEND) toward
+//! the state the other tree just added. The goal tree is seeded with every valid goal state, so
+//! a path to any of a set of goals is found (as MotionBenchMaker/VAMP problems require).
+
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use super::shortcut::{simplify, ShortcutSettings};
+use super::validity::SpaceValidator;
+use super::{JointSpace, PlanError, PlanResult, PlanStats, Termination, Tree, NO_PARENT};
+use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+
+/// Settings of [`RrtConnect`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RrtConnectSettings {
+    /// Largest step of one EXTEND, in the space's distance. `None`: 0.2 × the space's maximum
+    /// extent (OMPL's default).
+    pub range: Option<f64>,
+    /// Motion validation resolution for revolute variables, radians per checked step.
+    pub angular_resolution: f64,
+    /// Motion validation resolution for prismatic variables, metres per checked step.
+    pub linear_resolution: f64,
+    /// Try the straight segment from the start to each goal before growing trees.
+    pub direct_connect: bool,
+    /// Simplify every solution (see [`super::shortcut`]); `None` returns the raw path.
+    pub shortcut: Option<ShortcutSettings>,
+}
+
+impl Default for RrtConnectSettings {
+    fn default() -> Self {
+        RrtConnectSettings {
+            range: None,
+            angular_resolution: 0.5f64.to_radians(),
+            linear_resolution: 0.005,
+            direct_connect: true,
+            shortcut: Some(ShortcutSettings::default()),
+        }
+    }
+}
+
+/// Outcome of one EXTEND step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Extend {
+    Trapped,
+    Advanced(u32),
+    Reached(u32),
+}
+
+/// The RRT-Connect planner over a [`JointSpace`], validating motions with a collision checker
+/// (by default the conservative [`FastChecker`]). Reusable: trees and buffers are kept between
+/// queries.
+pub struct RrtConnect<C: CollisionChecker = FastChecker> {
+    validator: SpaceValidator<C>,
+    settings: RrtConnectSettings,
+    range: f64,
+    trees: [Tree; 2],
+    q_rand: Vec<f64>,
+    q_new: Vec<f64>,
+    q_target: Vec<f64>,
+    idx: Vec<u32>,
+}
+
+impl RrtConnect<FastChecker> {
+    /// A planner for `space` in `world` with a [`FastChecker`] of that world.
+    pub fn new(
+        space: JointSpace,
+        world: &CollisionWorld,
+        settings: RrtConnectSettings,
+    ) -> Result<Self, PlanError> {
+        let checker = FastChecker::new(world);
+        RrtConnect::with_checker(space, world, checker, settings)
+    }
+}
+
+impl<C: CollisionChecker> RrtConnect<C> {
+    /// A planner validating with `checker` (built for `world`).
+    pub fn with_checker(
+        space: JointSpace,
+        world: &CollisionWorld,
+        checker: C,
+        settings: RrtConnectSettings,
+    ) -> Result<Self, PlanError> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !pos(settings.angular_resolution) || !pos(settings.linear_resolution) {
+            return Err(PlanError::InvalidInput(
+                "resolutions must be finite and > 0".into(),
+            ));
+        }
+        let range = match settings.range {
+            Some(r) if pos(r) => r,
+            Some(r) => {
+                return Err(PlanError::InvalidInput(format!(
+                    "range must be finite and > 0, got {r}"
+                )))
+            }
+            None => 0.2 * space.max_extent(),
+        };
+        if !pos(range) {
+            return Err(PlanError::InvalidInput(
+                "the space has no extent (all bounds equal)".into(),
+            ));
+        }
+        let dim = space.dim();
+        let weights = space.weights().to_vec();
+        Ok(RrtConnect {
+            validator: SpaceValidator::new(
+                space,
+                world,
+                checker,
+                settings.angular_resolution,
+                settings.linear_resolution,
+            ),
+            settings,
+            range,
+            trees: [Tree::new(&weights), Tree::new(&weights)],
+            q_rand: vec![0.0; dim],
+            q_new: vec![0.0; dim],
+            q_target: vec![0.0; dim],
+            idx: Vec::new(),
+        })
+    }
+
+    pub fn space(&self) -> &JointSpace {
+        self.validator.space()
+    }
+
+    pub fn settings(&self) -> &RrtConnectSettings {
+        &self.settings
+    }
+
+    /// The EXTEND step length in use.
+    pub fn range(&self) -> f64 {
+        self.range
+    }
+
+    /// The validator (e.g. to check other paths with the same checker and resolution).
+    pub fn validator(&mut self) -> &mut SpaceValidator<C> {
+        &mut self.validator
+    }
+
+    /// Plans from `start` to any of `goals` (states of the space). Invalid goals are skipped;
+    /// the query fails cleanly when the start or every goal is invalid, or when `term` fires.
+    /// The raw path is re-validated at the configured resolution, then simplified when the
+    /// settings ask for it. All randomness comes from `seed`.
+    pub fn plan(
+        &mut self,
+        start: &[f64],
+        goals: &[Vec<f64>],
+        term: &mut Termination,
+        seed: u64,
+    ) -> Result<PlanResult, PlanError> {
+        let t0 = Instant::now();
+        let checks0 = self.validator.checks();
+        let segments0 = self.validator.segments();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut stats = PlanStats::default();
+
+        if let Some(why) = self.validator.invalidity(start) {
+            return Err(PlanError::InvalidStart { reason: why });
+        }
+        if goals.is_empty() {
+            return Err(PlanError::InvalidGoal {
+                count: 0,
+                reason: "no goal given".into(),
+            });
+        }
+        let mut goal_ids: Vec<usize> = Vec::with_capacity(goals.len());
+        let mut first_reason = None;
+        for (k, g) in goals.iter().enumerate() {
+            match self.validator.invalidity(g) {
+                None => goal_ids.push(k),
+                Some(why) => {
+                    first_reason.get_or_insert_with(|| format!("goal {k}: {why}"));
+                }
+            }
+        }
+        if goal_ids.is_empty() {
+            return Err(PlanError::InvalidGoal {
+                count: goals.len(),
+                reason: first_reason.unwrap_or_default(),
+            });
+        }
+
+        let range = self.range;
+        let RrtConnect {
+            validator,
+            trees,
+            q_rand,
+            q_new,
+            q_target,
+            idx,
+            settings,
+            ..
+        } = self;
+        let [ts, tg] = trees;
+        ts.clear();
+        tg.clear();
+        ts.add(start, NO_PARENT);
+        for &k in &goal_ids {
+            tg.add(&goals[k], NO_PARENT);
+        }
+
+        let mut found: Option<(u32, u32)> = None; // (start-tree node, goal-tree node)
+        if settings.direct_connect {
+            for (root, &k) in goal_ids.iter().enumerate() {
+                if validator.is_motion_valid(start, &goals[k]) {
+                    found = Some((0, root as u32));
+                    break;
+                }
+            }
+        }
+        let mut iterations = 0u64;
+        let mut start_side = true; // the tree extended toward the sample this iteration
+        while found.is_none() {
+            if term.should_stop() {
+                stats.iterations = iterations;
+                stats.start_tree_size = ts.len();
+                stats.goal_tree_size = tg.len();
+                stats.collision_checks = validator.checks() - checks0;
+                stats.segments_checked = validator.segments() - segments0;
+                stats.time = t0.elapsed();
+                let reason = term.reason().unwrap_or(super::StopReason::Requested);
+                return Err(PlanError::stopped(reason, stats));
+            }
+            iterations += 1;
+            validator.space().sample_uniform(&mut rng, q_rand);
+            let (ta, tb) = if start_side {
+                (&mut *ts, &mut *tg)
+            } else {
+                (&mut *tg, &mut *ts)
+            };
+            match extend(ta, validator, range, q_rand, q_new) {
+                Extend::Trapped => {}
+                Extend::Advanced(i) | Extend::Reached(i) => {
+                    q_target.copy_from_slice(ta.state(i));
+                    let reached = loop {
+                        match extend(tb, validator, range, q_target, q_new) {
+                            Extend::Advanced(_) => continue,
+                            Extend::Reached(j) => break Some(j),
+                            Extend::Trapped => break None,
+                        }
+                    };
+                    if let Some(j) = reached {
+                        found = Some(if start_side { (i, j) } else { (j, i) });
+                    }
+                }
+            }
+            start_side = !start_side;
+        }
+        let Some((s, g)) = found else {
+            return Err(PlanError::InvalidInput(
+                "internal: search ended without a solution".into(),
+            ));
+        };
+
+        // Start root … s, then g … goal root.
+        let mut path: Vec<Vec<f64>> = Vec::new();
+        ts.path_from_root(s, idx);
+        path.extend(idx.iter().map(|&i| ts.state(i).to_vec()));
+        tg.path_from_root(g, idx);
+        for (n, &i) in idx.iter().rev().enumerate() {
+            let q = tg.state(i);
+            if n == 0 && path.last().is_some_and(|l| l.as_slice() == q) {
+                continue;
+            }
+            path.push(q.to_vec());
+        }
+        let root = tg.root_of(g) as usize;
+        let goal_index = goal_ids[root];
+
+        stats.iterations = iterations;
+        stats.start_tree_size = ts.len();
+        stats.goal_tree_size = tg.len();
+        if let Err(k) = validator.validate_path(&path) {
+            stats.collision_checks = validator.checks() - checks0;
+            stats.segments_checked = validator.segments() - segments0;
+            stats.time = t0.elapsed();
+            return Err(PlanError::PathInvalid {
+                segment: k,
+                stats: Box::new(stats),
+            });
+        }
+        stats.collision_checks = validator.checks() - checks0;
+        stats.segments_checked = validator.segments() - segments0;
+        stats.length_raw = validator.space().path_length(&path);
+        stats.vertices_raw = path.len();
+        stats.time = t0.elapsed();
+
+        if let Some(sc) = settings.shortcut {
+            let t1 = Instant::now();
+            simplify(validator, &mut path, &sc, &mut rng, term);
+            stats.simplify_time = t1.elapsed();
+        }
+        stats.length_simplified = validator.space().path_length(&path);
+        stats.vertices_simplified = path.len();
+        Ok(PlanResult {
+            path,
+            goal_index,
+            stats,
+        })
+    }
+}
+
+/// EXTEND (Kuffner & LaValle 2000): step from the nearest state of `tree` toward `target` by at
+/// most `range`; add the new state when the motion to it is valid.
+#[inline]
+fn extend<C: CollisionChecker>(
+    tree: &mut Tree,
+    v: &mut SpaceValidator<C>,
+    range: f64,
+    target: &[f64],
+    q_new: &mut [f64],
+) -> Extend {
+    let Some((near, d2)) = tree.nearest(target) else {
+        return Extend::Trapped;
+    };
+    if d2 == 0.0 {
+        return Extend::Reached(near);
+    }
+    let d = d2.sqrt();
+    let reached = d <= range;
+    if reached {
+        q_new.copy_from_slice(target);
+    } else {
+        v.space()
+            .interpolate(tree.state(near), target, range / d, q_new);
+    }
+    if !v.is_motion_valid(tree.state(near), q_new) {
+        return Extend::Trapped;
+    }
+    let i = tree.add(q_new, near);
+    if reached {
+        Extend::Reached(i)
+    } else {
+        Extend::Advanced(i)
+    }
+}

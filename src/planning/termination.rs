@@ -1,0 +1,192 @@
+//! Termination conditions shared by all planners (OMPL's `PlannerTerminationCondition`): a time
+//! limit, an iteration limit and an external stop flag, any of which ends the search.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Why a search was ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum StopReason {
+    TimeLimit,
+    IterationLimit,
+    /// The external stop flag was set.
+    Requested,
+}
+
+/// A termination condition. Planners call [`Termination::should_stop`] once per iteration; it
+/// counts iterations, reads the stop flag (one relaxed atomic load) every call and the clock only
+/// every `clock_every` calls, so it is cheap enough for the innermost loop.
+#[derive(Debug, Clone)]
+pub struct Termination {
+    start: Instant,
+    deadline: Option<Instant>,
+    max_iterations: Option<u64>,
+    stop: Option<Arc<AtomicBool>>,
+    clock_every: u32,
+    until_clock: u32,
+    iterations: u64,
+    reason: Option<StopReason>,
+}
+
+impl Default for Termination {
+    fn default() -> Self {
+        Termination::new()
+    }
+}
+
+impl Termination {
+    /// Never stops by itself; the clock starts now.
+    pub fn new() -> Termination {
+        Termination {
+            start: Instant::now(),
+            deadline: None,
+            max_iterations: None,
+            stop: None,
+            clock_every: 16,
+            until_clock: 0,
+            iterations: 0,
+            reason: None,
+        }
+    }
+
+    /// Stops `limit` after the clock start (construction or [`Termination::restart`]).
+    pub fn with_time_limit(mut self, limit: Duration) -> Termination {
+        self.deadline = self.start.checked_add(limit);
+        self
+    }
+
+    /// Stops after `n` calls of [`Termination::should_stop`].
+    pub fn with_iteration_limit(mut self, n: u64) -> Termination {
+        self.max_iterations = Some(n);
+        self
+    }
+
+    /// Stops as soon as `flag` is true (set it from another thread).
+    pub fn with_stop_flag(mut self, flag: Arc<AtomicBool>) -> Termination {
+        self.stop = Some(flag);
+        self
+    }
+
+    /// Reads the clock every `n` calls (at least 1; default 16).
+    pub fn with_clock_every(mut self, n: u32) -> Termination {
+        self.clock_every = n.max(1);
+        self
+    }
+
+    /// Restarts the clock (the time limit counts from now) and the iteration count.
+    pub fn restart(&mut self) {
+        let now = Instant::now();
+        if let Some(d) = self.deadline {
+            self.deadline = now.checked_add(d.saturating_duration_since(self.start));
+        }
+        self.start = now;
+        self.iterations = 0;
+        self.until_clock = 0;
+        self.reason = None;
+    }
+
+    /// Counts one iteration and tells whether the search must end now. Once it has returned
+    /// true it keeps returning true (see [`Termination::reason`]).
+    #[inline]
+    pub fn should_stop(&mut self) -> bool {
+        if self.reason.is_some() {
+            return true;
+        }
+        self.iterations += 1;
+        if let Some(f) = &self.stop {
+            if f.load(Ordering::Relaxed) {
+                self.reason = Some(StopReason::Requested);
+                return true;
+            }
+        }
+        if let Some(m) = self.max_iterations {
+            if self.iterations > m {
+                self.reason = Some(StopReason::IterationLimit);
+                return true;
+            }
+        }
+        if let Some(d) = self.deadline {
+            if self.until_clock == 0 {
+                self.until_clock = self.clock_every;
+                if Instant::now() >= d {
+                    self.reason = Some(StopReason::TimeLimit);
+                    return true;
+                }
+            }
+            self.until_clock -= 1;
+        }
+        false
+    }
+
+    /// Checks the clock and the flag now, without counting an iteration (for slow steps).
+    pub fn should_stop_now(&mut self) -> bool {
+        if self.reason.is_some() {
+            return true;
+        }
+        if self
+            .stop
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
+        {
+            self.reason = Some(StopReason::Requested);
+        } else if self.deadline.is_some_and(|d| Instant::now() >= d) {
+            self.reason = Some(StopReason::TimeLimit);
+        }
+        self.reason.is_some()
+    }
+
+    /// Why the condition fired, once it has.
+    pub fn reason(&self) -> Option<StopReason> {
+        self.reason
+    }
+
+    /// Calls of [`Termination::should_stop`] that counted an iteration.
+    pub fn iterations(&self) -> u64 {
+        self.iterations
+    }
+
+    /// Time since the clock start.
+    pub fn elapsed(&self) -> Duration {
+        self.start.elapsed()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn iteration_limit_counts_calls() {
+        let mut t = Termination::new().with_iteration_limit(3);
+        assert!(!t.should_stop());
+        assert!(!t.should_stop());
+        assert!(!t.should_stop());
+        assert!(t.should_stop());
+        assert_eq!(t.reason(), Some(StopReason::IterationLimit));
+        assert!(t.should_stop());
+    }
+
+    #[test]
+    fn time_limit_fires_within_clock_period() {
+        let mut t = Termination::new()
+            .with_time_limit(Duration::from_millis(5))
+            .with_clock_every(4);
+        let s = Instant::now();
+        while !t.should_stop() {
+            std::hint::spin_loop();
+        }
+        assert_eq!(t.reason(), Some(StopReason::TimeLimit));
+        assert!(s.elapsed() < Duration::from_millis(50));
+    }
+
+    #[test]
+    fn stop_flag() {
+        let f = Arc::new(AtomicBool::new(false));
+        let mut t = Termination::new().with_stop_flag(f.clone());
+        assert!(!t.should_stop());
+        f.store(true, Ordering::Relaxed);
+        assert!(t.should_stop());
+        assert_eq!(t.reason(), Some(StopReason::Requested));
+    }
+}

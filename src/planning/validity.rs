@@ -1,0 +1,114 @@
+//! State and motion validity in a [`JointSpace`] (OMPL's `StateValidityChecker` and
+//! `DiscreteMotionValidator`): bounds plus a [`CollisionChecker`] on the world configuration,
+//! segments through the collision module's [`MotionValidator`] (fixed resolution, bisection order).
+
+use super::JointSpace;
+use crate::collision::{CollisionChecker, CollisionWorld, Contact, MotionValidator};
+
+/// Checks states, segments and paths of a space with one collision checker. Owns the space and
+/// two world-configuration buffers, so no call allocates.
+pub struct SpaceValidator<C: CollisionChecker> {
+    space: JointSpace,
+    motion: MotionValidator<C>,
+    wa: Vec<f64>,
+    wb: Vec<f64>,
+    angular: f64,
+    linear: f64,
+}
+
+impl<C: CollisionChecker> SpaceValidator<C> {
+    /// Segments are checked so that no revolute variable moves more than `angular` radians and no
+    /// prismatic one more than `linear` metres between two checked states.
+    pub fn new(
+        space: JointSpace,
+        world: &CollisionWorld,
+        checker: C,
+        angular: f64,
+        linear: f64,
+    ) -> Self {
+        let wa = space.base().to_vec();
+        let wb = wa.clone();
+        SpaceValidator {
+            motion: MotionValidator::new(world, checker, angular, linear),
+            space,
+            wa,
+            wb,
+            angular,
+            linear,
+        }
+    }
+
+    pub fn space(&self) -> &JointSpace {
+        &self.space
+    }
+
+    /// The resolution `(angular rad, linear m)` segments are checked at.
+    pub fn resolution(&self) -> (f64, f64) {
+        (self.angular, self.linear)
+    }
+
+    pub fn checker(&mut self) -> &mut C {
+        &mut self.motion.checker
+    }
+
+    /// Configuration checks performed so far by the checker.
+    pub fn checks(&self) -> u64 {
+        self.motion.checker.checks()
+    }
+
+    /// Segments checked so far.
+    pub fn segments(&self) -> u64 {
+        self.motion.segments()
+    }
+
+    /// Within bounds and collision-free.
+    pub fn is_state_valid(&mut self, q: &[f64]) -> bool {
+        if !self.space.satisfies_bounds(q) {
+            return false;
+        }
+        self.space.write_world(q, &mut self.wa);
+        self.motion.checker.is_free(&self.wa)
+    }
+
+    /// Why `q` is invalid: the bound violated or the colliding pair (`None` when valid).
+    pub fn invalidity(&mut self, q: &[f64]) -> Option<String> {
+        if let Some(b) = self.space.bounds_violation(q) {
+            return Some(b);
+        }
+        self.space.write_world(q, &mut self.wa);
+        self.motion
+            .checker
+            .first_contact(&self.wa)
+            .map(|Contact { a, b }| format!("{a} collides with {b}"))
+    }
+
+    /// The segment `a → b` (states of the space, `a` assumed valid): every state at the
+    /// resolution, `b` included, is collision-free. Bounds are not checked (a straight segment
+    /// between two states in the box stays in it).
+    #[inline]
+    pub fn is_motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
+        self.space.write_world(a, &mut self.wa);
+        self.space.write_world(b, &mut self.wb);
+        self.motion.is_valid(&self.wa, &self.wb)
+    }
+
+    /// Checks a whole path: every state within bounds, the first state free and every segment
+    /// valid. `Err(k)`: state `k` (or the segment ending at it) is invalid.
+    pub fn validate_path(&mut self, path: &[Vec<f64>]) -> Result<(), usize> {
+        if let Some(k) = path.iter().position(|q| !self.space.satisfies_bounds(q)) {
+            return Err(k);
+        }
+        let Some(first) = path.first() else {
+            return Ok(());
+        };
+        if !self.is_state_valid(first) {
+            return Err(0);
+        }
+        for k in 1..path.len() {
+            if !self.is_motion_valid(&path[k - 1], &path[k]) {
+                return Err(k);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,242 @@
+//! The MotionBenchMaker loader and planning on its problems: both problem files load, one Panda
+//! problem per set is solved by RRT-Connect and its path verified by the exact checker, and a
+//! path through an obstacle is rejected.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use manyhands::collision::{CollisionChecker, ExactChecker, FastChecker};
+use manyhands::geometry::Shape;
+use manyhands::planning::mbm::{MbmError, MbmFile};
+use manyhands::planning::{RrtConnect, RrtConnectSettings, SpaceValidator, Termination};
+use manyhands::Robot;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn mbm(p: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/benchmarks/mbm")
+        .join(p)
+}
+
+fn panda() -> Arc<Robot> {
+    Arc::new(
+        Robot::from_files(
+            &mbm("panda/panda_spherized.urdf"),
+            Some(&mbm("panda/panda.srdf")),
+        )
+        .expect("panda"),
+    )
+}
+
+const RES: f64 = 0.5; // degrees, planning and exact re-check
+
+#[test]
+fn loads_both_problem_files() {
+    let p = MbmFile::load(&mbm("panda/problems.json")).expect("panda problems");
+    assert_eq!(p.robot, "panda");
+    assert_eq!(p.joints.len(), 7);
+    let names: Vec<&str> = p.sets.iter().map(|s| s.name.as_str()).collect();
+    for s in [
+        "table_pick",
+        "table_under_pick",
+        "box",
+        "bookshelf_small",
+        "bookshelf_tall",
+        "bookshelf_thin",
+        "cage",
+    ] {
+        assert!(names.contains(&s), "{s} missing from {names:?}");
+    }
+    let total: usize = p.sets.iter().map(|s| s.problems.len()).sum();
+    let valid: usize = p
+        .sets
+        .iter()
+        .flat_map(|s| &s.problems)
+        .filter(|q| q.valid)
+        .count();
+    assert_eq!((total, valid), (700, 699));
+    let r = panda();
+    assert_eq!(
+        p.joint_vars(&r).expect("joints map"),
+        (0..7).collect::<Vec<_>>()
+    );
+    // First box problem: a can (cylinder, length 0.14) and the box's walls.
+    let b = &p.set("box").expect("box set").problems[0];
+    assert!(b.obstacles.iter().any(|o| o.shape
+        == Shape::Cylinder {
+            radius: 0.03,
+            half_length: 0.07
+        }));
+    assert!(b
+        .obstacles
+        .iter()
+        .any(|o| matches!(o.shape, Shape::Box { .. })));
+    assert_eq!(b.start.len(), 7);
+    assert!(!b.goals.is_empty() && b.goals.iter().all(|g| g.len() == 7));
+
+    let x = MbmFile::load(&mbm("baxter/problems.json")).expect("baxter problems");
+    assert_eq!(x.joints.len(), 14);
+    assert_eq!(x.sets.len(), 3);
+    let valid: usize = x
+        .sets
+        .iter()
+        .flat_map(|s| &s.problems)
+        .filter(|q| q.valid)
+        .count();
+    assert_eq!(valid, 1470);
+    let baxter = Robot::from_files(
+        &mbm("baxter/baxter_spherized.urdf"),
+        Some(&mbm("baxter/baxter.srdf")),
+    )
+    .expect("baxter");
+    let vars = x.joint_vars(&baxter).expect("baxter joints map");
+    assert_eq!(vars.len(), 14);
+    // Every valid Baxter start is collision-free for our checkers (same model as the benchmark).
+    let q = x.sets[0]
+        .problems
+        .iter()
+        .find(|q| q.valid)
+        .expect("a valid problem");
+    let world = q.world(Arc::new(baxter));
+    let space = q.space(&world, &vars).expect("space");
+    let mut v = SpaceValidator::new(
+        space,
+        &world,
+        ExactChecker::new(&world),
+        RES.to_radians(),
+        0.005,
+    );
+    assert_eq!(v.invalidity(&q.start), None);
+}
+
+#[test]
+fn unknown_joint_and_bad_problems_are_errors() {
+    let text = r#"{"robot": "panda", "joints": ["panda_joint1", "nope"], "problems": {"s": []}}"#;
+    let f = MbmFile::parse(text, "t.json").expect("parses");
+    match f.joint_vars(&panda()) {
+        Err(MbmError::UnknownJoint { joint, .. }) => assert_eq!(joint, "nope"),
+        other => panic!("expected UnknownJoint, got {other:?}"),
+    }
+    let short = r#"{"robot": "r", "joints": ["a", "b"], "problems": {"s": [
+        {"start": [0.0], "goals": [[0.0, 0.0]], "valid": true, "index": 3}]}}"#;
+    assert!(matches!(
+        MbmFile::parse(short, "t.json"),
+        Err(MbmError::Problem { index: 3, .. })
+    ));
+    let bad_box = r#"{"robot": "r", "joints": ["a"], "problems": {"s": [
+        {"start": [0.0], "goals": [[0.0]], "valid": true,
+         "box": [{"name": "b", "half_extents": [0.1, -1, 0.1], "position": [0, 0, 0], "orientation_quat_xyzw": [0, 0, 0, 1]}]}]}}"#;
+    assert!(matches!(
+        MbmFile::parse(bad_box, "t.json"),
+        Err(MbmError::Problem { .. })
+    ));
+    assert!(matches!(
+        MbmFile::parse("{", "t.json"),
+        Err(MbmError::Syntax { .. })
+    ));
+}
+
+#[test]
+fn one_panda_problem_per_set_is_solved_and_exactly_valid() {
+    let file = MbmFile::load(&mbm("panda/problems.json")).expect("panda problems");
+    let robot = panda();
+    let vars = file.joint_vars(&robot).expect("joints");
+    let settings = RrtConnectSettings {
+        angular_resolution: RES.to_radians(),
+        ..RrtConnectSettings::default()
+    };
+    for set in &file.sets {
+        let p = set
+            .problems
+            .iter()
+            .find(|p| p.valid)
+            .expect("a valid problem");
+        let world = p.world(robot.clone());
+        let space = p.space(&world, &vars).expect("space");
+        let mut planner = RrtConnect::new(space.clone(), &world, settings).expect("planner");
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+        let r = planner
+            .plan(&p.start, &p.goals, &mut term, 7)
+            .unwrap_or_else(|e| panic!("{}[{}]: {e}", set.name, p.index));
+        assert_eq!(r.path.first(), Some(&p.start));
+        assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
+        let mut exact = SpaceValidator::new(
+            space,
+            &world,
+            ExactChecker::new(&world),
+            RES.to_radians(),
+            0.005,
+        );
+        assert_eq!(
+            exact.validate_path(&r.path),
+            Ok(()),
+            "{}[{}]",
+            set.name,
+            p.index
+        );
+        assert!(r.stats.length_simplified <= r.stats.length_raw + 1e-9);
+    }
+}
+
+#[test]
+fn a_path_through_an_obstacle_is_invalid() {
+    let file = MbmFile::load(&mbm("panda/problems.json")).expect("panda problems");
+    let robot = panda();
+    let vars = file.joint_vars(&robot).expect("joints");
+    let p = file
+        .set("table_pick")
+        .and_then(|s| s.problems.iter().find(|p| p.valid))
+        .expect("problem");
+    let world = p.world(robot.clone());
+    let space = p.space(&world, &vars).expect("space");
+    // Without the obstacles, to tell obstacle contacts from self-collisions.
+    let bare = manyhands::collision::CollisionWorld::single(
+        robot.clone(),
+        manyhands::geometry::Pose::identity(),
+    );
+    let mut bare_v = SpaceValidator::new(
+        space.clone(),
+        &bare,
+        ExactChecker::new(&bare),
+        RES.to_radians(),
+        0.005,
+    );
+    let mut ev = SpaceValidator::new(
+        space.clone(),
+        &world,
+        ExactChecker::new(&world),
+        RES.to_radians(),
+        0.005,
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut a = vec![0.0; 7];
+    let mut b = vec![0.0; 7];
+    // Two free configurations whose segment is free of self-collision but meets an obstacle.
+    let found = (0..5000).any(|_| {
+        space.sample_uniform(&mut rng, &mut a);
+        space.sample_uniform(&mut rng, &mut b);
+        for q in [&mut a, &mut b] {
+            for v in q.iter_mut() {
+                *v *= 0.5 + 0.5 * rng.random::<f64>();
+            }
+        }
+        ev.is_state_valid(&a)
+            && ev.is_state_valid(&b)
+            && bare_v.validate_path(&[a.clone(), b.clone()]).is_ok()
+            && !ev.is_motion_valid(&a, &b)
+    });
+    assert!(found, "no segment through an obstacle found");
+    assert!(ev.checker().first_contact(&a).is_none() && ev.checker().first_contact(&b).is_none());
+    let path = vec![a, b];
+    assert_eq!(ev.validate_path(&path), Err(1));
+    let mut fv = SpaceValidator::new(
+        space,
+        &world,
+        FastChecker::new(&world),
+        RES.to_radians(),
+        0.005,
+    );
+    assert_eq!(fv.validate_path(&path), Err(1));
+}
