@@ -9,5 +9,7 @@ pub mod geometry;
 pub mod kinematics;
 pub mod model;
 pub mod planning;
+pub mod reachability;
+pub mod server;
 
 pub use model::{Robot, Scene};

@@ -240,3 +240,44 @@ fn a_path_through_an_obstacle_is_invalid() {
     );
     assert_eq!(fv.validate_path(&path), Err(1));
 }
+
+/// The benchmark's configuration: the 8-lane sphere checker (no padding), planning resolution
+/// equal to the exact re-check's, no re-validation; every path must pass the exact check.
+#[test]
+fn sphere_checker_solves_two_panda_problems_per_set_exactly_valid() {
+    use manyhands::collision::AutoChecker;
+    let file = MbmFile::load(&mbm("panda/problems.json")).expect("panda problems");
+    let robot = panda();
+    let vars = file.joint_vars(&robot).expect("joints");
+    let res = 0.25f64.to_radians();
+    let settings = RrtConnectSettings {
+        angular_resolution: res,
+        revalidate: false,
+        ..RrtConnectSettings::default()
+    };
+    for set in &file.sets {
+        for p in set.problems.iter().filter(|p| p.valid).take(2) {
+            let world = p.world(robot.clone());
+            let space = p.space(&world, &vars).expect("space");
+            let checker = AutoChecker::new(&world, 0.0);
+            assert_eq!(checker.kind(), "spheres");
+            let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, settings)
+                .expect("planner");
+            let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+            let r = planner
+                .plan(&p.start, &p.goals, &mut term, 11)
+                .unwrap_or_else(|e| panic!("{}[{}]: {e}", set.name, p.index));
+            assert_eq!(r.path.first(), Some(&p.start));
+            assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
+            let mut exact =
+                SpaceValidator::new(space, &world, ExactChecker::new(&world), res, 0.005);
+            assert_eq!(
+                exact.validate_path(&r.path),
+                Ok(()),
+                "{}[{}]",
+                set.name,
+                p.index
+            );
+        }
+    }
+}

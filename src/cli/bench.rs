@@ -36,6 +36,9 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Randomized IK (paper 000 Tables 1 and 2): 10-DoF hip + arm and dual-arm IK on the wok,
+    /// with/without reachability, without/with obstacle.
+    Ik(super::bench_ik::IkBenchArgs),
     /// MotionBenchMaker problem sets (Panda, Baxter) with RRT-Connect, paths verified exactly.
     Mbm(super::mbm::MbmArgs),
 }
@@ -52,6 +55,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
             print_rows(ctx, &rows);
         }
         BenchCmd::Mbm(a) => super::mbm::run(ctx, a)?,
+        BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
     }
     Ok(())
 }

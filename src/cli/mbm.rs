@@ -11,7 +11,7 @@ use clap::Args;
 use serde::Serialize;
 use serde_json::json;
 
-use manyhands::collision::{ExactChecker, FastChecker, FastModelSettings};
+use manyhands::collision::{AutoChecker, ExactChecker, FastChecker, FastModelSettings};
 use manyhands::planning::mbm::{MbmFile, MbmProblem};
 use manyhands::planning::{
     PlanError, RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
@@ -46,7 +46,9 @@ pub struct MbmArgs {
     #[arg(long, default_value_t = 10.0)]
     pub time_limit: f64,
     /// Planning motion-check resolution: largest joint step between checked states, degrees.
-    #[arg(long, default_value_t = 0.5)]
+    /// The default equals the exact re-check's resolution, so every state the re-check visits
+    /// was checked by the (conservative) planning model.
+    #[arg(long, default_value_t = 0.25)]
     pub resolution: f64,
     /// Resolution of the exact re-check of returned paths, degrees.
     #[arg(long, default_value_t = 0.25)]
@@ -54,10 +56,18 @@ pub struct MbmArgs {
     /// RRT-Connect range (joint-space distance); default 0.2 × the space's extent (OMPL).
     #[arg(long)]
     pub range: Option<f64>,
-    /// Padding added to every robot sphere of the planner's fast collision model, metres (a
-    /// safety margin against contacts between the checked states of a segment).
-    #[arg(long, default_value_t = 0.005)]
+    /// Padding added to every robot sphere of the planner's collision model, metres (a safety
+    /// margin; 0 = the benchmark's own model, which is what the exact re-check uses).
+    #[arg(long, default_value_t = 0.0)]
     pub padding: f64,
+    /// Plan with the general primitive checker (FastChecker) even when the robot is made of
+    /// spheres (default: the f32 8-lane sphere checker whenever it applies).
+    #[arg(long)]
+    pub fast_checker: bool,
+    /// Re-validate each raw path with the planning checker inside the timed planning (its
+    /// segments are the tree edges already validated; the exact re-check is done regardless).
+    #[arg(long)]
+    pub revalidate: bool,
     /// Return raw paths (no shortcutting).
     #[arg(long)]
     pub no_simplify: bool,
@@ -185,7 +195,14 @@ fn run_problem(
     let t_setup = Instant::now();
     let world = p.world(robot.clone());
     let space = p.space(&world, vars)?;
-    let checker = FastChecker::with_settings(&world, FastModelSettings { padding: a.padding });
+    let checker = if a.fast_checker {
+        AutoChecker::Fast(FastChecker::with_settings(
+            &world,
+            FastModelSettings { padding: a.padding },
+        ))
+    } else {
+        AutoChecker::new(&world, a.padding)
+    };
     let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, *settings)?;
     let setup_us = t_setup.elapsed().as_secs_f64() * 1e6;
     let mut run = Run {
@@ -308,6 +325,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         linear_resolution: 0.005,
         direct_connect: true,
         shortcut: (!a.no_simplify).then(ShortcutSettings::default),
+        revalidate: a.revalidate,
     };
     let is_panda = file.robot == "panda";
     let mut runs: Vec<Run> = Vec::new();
@@ -386,7 +404,11 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         } else if file.robot == "baxter" {
             println!("VAMP 0.6.4 (README, 1 470 problems, one core): 1 398 solved, median 8.38 ms, mean 15.2 ms, p95 53.8 ms, median 80 390 iterations.");
         }
-        println!("times: planning = search + start/goal checks + re-validation of the raw path (setup of the collision model excluded, shown as 'setup'); obstacles' cylinders are exact cylinders.");
+        println!(
+            "times: planning = search + start/goal checks{} (setup of the collision model excluded, shown as 'setup'); collision model: {}; obstacles' cylinders are exact cylinders.",
+            if a.revalidate { " + re-validation of the raw path" } else { "" },
+            if a.fast_checker { "FastChecker (f64 primitives)" } else { "SphereChecker (f32, 8 lanes) when the robot is made of spheres, else FastChecker" }
+        );
         for r in runs.iter().filter(|r| r.invalid) {
             println!(
                 "INVALID {}[{}] trial {}: {}",

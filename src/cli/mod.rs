@@ -1,8 +1,12 @@
 //! Command-line front end (clap). Thin: parses arguments, calls the library, prints text or JSON.
 
 mod bench;
+mod bench_ik;
 mod commands;
+mod loadtest;
 mod mbm;
+mod reach;
+mod serve;
 
 use std::path::PathBuf;
 
@@ -47,11 +51,20 @@ pub enum Command {
         #[command(subcommand)]
         cmd: SceneCmd,
     },
+    /// Reachability grids: build (with progress bar), info, SVG slice plot.
+    Reach {
+        #[command(subcommand)]
+        cmd: reach::ReachCmd,
+    },
     /// Benchmarks (medians over many seeded runs).
     Bench {
         #[command(subcommand)]
         cmd: bench::BenchCmd,
     },
+    /// The HTTP/JSON planning server (REST API, async jobs, SSE, Prometheus metrics).
+    Serve(serve::ServeArgs),
+    /// Drives a running server on 127.0.0.1 with concurrent IK queries and planning jobs.
+    Loadtest(loadtest::LoadtestArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -92,6 +105,9 @@ pub fn run() -> Result<()> {
         Command::Scene {
             cmd: SceneCmd::RandomBoxes(a),
         } => commands::random_boxes(&ctx, a),
+        Command::Reach { cmd } => reach::run(&ctx, cmd),
+        Command::Serve(a) => serve::run(&ctx, a),
+        Command::Loadtest(a) => loadtest::run(&ctx, a),
         Command::Bench { cmd } => bench::run(&ctx, cmd),
     }
 }

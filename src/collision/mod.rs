@@ -13,12 +13,14 @@ mod fast;
 mod generate;
 mod gjk;
 mod motion;
+mod spheres;
 mod world;
 
 pub use exact::ExactChecker;
 pub use fast::{FastChecker, FastModelSettings};
 pub use generate::{random_boxes, RandomBoxes};
 pub use motion::MotionValidator;
+pub use spheres::{AutoChecker, SphereChecker, LANES};
 pub use world::{AttachedBody, BodyId, CollisionWorld, PlacedRobot, StaticBody, StaticKind};
 
 /// Two bodies found in collision.

@@ -4,8 +4,10 @@
 //! Depends on `model` and `geometry` only; knows nothing of collision or planning.
 
 mod chain;
+pub mod dual_arm;
 mod fk;
 pub mod numeric;
+pub mod randomized;
 pub mod srs;
 
 pub use chain::Chain;

@@ -23,4 +23,4 @@ pub use shortcut::{ShortcutSettings, ShortcutStats};
 pub use space::JointSpace;
 pub use termination::{StopReason, Termination};
 pub use tree::{Tree, NO_PARENT};
-pub use validity::SpaceValidator;
+pub use validity::{SegmentChecker, SpaceValidator};

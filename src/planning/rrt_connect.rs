@@ -10,9 +10,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::shortcut::{simplify, ShortcutSettings};
-use super::validity::SpaceValidator;
+use super::validity::{SegmentChecker, SpaceValidator};
 use super::{JointSpace, PlanError, PlanResult, PlanStats, Termination, Tree, NO_PARENT};
-use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use crate::collision::{CollisionWorld, FastChecker};
 
 /// Settings of [`RrtConnect`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -28,6 +28,9 @@ pub struct RrtConnectSettings {
     pub direct_connect: bool,
     /// Simplify every solution (see [`super::shortcut`]); `None` returns the raw path.
     pub shortcut: Option<ShortcutSettings>,
+    /// Re-validate the raw path before returning it. Its segments are exactly the tree edges
+    /// already validated with the same checker and resolution, so this is a safety net only.
+    pub revalidate: bool,
 }
 
 impl Default for RrtConnectSettings {
@@ -38,6 +41,7 @@ impl Default for RrtConnectSettings {
             linear_resolution: 0.005,
             direct_connect: true,
             shortcut: Some(ShortcutSettings::default()),
+            revalidate: true,
         }
     }
 }
@@ -53,7 +57,7 @@ enum Extend {
 /// The RRT-Connect planner over a [`JointSpace`], validating motions with a collision checker
 /// (by default the conservative [`FastChecker`]). Reusable: trees and buffers are kept between
 /// queries.
-pub struct RrtConnect<C: CollisionChecker = FastChecker> {
+pub struct RrtConnect<C: SegmentChecker = FastChecker> {
     validator: SpaceValidator<C>,
     settings: RrtConnectSettings,
     range: f64,
@@ -76,7 +80,7 @@ impl RrtConnect<FastChecker> {
     }
 }
 
-impl<C: CollisionChecker> RrtConnect<C> {
+impl<C: SegmentChecker> RrtConnect<C> {
     /// A planner validating with `checker` (built for `world`).
     pub fn with_checker(
         space: JointSpace,
@@ -275,7 +279,12 @@ impl<C: CollisionChecker> RrtConnect<C> {
         stats.iterations = iterations;
         stats.start_tree_size = ts.len();
         stats.goal_tree_size = tg.len();
-        if let Err(k) = validator.validate_path(&path) {
+        let checked = if settings.revalidate {
+            validator.validate_path(&path)
+        } else {
+            Ok(())
+        };
+        if let Err(k) = checked {
             stats.collision_checks = validator.checks() - checks0;
             stats.segments_checked = validator.segments() - segments0;
             stats.time = t0.elapsed();
@@ -308,7 +317,7 @@ impl<C: CollisionChecker> RrtConnect<C> {
 /// EXTEND (Kuffner & LaValle 2000): step from the nearest state of `tree` toward `target` by at
 /// most `range`; add the new state when the motion to it is valid.
 #[inline]
-fn extend<C: CollisionChecker>(
+fn extend<C: SegmentChecker>(
     tree: &mut Tree,
     v: &mut SpaceValidator<C>,
     range: f64,

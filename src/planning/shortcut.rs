@@ -15,9 +15,8 @@
 
 use rand::Rng;
 
-use super::validity::SpaceValidator;
+use super::validity::{SegmentChecker, SpaceValidator};
 use super::Termination;
-use crate::collision::CollisionChecker;
 
 /// Settings of [`simplify`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -52,7 +51,7 @@ pub struct ShortcutStats {
 
 /// Shortens `path` in place (see the module documentation). Its end states are kept; stops early
 /// when `term` fires (checked between attempts, no iteration counted).
-pub fn simplify<C: CollisionChecker, R: Rng + ?Sized>(
+pub fn simplify<C: SegmentChecker, R: Rng + ?Sized>(
     v: &mut SpaceValidator<C>,
     path: &mut Vec<Vec<f64>>,
     settings: &ShortcutSettings,
@@ -79,7 +78,7 @@ pub fn simplify<C: CollisionChecker, R: Rng + ?Sized>(
 }
 
 /// Greedy vertex removal; returns the number of vertices removed.
-pub fn remove_vertices<C: CollisionChecker>(
+pub fn remove_vertices<C: SegmentChecker>(
     v: &mut SpaceValidator<C>,
     path: &mut Vec<Vec<f64>>,
     term: &mut Termination,
@@ -103,7 +102,7 @@ pub fn remove_vertices<C: CollisionChecker>(
     before - path.len()
 }
 
-fn random_shortcuts<C: CollisionChecker, R: Rng + ?Sized>(
+fn random_shortcuts<C: SegmentChecker, R: Rng + ?Sized>(
     v: &mut SpaceValidator<C>,
     path: &mut Vec<Vec<f64>>,
     settings: &ShortcutSettings,

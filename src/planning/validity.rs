@@ -3,20 +3,54 @@
 //! segments through the collision module's [`MotionValidator`] (fixed resolution, bisection order).
 
 use super::JointSpace;
-use crate::collision::{CollisionChecker, CollisionWorld, Contact, MotionValidator};
+use crate::collision::{
+    AutoChecker, CollisionChecker, CollisionWorld, Contact, ExactChecker, FastChecker,
+    MotionValidator, SphereChecker,
+};
+
+/// A collision checker that may check a whole straight segment itself (e.g. several states per
+/// call in SIMD lanes). The default answers `None`: the states are then checked one by one in
+/// bisection order by the collision module's [`MotionValidator`].
+pub trait SegmentChecker: CollisionChecker {
+    /// `Some(true)` when every state `a + (b − a)·k/n`, k = 1..=n, is free (world
+    /// configurations); `None` when this checker has no segment check of its own.
+    #[inline]
+    fn segment_free(&mut self, _a: &[f64], _b: &[f64], _n: usize) -> Option<bool> {
+        None
+    }
+}
+
+impl SegmentChecker for FastChecker {}
+impl SegmentChecker for ExactChecker {}
+
+impl SegmentChecker for SphereChecker {
+    #[inline]
+    fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
+        Some(SphereChecker::segment_free(self, a, b, n))
+    }
+}
+
+impl SegmentChecker for AutoChecker {
+    #[inline]
+    fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
+        AutoChecker::segment_free(self, a, b, n)
+    }
+}
 
 /// Checks states, segments and paths of a space with one collision checker. Owns the space and
 /// two world-configuration buffers, so no call allocates.
-pub struct SpaceValidator<C: CollisionChecker> {
+pub struct SpaceValidator<C: SegmentChecker> {
     space: JointSpace,
     motion: MotionValidator<C>,
     wa: Vec<f64>,
     wb: Vec<f64>,
     angular: f64,
     linear: f64,
+    /// Segments checked by the checker's own segment check.
+    own_segments: u64,
 }
 
-impl<C: CollisionChecker> SpaceValidator<C> {
+impl<C: SegmentChecker> SpaceValidator<C> {
     /// Segments are checked so that no revolute variable moves more than `angular` radians and no
     /// prismatic one more than `linear` metres between two checked states.
     pub fn new(
@@ -35,6 +69,7 @@ impl<C: CollisionChecker> SpaceValidator<C> {
             wb,
             angular,
             linear,
+            own_segments: 0,
         }
     }
 
@@ -58,7 +93,7 @@ impl<C: CollisionChecker> SpaceValidator<C> {
 
     /// Segments checked so far.
     pub fn segments(&self) -> u64 {
-        self.motion.segments()
+        self.motion.segments() + self.own_segments
     }
 
     /// Within bounds and collision-free.
@@ -89,7 +124,14 @@ impl<C: CollisionChecker> SpaceValidator<C> {
     pub fn is_motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.space.write_world(a, &mut self.wa);
         self.space.write_world(b, &mut self.wb);
-        self.motion.is_valid(&self.wa, &self.wb)
+        let n = self.motion.steps(&self.wa, &self.wb);
+        match self.motion.checker.segment_free(&self.wa, &self.wb, n) {
+            Some(ok) => {
+                self.own_segments += 1;
+                ok
+            }
+            None => self.motion.is_valid(&self.wa, &self.wb),
+        }
     }
 
     /// Checks a whole path: every state within bounds, the first state free and every segment

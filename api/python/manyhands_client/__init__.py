@@ -1,0 +1,201 @@
+"""Client of the manyhands planning server (see api/openapi.json).
+
+Standard library only. ``Client`` is synchronous; ``AsyncClient`` runs the same calls in a thread
+(``asyncio.to_thread``) so it can be awaited. Errors raise ``ApiError`` carrying the server's
+``{"error": {"code", "message", "field"}}``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass
+from typing import Any, Dict, Iterator, List, Optional, Tuple
+
+__all__ = ["ApiError", "Client", "AsyncClient", "Event", "FINAL_STATES"]
+
+FINAL_STATES = frozenset({"succeeded", "failed", "cancelled", "interrupted"})
+Json = Dict[str, Any]
+
+
+class ApiError(Exception):
+    """A 4xx/5xx answer: HTTP status, error code, message and the offending field path."""
+
+    def __init__(self, status: int, code: str, message: str, field: Optional[str] = None,
+                 retry_after: Optional[float] = None) -> None:
+        super().__init__(f"{status} {code}: {message}")
+        self.status = status
+        self.code = code
+        self.message = message
+        self.field = field
+        self.retry_after = retry_after
+
+
+@dataclass
+class Event:
+    """One Server-Sent Event of a job: ``state``, ``progress`` or ``end``."""
+
+    event: str
+    data: Json
+
+
+class Client:
+    """Synchronous client. ``token`` is sent as ``Authorization: Bearer``."""
+
+    def __init__(self, base_url: str = "http://127.0.0.1:8080", token: Optional[str] = None,
+                 timeout: float = 60.0) -> None:
+        self.base_url = base_url.rstrip("/")
+        self.token = token
+        self.timeout = timeout
+
+    # -- plumbing ---------------------------------------------------------------------------
+    def _request(self, method: str, path: str, body: Any = None,
+                 timeout: Optional[float] = None) -> Tuple[int, Dict[str, str], Any]:
+        data = None if body is None else json.dumps(body).encode()
+        req = urllib.request.Request(self.base_url + path, data=data, method=method)
+        if data is not None:
+            req.add_header("Content-Type", "application/json")
+        if self.token:
+            req.add_header("Authorization", f"Bearer {self.token}")
+        try:
+            with urllib.request.urlopen(req, timeout=timeout or self.timeout) as resp:
+                raw = resp.read()
+                ctype = resp.headers.get("Content-Type", "")
+                value = json.loads(raw) if raw and "json" in ctype else raw.decode()
+                return resp.status, dict(resp.headers), value
+        except urllib.error.HTTPError as e:
+            raw = e.read()
+            try:
+                err = json.loads(raw)["error"]
+            except (ValueError, KeyError, TypeError):
+                err = {"code": "http_error", "message": raw.decode(errors="replace"), "field": None}
+            ra = e.headers.get("Retry-After") if e.headers else None
+            raise ApiError(e.code, err.get("code", ""), err.get("message", ""), err.get("field"),
+                           float(ra) if ra else None) from None
+
+    def _get(self, path: str, **kw: Any) -> Any:
+        return self._request("GET", path, **kw)[2]
+
+    def _post(self, path: str, body: Any) -> Any:
+        return self._request("POST", path, body)[2]
+
+    # -- operations -------------------------------------------------------------------------
+    def health(self) -> Json:
+        return self._get("/healthz")
+
+    def metrics(self) -> str:
+        return self._get("/metrics")
+
+    # -- resources --------------------------------------------------------------------------
+    def robots(self) -> List[Json]:
+        return self._get("/v1/robots")
+
+    def robot(self, name: str) -> Json:
+        return self._get(f"/v1/robots/{name}")
+
+    def put_robot(self, name: str, urdf: str, srdf: Optional[str] = None) -> Json:
+        return self._request("PUT", f"/v1/robots/{name}", {"urdf": urdf, "srdf": srdf})[2]
+
+    def delete_robot(self, name: str) -> None:
+        self._request("DELETE", f"/v1/robots/{name}")
+
+    def scenes(self) -> List[Json]:
+        return self._get("/v1/scenes")
+
+    def scene(self, name: str) -> Json:
+        return self._get(f"/v1/scenes/{name}")
+
+    def put_scene(self, name: str, scene: Json) -> Json:
+        return self._request("PUT", f"/v1/scenes/{name}", scene)[2]
+
+    def delete_scene(self, name: str) -> None:
+        self._request("DELETE", f"/v1/scenes/{name}")
+
+    # -- queries ----------------------------------------------------------------------------
+    def fk(self, robot: str, config: Optional[Dict[str, float]] = None, **kw: Any) -> Json:
+        return self._post("/v1/fk", {"robot": robot, "config": config or {}, **kw})
+
+    def ik(self, robot: str, group: str, pose: Json, **kw: Any) -> Json:
+        return self._post("/v1/ik", {"robot": robot, "group": group, "pose": pose, **kw})
+
+    def check(self, scene: str, robots: Optional[List[Json]] = None) -> Json:
+        return self._post("/v1/check", {"scene": scene, "robots": robots or []})
+
+    # -- jobs -------------------------------------------------------------------------------
+    def submit(self, request: Json, wait: Optional[float] = None) -> Json:
+        """POST /v1/plans; returns the job (final when ``wait`` seconds sufficed)."""
+        q = "" if wait is None else f"?wait={wait}"
+        t = None if wait is None else self.timeout + wait
+        return self._request("POST", "/v1/plans" + q, request, timeout=t)[2]
+
+    def job(self, job_id: str) -> Json:
+        return self._get(f"/v1/plans/{job_id}")
+
+    def jobs(self) -> List[Json]:
+        return self._get("/v1/plans")["jobs"]
+
+    def cancel(self, job_id: str) -> Json:
+        return self._request("DELETE", f"/v1/plans/{job_id}")[2]
+
+    def wait(self, job_id: str, timeout: float = 600.0) -> Json:
+        """Blocks until the job is final (or ``timeout`` seconds passed) and returns it."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = max(0.0, deadline - time.monotonic())
+            job = self._request("GET", f"/v1/plans/{job_id}?wait={min(left, 60.0):.3f}",
+                                timeout=self.timeout + 60.0)[2]
+            if job["state"] in FINAL_STATES or left <= 0.0:
+                return job
+
+    def events(self, job_id: str) -> Iterator[Event]:
+        """Iterates the job's Server-Sent Events until the ``end`` event."""
+        req = urllib.request.Request(f"{self.base_url}/v1/plans/{job_id}/events")
+        if self.token:
+            req.add_header("Authorization", f"Bearer {self.token}")
+        try:
+            resp = urllib.request.urlopen(req, timeout=self.timeout)
+        except urllib.error.HTTPError as e:
+            raise ApiError(e.code, "http_error", e.reason) from None
+        with resp:
+            name, data = "message", []
+            for raw in resp:
+                line = raw.decode().rstrip("\r\n")
+                if line.startswith("event:"):
+                    name = line[6:].strip()
+                elif line.startswith("data:"):
+                    data.append(line[5:].lstrip())
+                elif line == "" and data:
+                    ev = Event(name, json.loads("\n".join(data)))
+                    yield ev
+                    if ev.event == "end":
+                        return
+                    name, data = "message", []
+
+
+class AsyncClient:
+    """The same API as ``Client``, awaitable (each call runs in a worker thread)."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        self.sync = Client(*args, **kw)
+
+    def __getattr__(self, name: str) -> Any:
+        fn = getattr(self.sync, name)
+        if name == "events" or not callable(fn):
+            return fn
+
+        async def call(*args: Any, **kw: Any) -> Any:
+            return await asyncio.to_thread(fn, *args, **kw)
+
+        return call
+
+    async def events(self, job_id: str):  # type: ignore[override]
+        """Async iteration of the job's events."""
+        it = self.sync.events(job_id)
+        while True:
+            ev = await asyncio.to_thread(next, it, None)
+            if ev is None:
+                return
+            yield ev

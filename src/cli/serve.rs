@@ -1,0 +1,114 @@
+//! `manyhands serve`: the HTTP/JSON planning server (see `manyhands::server`).
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+
+use manyhands::server::{self, Config};
+
+use super::commands::Ctx;
+
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// Address to listen on. A non-loopback address requires --token.
+    #[arg(long, env = "MANYHANDS_BIND", default_value = "127.0.0.1:8080")]
+    pub bind: SocketAddr,
+    /// Job store (jobs.redb) and uploaded robots/scenes.
+    #[arg(long, env = "MANYHANDS_DATA_DIR", default_value = "./data")]
+    pub data_dir: PathBuf,
+    /// Planner worker threads (default: number of cores).
+    #[arg(long, env = "MANYHANDS_WORKERS")]
+    pub workers: Option<usize>,
+    /// Threads for synchronous queries (FK, IK, check; default: number of cores).
+    #[arg(long, env = "MANYHANDS_QUERY_THREADS")]
+    pub query_threads: Option<usize>,
+    /// Jobs waiting for a worker before POST /v1/plans answers 429.
+    #[arg(long, env = "MANYHANDS_MAX_QUEUE", default_value_t = 64)]
+    pub max_queue: usize,
+    /// Cap of every job's time limit, seconds.
+    #[arg(long, env = "MANYHANDS_MAX_PLAN_SECONDS", default_value_t = 60.0)]
+    pub max_plan_seconds: f64,
+    /// Bearer token required on /v1 (health, readiness and metrics stay open).
+    #[arg(long, env = "MANYHANDS_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+    /// Request body limit in bytes.
+    #[arg(long, env = "MANYHANDS_MAX_BODY", default_value_t = 2 * 1024 * 1024)]
+    pub max_body: usize,
+    /// Finished jobs older than this many hours are deleted.
+    #[arg(long, env = "MANYHANDS_RETENTION_HOURS", default_value_t = 168.0)]
+    pub retention_hours: f64,
+    /// Seconds running jobs get to finish at shutdown before they are interrupted.
+    #[arg(long, env = "MANYHANDS_SHUTDOWN_GRACE", default_value_t = 10.0)]
+    pub shutdown_grace: f64,
+    /// Log format: `text` or `json`.
+    #[arg(long, env = "MANYHANDS_LOG_FORMAT", default_value = "text")]
+    pub log_format: String,
+    /// Log filter (tracing EnvFilter syntax, e.g. `info`, `manyhands=debug`).
+    #[arg(long, env = "MANYHANDS_LOG", default_value = "info")]
+    pub log: String,
+    /// Print the OpenAPI spec and exit.
+    #[arg(long)]
+    pub print_openapi: bool,
+}
+
+fn seconds(name: &str, v: f64) -> Result<Duration> {
+    if !(v.is_finite() && v >= 0.0) {
+        bail!("--{name}: '{v}' is not a number of seconds ≥ 0");
+    }
+    Ok(Duration::from_secs_f64(v))
+}
+
+pub fn init_tracing(format: &str, filter: &str) -> Result<()> {
+    use tracing_subscriber::EnvFilter;
+    let filter =
+        EnvFilter::try_new(filter).with_context(|| format!("--log: bad filter '{filter}'"))?;
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    let r = match format {
+        "json" => builder
+            .json()
+            .flatten_event(true)
+            .with_current_span(false)
+            .try_init(),
+        "text" => builder.try_init(),
+        f => bail!("--log-format: '{f}' is not 'text' or 'json'"),
+    };
+    // Already initialised (tests): keep the existing subscriber.
+    let _ = r;
+    Ok(())
+}
+
+pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
+    if a.print_openapi {
+        print!("{}", server::openapi::openapi_json());
+        return Ok(());
+    }
+    init_tracing(&a.log_format, &a.log)?;
+    let mut cfg = Config::new(a.bind, a.data_dir.clone());
+    cfg.robots_dir = ctx.robots_dir.clone();
+    cfg.scenes_dir = ctx.scenes_dir.clone();
+    if let Some(w) = a.workers {
+        cfg.workers = w;
+    }
+    if let Some(q) = a.query_threads {
+        cfg.query_threads = q;
+    }
+    cfg.max_queue = a.max_queue;
+    cfg.max_plan_seconds = a.max_plan_seconds;
+    cfg.token = a.token.clone().filter(|t| !t.is_empty());
+    cfg.max_body = a.max_body;
+    cfg.retention = seconds("retention-hours", a.retention_hours * 3600.0)?;
+    cfg.shutdown_grace = seconds("shutdown-grace", a.shutdown_grace)?;
+    cfg.validate()?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .thread_name("manyhands-io")
+        .build()
+        .context("starting the async runtime")?;
+    rt.block_on(server::run(cfg))?;
+    Ok(())
+}

@@ -1,0 +1,1035 @@
+//! The sphere-model checker: for worlds whose robot links are made of spheres (as the
+//! spherized URDFs of MotionBenchMaker), in the style of VAMP (Thomason, Kingston & Kavraki,
+//! "Motions in Microseconds via Vectorized Sampling-Based Planning", ICRA 2024).
+//!
+//! - float32 structure of arrays; every quantity is a *lane array* holding up to
+//!   [`LANES`] different configurations, so one call checks 8 states of a segment at once
+//!   (plain loops over the lanes that the compiler vectorises; AVX2 + FMA is used when the CPU
+//!   has it, detected at run time);
+//! - forward kinematics fused with checking: the reduced kinematic tree (fixed joints folded
+//!   into the next movable one) is walked in tree order and each link is tested against the
+//!   obstacles as soon as its frame is known, so a colliding configuration usually stops after
+//!   a few links;
+//! - per link a bounding sphere guards its fine spheres; per link the obstacles it can never
+//!   reach (kinematic reach from the root) are dropped at construction;
+//! - obstacles: spheres, oriented boxes, exact cylinders and capsules, each with a closed-form
+//!   sphere test; meshes become the oriented box around their vertices (a superset);
+//! - no allocation per check.
+//!
+//! Conservative against [`super::ExactChecker`]: every robot sphere is inflated by
+//! [`SphereChecker::ROUNDING_MARGIN`] (plus the requested padding), far above the f32 rounding of
+//! the kinematics, so a configuration the exact f64 geometry finds in collision is never reported
+//! free. Worlds with other robot geometry or attached objects are not handled:
+//! [`SphereChecker::new`] returns `None`, and [`AutoChecker`] falls back to the
+//! [`FastChecker`].
+
+// Lane code indexes several arrays with one lane/row index; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::world::{BodyId, CollisionWorld};
+use super::{CollisionChecker, Contact, FastChecker, FastModelSettings};
+use crate::geometry::Shape;
+use crate::kinematics::Frame;
+use crate::model::JointKind;
+
+/// Configurations checked together by [`SphereChecker::segment_free`].
+pub const LANES: usize = 8;
+type Lane = [f32; LANES];
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Axis {
+    X,
+    Y,
+    Z,
+    General,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum StepKind {
+    /// The root link of a robot: its frame is the fixed `origin` (the robot's base).
+    Root,
+    Revolute(Axis),
+    Prismatic,
+}
+
+/// One node of the reduced kinematic tree: the frame after a movable joint (or a root).
+#[derive(Debug, Clone)]
+struct Step {
+    kind: StepKind,
+    parent: u32,
+    /// Joint origin in the parent node's frame: rotation column-major, then translation.
+    rot: [f32; 9],
+    rot_identity: bool,
+    t: [f32; 3],
+    axis: [f32; 3],
+    var: u32,
+    mul: f32,
+    off: f32,
+    /// Range of the bodies riding on this node.
+    bodies: (u32, u32),
+}
+
+/// A link's spheres.
+#[derive(Debug, Clone)]
+struct Body {
+    id: BodyId,
+    node: u32,
+    /// Bounding sphere in the node frame.
+    bc: [f32; 3],
+    br: f32,
+    spheres: (u32, u32),
+    /// Range into `body_obstacles`.
+    obstacles: (u32, u32),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Obs {
+    Sphere {
+        c: [f32; 3],
+        r: f32,
+    },
+    /// `rt` = rows of the rotation (columns of its transpose): local = Rᵀ (x − c).
+    Box {
+        c: [f32; 3],
+        rt: [[f32; 3]; 3],
+        half: [f32; 3],
+    },
+    Cylinder {
+        c: [f32; 3],
+        axis: [f32; 3],
+        r: f32,
+        h: f32,
+    },
+    Capsule {
+        c: [f32; 3],
+        axis: [f32; 3],
+        r: f32,
+        h: f32,
+    },
+}
+
+/// What collided: a body and an obstacle or another body.
+#[derive(Debug, Clone, Copy)]
+enum Hit {
+    Obstacle(u32, u32),
+    SelfPair(u32, u32),
+}
+
+/// The sphere-model checker. See the module documentation.
+#[derive(Debug, Clone)]
+pub struct SphereChecker {
+    world: CollisionWorld,
+    steps: Vec<Step>,
+    bodies: Vec<Body>,
+    /// Fine spheres in their node frame (x, y, z, r).
+    spheres: Vec<[f32; 4]>,
+    obstacles: Vec<Obs>,
+    /// Static body index of each obstacle.
+    obstacle_static: Vec<u32>,
+    body_obstacles: Vec<u32>,
+    self_pairs: Vec<(u32, u32)>,
+    // Per-call lane buffers.
+    qv: Vec<Lane>,
+    frames: Vec<[Lane; 12]>,
+    bcw: Vec<[Lane; 3]>,
+    sw: Vec<[Lane; 3]>,
+    sw_epoch: Vec<u32>,
+    epoch: u32,
+    checks: u64,
+    avx2: bool,
+    inflate: f64,
+}
+
+#[inline(always)]
+fn f3(v: &Vector3<f64>) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+fn colmajor(m: &Matrix3<f64>) -> [f32; 9] {
+    let mut o = [0.0f32; 9];
+    for c in 0..3 {
+        for r in 0..3 {
+            o[c * 3 + r] = m[(r, c)] as f32;
+        }
+    }
+    o
+}
+
+impl SphereChecker {
+    /// Inflation of every robot sphere covering the f32 rounding of kinematics and tests, metres.
+    pub const ROUNDING_MARGIN: f64 = 1e-4;
+
+    /// The checker of `world`, or `None` when a robot link has non-sphere geometry or objects are
+    /// attached. `padding` (metres, ≥ 0) is added to every robot sphere.
+    pub fn new(world: &CollisionWorld, padding: f64) -> Option<SphereChecker> {
+        if !(world.attached.is_empty() && padding >= 0.0 && padding.is_finite()) {
+            return None;
+        }
+        let inflate = padding + Self::ROUNDING_MARGIN;
+        let mut steps: Vec<Step> = Vec::new();
+        // (body, node, local spheres) before sorting by node.
+        let mut raw_bodies: Vec<(BodyId, u32, Vec<[f64; 4]>)> = Vec::new();
+        // Per node: the kinematic reach from the robot root (upper bound of |t_node − t_root|)
+        // and the root position.
+        let mut reach: Vec<f64> = Vec::new();
+        let mut root_pos: Vec<Vector3<f64>> = Vec::new();
+        for (ri, p) in world.robots.iter().enumerate() {
+            let robot = &p.robot;
+            let n = robot.links.len();
+            let mut rep = vec![u32::MAX; n];
+            let mut off = vec![Frame::identity(); n];
+            let base = Frame::from_pose(&p.base);
+            let root = steps.len() as u32;
+            steps.push(Step {
+                kind: StepKind::Root,
+                parent: root,
+                rot: colmajor(&base.rot),
+                rot_identity: false,
+                t: f3(&base.t),
+                axis: [0.0; 3],
+                var: 0,
+                mul: 0.0,
+                off: 0.0,
+                bodies: (0, 0),
+            });
+            reach.push(0.0);
+            root_pos.push(base.t);
+            if n == 0 {
+                continue;
+            }
+            rep[0] = root;
+            for j in &robot.joints {
+                let (pl, cl) = (j.parent, j.child);
+                if rep[pl] == u32::MAX {
+                    return None; // not in tree order
+                }
+                let origin = off[pl].mul(&Frame::from_pose(&j.origin));
+                let (var, mul, o) = match (j.var, j.mimic) {
+                    (Some(v), _) => (Some(v), 1.0, 0.0),
+                    (None, Some(m)) => (Some(m.var), m.multiplier, m.offset),
+                    _ => (None, 0.0, 0.0),
+                };
+                let kind = match (j.kind, var) {
+                    (JointKind::Fixed, _) | (_, None) => None,
+                    (JointKind::Prismatic, _) => Some(StepKind::Prismatic),
+                    (JointKind::Revolute | JointKind::Continuous, _) => {
+                        let a = j.axis.into_inner();
+                        let ax = if (a - Vector3::x()).norm() < 1e-12 {
+                            Axis::X
+                        } else if (a - Vector3::y()).norm() < 1e-12 {
+                            Axis::Y
+                        } else if (a - Vector3::z()).norm() < 1e-12 {
+                            Axis::Z
+                        } else {
+                            Axis::General
+                        };
+                        Some(StepKind::Revolute(ax))
+                    }
+                };
+                match kind {
+                    None => {
+                        rep[cl] = rep[pl];
+                        off[cl] = origin;
+                    }
+                    Some(kind) => {
+                        let node = steps.len() as u32;
+                        let parent = rep[pl];
+                        steps.push(Step {
+                            kind,
+                            parent,
+                            rot: colmajor(&origin.rot),
+                            rot_identity: (origin.rot - Matrix3::identity()).abs().max() < 1e-12,
+                            t: f3(&origin.t),
+                            axis: f3(&j.axis.into_inner()),
+                            var: (p.offset + var.unwrap_or(0)) as u32,
+                            mul: mul as f32,
+                            off: o as f32,
+                            bodies: (0, 0),
+                        });
+                        let r = if kind == StepKind::Prismatic {
+                            f64::INFINITY
+                        } else {
+                            reach[parent as usize] + origin.t.norm()
+                        };
+                        reach.push(r);
+                        root_pos.push(base.t);
+                        rep[cl] = node;
+                        off[cl] = Frame::identity();
+                    }
+                }
+            }
+            for (li, link) in robot.links.iter().enumerate() {
+                if link.collision.is_empty() {
+                    continue;
+                }
+                if rep[li] == u32::MAX {
+                    return None;
+                }
+                let mut sp = Vec::new();
+                for g in &link.collision {
+                    let Shape::Sphere { radius } = g.shape else {
+                        return None;
+                    };
+                    let c = off[li].transform_point(&g.origin.translation.vector);
+                    sp.push([c.x, c.y, c.z, radius + inflate]);
+                }
+                raw_bodies.push((
+                    BodyId::Link {
+                        robot: ri,
+                        link: li,
+                    },
+                    rep[li],
+                    sp,
+                ));
+            }
+        }
+        raw_bodies.sort_by_key(|b| b.1);
+
+        // Obstacles: one per static shape.
+        let mut obstacles = Vec::new();
+        let mut obstacle_static = Vec::new();
+        let mut obstacle_bound: Vec<(Vector3<f64>, f64)> = Vec::new();
+        for (si, st) in world.statics.iter().enumerate() {
+            for g in &st.shapes {
+                let pose = st.pose * g.origin;
+                let c = pose.translation.vector;
+                let rot = *pose.rotation.to_rotation_matrix().matrix();
+                let axis = rot.column(2).into_owned();
+                let rt = |rot: &Matrix3<f64>| {
+                    let mut o = [[0.0f32; 3]; 3];
+                    for (r, row) in o.iter_mut().enumerate() {
+                        for (k, v) in row.iter_mut().enumerate() {
+                            *v = rot[(r, k)] as f32;
+                        }
+                    }
+                    // Rows of R = columns of Rᵀ: local_k = Σ_r R[r][k] (x − c)_r; store by k.
+                    let mut t = [[0.0f32; 3]; 3];
+                    for k in 0..3 {
+                        for r in 0..3 {
+                            t[k][r] = o[r][k];
+                        }
+                    }
+                    t
+                };
+                let (o, bound) = match &g.shape {
+                    Shape::Sphere { radius } => (
+                        Obs::Sphere {
+                            c: f3(&c),
+                            r: *radius as f32,
+                        },
+                        (c, *radius),
+                    ),
+                    Shape::Box { half_extents } => (
+                        Obs::Box {
+                            c: f3(&c),
+                            rt: rt(&rot),
+                            half: f3(half_extents),
+                        },
+                        (c, half_extents.norm()),
+                    ),
+                    Shape::Cylinder {
+                        radius,
+                        half_length,
+                    } => (
+                        Obs::Cylinder {
+                            c: f3(&c),
+                            axis: f3(&axis),
+                            r: *radius as f32,
+                            h: *half_length as f32,
+                        },
+                        (c, (radius * radius + half_length * half_length).sqrt()),
+                    ),
+                    Shape::Capsule {
+                        radius,
+                        half_length,
+                    } => (
+                        Obs::Capsule {
+                            c: f3(&c),
+                            axis: f3(&axis),
+                            r: *radius as f32,
+                            h: *half_length as f32,
+                        },
+                        (c, radius + half_length),
+                    ),
+                    Shape::Mesh(m) => {
+                        let mut lo = Vector3::repeat(f64::INFINITY);
+                        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+                        for v in &m.vertices {
+                            lo = lo.inf(&v.coords);
+                            hi = hi.sup(&v.coords);
+                        }
+                        if m.vertices.is_empty() {
+                            continue;
+                        }
+                        let mid = c + rot * ((lo + hi) * 0.5);
+                        let half = (hi - lo) * 0.5;
+                        (
+                            Obs::Box {
+                                c: f3(&mid),
+                                rt: rt(&rot),
+                                half: f3(&half),
+                            },
+                            (mid, half.norm()),
+                        )
+                    }
+                };
+                obstacles.push(o);
+                obstacle_static.push(si as u32);
+                obstacle_bound.push(bound);
+            }
+        }
+
+        let pairs = world.pairs();
+        let mut bodies = Vec::new();
+        let mut spheres = Vec::new();
+        let mut body_obstacles = Vec::new();
+        for (id, node, sp) in &raw_bodies {
+            // Bounding sphere: centre of the box around the spheres.
+            let mut lo = Vector3::repeat(f64::INFINITY);
+            let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+            for s in sp {
+                let c = Vector3::new(s[0], s[1], s[2]);
+                lo = lo.inf(&c.add_scalar(-s[3]));
+                hi = hi.sup(&c.add_scalar(s[3]));
+            }
+            let bc = (lo + hi) * 0.5;
+            let br = sp
+                .iter()
+                .map(|s| (Vector3::new(s[0], s[1], s[2]) - bc).norm() + s[3])
+                .fold(0.0, f64::max)
+                * (1.0 + 1e-6)
+                + 1e-6;
+            let first_s = spheres.len() as u32;
+            spheres.extend(
+                sp.iter()
+                    .map(|s| [s[0] as f32, s[1] as f32, s[2] as f32, s[3] as f32]),
+            );
+            let first_o = body_obstacles.len() as u32;
+            let n = *node as usize;
+            let body_reach = reach[n] + bc.norm() + br;
+            for (oi, &si) in obstacle_static.iter().enumerate() {
+                let checked = pairs
+                    .iter()
+                    .any(|&(a, b)| a == *id && b == BodyId::Static(si as usize));
+                if !checked {
+                    continue;
+                }
+                let (oc, orad) = obstacle_bound[oi];
+                if (oc - root_pos[n]).norm() - orad > body_reach * (1.0 + 1e-6) + 1e-4 {
+                    continue; // out of this link's reach
+                }
+                body_obstacles.push(oi as u32);
+            }
+            // Same-kind obstacles in a row: the per-obstacle dispatch branch predicts well.
+            let kind = |o: &Obs| match o {
+                Obs::Box { .. } => 0,
+                Obs::Cylinder { .. } => 1,
+                Obs::Sphere { .. } => 2,
+                Obs::Capsule { .. } => 3,
+            };
+            body_obstacles[first_o as usize..].sort_by_key(|&oi| kind(&obstacles[oi as usize]));
+            bodies.push(Body {
+                id: *id,
+                node: *node,
+                bc: f3(&bc),
+                br: br as f32,
+                spheres: (first_s, spheres.len() as u32),
+                obstacles: (first_o, body_obstacles.len() as u32),
+            });
+        }
+        for (si, s) in steps.iter_mut().enumerate() {
+            let first = bodies.partition_point(|b: &Body| (b.node as usize) < si) as u32;
+            let end = bodies.partition_point(|b: &Body| (b.node as usize) <= si) as u32;
+            s.bodies = (first, end);
+        }
+        let index = |id: BodyId| bodies.iter().position(|b| b.id == id);
+        let mut self_pairs = Vec::new();
+        for &(a, b) in &pairs {
+            if let (Some(ia), Some(ib)) = (index(a), index(b)) {
+                // Later body second (its spheres are computed last).
+                self_pairs.push((ia.min(ib) as u32, ia.max(ib) as u32));
+            }
+        }
+        let nb = bodies.len();
+        let ns = spheres.len();
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        Some(SphereChecker {
+            world: world.clone(),
+            qv: vec![[0.0; LANES]; world.dof()],
+            frames: vec![[[0.0; LANES]; 12]; steps.len()],
+            steps,
+            bcw: vec![[[0.0; LANES]; 3]; nb],
+            sw: vec![[[0.0; LANES]; 3]; ns],
+            sw_epoch: vec![0; nb],
+            bodies,
+            spheres,
+            obstacles,
+            obstacle_static,
+            body_obstacles,
+            self_pairs,
+            epoch: 0,
+            checks: 0,
+            avx2,
+            inflate,
+        })
+    }
+
+    /// The world this checker was built for.
+    pub fn world(&self) -> &CollisionWorld {
+        &self.world
+    }
+
+    /// (bodies, robot spheres, obstacles, body–obstacle tests kept after reach culling,
+    /// self-collision body pairs) — the model's size.
+    pub fn model_size(&self) -> (usize, usize, usize, usize, usize) {
+        (
+            self.bodies.len(),
+            self.spheres.len(),
+            self.obstacles.len(),
+            self.body_obstacles.len(),
+            self.self_pairs.len(),
+        )
+    }
+
+    /// Number of robot spheres.
+    pub fn sphere_count(&self) -> usize {
+        self.spheres.len()
+    }
+
+    /// Largest distance by which this model may report a collision that the exact geometry
+    /// does not have: twice (padding + rounding margin), for robot–robot pairs (infinite when an obstacle is a mesh, replaced
+    /// by the box around its vertices).
+    pub fn max_overapproximation(&self) -> f64 {
+        let has_mesh = self
+            .world
+            .statics
+            .iter()
+            .flat_map(|s| s.shapes.iter())
+            .any(|g| matches!(g.shape, Shape::Mesh(_)));
+        if has_mesh {
+            f64::INFINITY
+        } else {
+            // Both spheres of a self-collision pair are inflated.
+            2.0 * self.inflate + 1e-6
+        }
+    }
+
+    /// True when every state `a + (b − a)·k/n`, k = 1..=n, is free ("raked": the first call
+    /// checks 8 states spread over the whole segment, each further call the next 8 between them).
+    pub fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
+        let n = n.max(1);
+        let batches = n.div_ceil(LANES);
+        let inv = 1.0 / n as f64;
+        for j in 0..batches {
+            let mut used = 0u64;
+            for l in 0..LANES {
+                let k = n as isize - j as isize - (l * batches) as isize;
+                if k >= 1 {
+                    used += 1;
+                }
+                let k = if k >= 1 { k as usize } else { n };
+                let t = k as f64 * inv;
+                for (i, v) in self.qv.iter_mut().enumerate() {
+                    v[l] = (a[i] + (b[i] - a[i]) * t) as f32;
+                }
+            }
+            self.checks += used;
+            if self.collides8() {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Checks `qs.len()` ≤ [`LANES`] configurations at once: true when any collides.
+    pub fn any_collides(&mut self, qs: &[&[f64]]) -> bool {
+        assert!(!qs.is_empty() && qs.len() <= LANES);
+        for l in 0..LANES {
+            let q = qs[l.min(qs.len() - 1)];
+            for (i, v) in self.qv.iter_mut().enumerate() {
+                v[l] = q[i] as f32;
+            }
+        }
+        self.checks += qs.len() as u64;
+        self.collides8()
+    }
+
+    fn collides8(&mut self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
+            return unsafe { self.run8_avx2() }.is_some();
+        }
+        self.run::<LANES>().is_some()
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn run8_avx2(&mut self) -> Option<Hit> {
+        self.run::<LANES>()
+    }
+
+    fn single(&mut self, q: &[f64]) -> Option<Hit> {
+        self.checks += 1;
+        for (i, v) in self.qv.iter_mut().enumerate() {
+            v[0] = q[i] as f32;
+        }
+        self.run::<1>()
+    }
+
+    /// Fused FK and checking of the first `N` lanes of `qv`.
+    #[inline(always)]
+    fn run<const N: usize>(&mut self) -> Option<Hit> {
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.sw_epoch.iter_mut().for_each(|e| *e = 0);
+            self.epoch = 1;
+        }
+        for si in 0..self.steps.len() {
+            self.step::<N>(si);
+            let (b0, b1) = self.steps[si].bodies;
+            for b in b0..b1 {
+                if let Some(h) = self.body_env::<N>(b as usize) {
+                    return Some(h);
+                }
+            }
+        }
+        for pi in 0..self.self_pairs.len() {
+            let (a, b) = self.self_pairs[pi];
+            if self.pair_hits::<N>(a as usize, b as usize) {
+                return Some(Hit::SelfPair(a, b));
+            }
+        }
+        None
+    }
+
+    #[inline(always)]
+    fn step<const N: usize>(&mut self, si: usize) {
+        let s = &self.steps[si];
+        if s.kind == StepKind::Root {
+            let f = &mut self.frames[si];
+            for k in 0..9 {
+                f[k] = [s.rot[k]; LANES];
+            }
+            for k in 0..3 {
+                f[9 + k] = [s.t[k]; LANES];
+            }
+            return;
+        }
+        let (pi, ci) = (s.parent as usize, si);
+        let (lo, hi) = self.frames.split_at_mut(ci);
+        let p = &lo[pi];
+        let f = &mut hi[0];
+        // t = P.rot · o.t + P.t ; m = P.rot · o.rot (columns x, y, z at 0, 3, 6).
+        let mut m = [[0.0f32; N]; 9];
+        let mut t = [[0.0f32; N]; 3];
+        for r in 0..3 {
+            t[r] = lin4::<N>(&p[r], &p[3 + r], &p[6 + r], &p[9 + r], s.t);
+        }
+        if s.rot_identity {
+            for k in 0..9 {
+                m[k].copy_from_slice(&p[k][..N]);
+            }
+        } else {
+            for c in 0..3 {
+                let o = [s.rot[c * 3], s.rot[c * 3 + 1], s.rot[c * 3 + 2]];
+                for r in 0..3 {
+                    m[c * 3 + r] = lin3::<N>(&p[r], &p[3 + r], &p[6 + r], o);
+                }
+            }
+        }
+        let q = &self.qv[s.var as usize];
+        let mut v = [0.0f32; N];
+        for l in 0..N {
+            v[l] = s.mul * q[l] + s.off;
+        }
+        match s.kind {
+            StepKind::Root => unreachable!(),
+            StepKind::Prismatic => {
+                for r in 0..3 {
+                    let a = s.axis;
+                    for l in 0..N {
+                        let d = m[r][l] * a[0] + m[3 + r][l] * a[1] + m[6 + r][l] * a[2];
+                        t[r][l] += d * v[l];
+                    }
+                }
+            }
+            StepKind::Revolute(ax) => {
+                let (sn, cs) = sincos_lanes::<N>(&v);
+                let (i, j) = match ax {
+                    Axis::Z => (0, 3),
+                    Axis::X => (3, 6),
+                    Axis::Y => (6, 0),
+                    Axis::General => (usize::MAX, 0),
+                };
+                if i != usize::MAX {
+                    // Rotation about the third axis of the pair: i' = i c + j s, j' = j c − i s.
+                    for r in 0..3 {
+                        let (a, b) = (m[i + r], m[j + r]);
+                        for l in 0..N {
+                            m[i + r][l] = a[l] * cs[l] + b[l] * sn[l];
+                            m[j + r][l] = b[l] * cs[l] - a[l] * sn[l];
+                        }
+                    }
+                } else {
+                    let (ux, uy, uz) = (s.axis[0], s.axis[1], s.axis[2]);
+                    // Rodrigues, column-major, per lane.
+                    let mut rm = [[0.0f32; N]; 9];
+                    for l in 0..N {
+                        let (sv, cv) = (sn[l], cs[l]);
+                        let cc = 1.0 - cv;
+                        rm[0][l] = cv + ux * ux * cc;
+                        rm[1][l] = uy * ux * cc + uz * sv;
+                        rm[2][l] = uz * ux * cc - uy * sv;
+                        rm[3][l] = ux * uy * cc - uz * sv;
+                        rm[4][l] = cv + uy * uy * cc;
+                        rm[5][l] = uz * uy * cc + ux * sv;
+                        rm[6][l] = ux * uz * cc + uy * sv;
+                        rm[7][l] = uy * uz * cc - ux * sv;
+                        rm[8][l] = cv + uz * uz * cc;
+                    }
+                    let mut o = [[0.0f32; N]; 9];
+                    for c in 0..3 {
+                        for r in 0..3 {
+                            for l in 0..N {
+                                o[c * 3 + r][l] = m[r][l] * rm[c * 3][l]
+                                    + m[3 + r][l] * rm[c * 3 + 1][l]
+                                    + m[6 + r][l] * rm[c * 3 + 2][l];
+                            }
+                        }
+                    }
+                    m = o;
+                }
+            }
+        }
+        for k in 0..9 {
+            f[k][..N].copy_from_slice(&m[k]);
+        }
+        for k in 0..3 {
+            f[9 + k][..N].copy_from_slice(&t[k]);
+        }
+    }
+
+    /// World position of a point of a node frame, all lanes.
+    #[inline(always)]
+    fn place<const N: usize>(f: &[Lane; 12], p: &[f32; 3]) -> [[f32; N]; 3] {
+        [
+            lin4::<N>(&f[0], &f[3], &f[6], &f[9], *p),
+            lin4::<N>(&f[1], &f[4], &f[7], &f[10], *p),
+            lin4::<N>(&f[2], &f[5], &f[8], &f[11], *p),
+        ]
+    }
+    #[inline(always)]
+    fn ensure_spheres<const N: usize>(&mut self, b: usize) {
+        if self.sw_epoch[b] == self.epoch {
+            return;
+        }
+        self.sw_epoch[b] = self.epoch;
+        let body = &self.bodies[b];
+        let f = &self.frames[body.node as usize];
+        for si in body.spheres.0 as usize..body.spheres.1 as usize {
+            let s = self.spheres[si];
+            let w = Self::place::<N>(f, &[s[0], s[1], s[2]]);
+            for r in 0..3 {
+                self.sw[si][r][..N].copy_from_slice(&w[r]);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn body_env<const N: usize>(&mut self, b: usize) -> Option<Hit> {
+        let body = &self.bodies[b];
+        let c = Self::place::<N>(&self.frames[body.node as usize], &body.bc);
+        for r in 0..3 {
+            self.bcw[b][r][..N].copy_from_slice(&c[r]);
+        }
+        let br = body.br;
+        let (o0, o1) = body.obstacles;
+        let mut spheres_ready = false;
+        for k in o0 as usize..o1 as usize {
+            let oi = self.body_obstacles[k] as usize;
+            let o = self.obstacles[oi];
+            if !obs_hit::<N>(&o, &c[0], &c[1], &c[2], br) {
+                continue;
+            }
+            if !spheres_ready {
+                self.ensure_spheres::<N>(b);
+                spheres_ready = true;
+            }
+            let body = &self.bodies[b];
+            for si in body.spheres.0 as usize..body.spheres.1 as usize {
+                let w = &self.sw[si];
+                let mut x = [0.0f32; N];
+                let mut y = [0.0f32; N];
+                let mut z = [0.0f32; N];
+                x.copy_from_slice(&w[0][..N]);
+                y.copy_from_slice(&w[1][..N]);
+                z.copy_from_slice(&w[2][..N]);
+                if obs_hit::<N>(&o, &x, &y, &z, self.spheres[si][3]) {
+                    return Some(Hit::Obstacle(b as u32, oi as u32));
+                }
+            }
+        }
+        None
+    }
+
+    #[inline(always)]
+    fn pair_hits<const N: usize>(&mut self, a: usize, b: usize) -> bool {
+        let rr = self.bodies[a].br + self.bodies[b].br;
+        if !near::<N>(&self.bcw[a], &self.bcw[b], rr) {
+            return false;
+        }
+        self.ensure_spheres::<N>(a);
+        self.ensure_spheres::<N>(b);
+        let (sa, sb) = (self.bodies[a].spheres, self.bodies[b].spheres);
+        let (bb, rb) = (&self.bcw[b], self.bodies[b].br);
+        for i in sa.0 as usize..sa.1 as usize {
+            let (wi, ri) = (&self.sw[i], self.spheres[i][3]);
+            // The sphere against b's bounding sphere first.
+            if !near::<N>(wi, bb, ri + rb) {
+                continue;
+            }
+            for j in sb.0 as usize..sb.1 as usize {
+                if near::<N>(wi, &self.sw[j], ri + self.spheres[j][3]) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    fn contact(&self, h: Hit) -> Contact {
+        let (a, b) = match h {
+            Hit::Obstacle(b, o) => (
+                self.bodies[b as usize].id,
+                BodyId::Static(self.obstacle_static[o as usize] as usize),
+            ),
+            Hit::SelfPair(a, b) => (self.bodies[a as usize].id, self.bodies[b as usize].id),
+        };
+        Contact {
+            a: self.world.body_name(a),
+            b: self.world.body_name(b),
+        }
+    }
+}
+
+/// `a·s0 + b·s1 + c·s2` per lane.
+#[inline(always)]
+fn lin3<const N: usize>(a: &Lane, b: &Lane, c: &Lane, s: [f32; 3]) -> [f32; N] {
+    let mut o = [0.0f32; N];
+    for l in 0..N {
+        o[l] = a[l] * s[0] + b[l] * s[1] + c[l] * s[2];
+    }
+    o
+}
+
+/// `a·s0 + b·s1 + c·s2 + d` per lane.
+#[inline(always)]
+fn lin4<const N: usize>(a: &Lane, b: &Lane, c: &Lane, d: &Lane, s: [f32; 3]) -> [f32; N] {
+    let mut o = [0.0f32; N];
+    for l in 0..N {
+        o[l] = a[l] * s[0] + b[l] * s[1] + c[l] * s[2] + d[l];
+    }
+    o
+}
+
+/// Is any lane's distance between the two points at most `r`?
+#[inline(always)]
+fn near<const N: usize>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> bool {
+    let r2 = r * r;
+    let mut any = false;
+    for l in 0..N {
+        let dx = a[0][l] - b[0][l];
+        let dy = a[1][l] - b[1][l];
+        let dz = a[2][l] - b[2][l];
+        any |= dx * dx + dy * dy + dz * dz <= r2;
+    }
+    any
+}
+
+/// Does the sphere (x, y, z, r) of any lane touch the obstacle?
+#[inline(always)]
+fn obs_hit<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r: f32) -> bool {
+    let mut any = false;
+    match *o {
+        Obs::Sphere { c, r: ro } => {
+            let rr = (r + ro) * (r + ro);
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                any |= dx * dx + dy * dy + dz * dz <= rr;
+            }
+        }
+        Obs::Box { c, rt, half } => {
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let mut d2 = 0.0f32;
+                for k in 0..3 {
+                    let p = rt[k][0] * dx + rt[k][1] * dy + rt[k][2] * dz;
+                    let e = (p.abs() - half[k]).max(0.0);
+                    d2 += e * e;
+                }
+                any |= d2 <= r * r;
+            }
+        }
+        Obs::Cylinder { c, axis, r: rc, h } => {
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let pz = axis[0] * dx + axis[1] * dy + axis[2] * dz;
+                let rad2 = (dx * dx + dy * dy + dz * dz - pz * pz).max(0.0);
+                let dr = (rad2.sqrt() - rc).max(0.0);
+                let ez = (pz.abs() - h).max(0.0);
+                any |= dr * dr + ez * ez <= r * r;
+            }
+        }
+        Obs::Capsule { c, axis, r: rc, h } => {
+            let rr = (r + rc) * (r + rc);
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let pz = axis[0] * dx + axis[1] * dy + axis[2] * dz;
+                let t = pz.clamp(-h, h);
+                let ex = dx - t * axis[0];
+                let ey = dy - t * axis[1];
+                let ez = dz - t * axis[2];
+                any |= ex * ex + ey * ey + ez * ez <= rr;
+            }
+        }
+    }
+    any
+}
+
+/// `(sin x, cos x)` of every lane in f32 (Cephes' sinf/cosf kernels after a three-constant
+/// reduction by π/2); absolute error ≈ 1e-7 for |x| ≤ 100, branch-free so lanes vectorise.
+#[inline(always)]
+fn sincos_lanes<const N: usize>(v: &[f32; N]) -> ([f32; N], [f32; N]) {
+    const MAGIC: f32 = 12_582_912.0;
+    const DP1: f32 = 1.570_312_5;
+    const DP2: f32 = 4.837_513e-4;
+    const DP3: f32 = 7.549_79e-8;
+    let mut sn = [0.0f32; N];
+    let mut cs = [0.0f32; N];
+    for l in 0..N {
+        // NaN-free and bounded, so the integer conversion below is exact.
+        #[allow(clippy::manual_clamp)] // max/min map NaN to a bound; clamp would keep NaN
+        let x = v[l].max(-1.0e5).min(1.0e5);
+        let k = (x * std::f32::consts::FRAC_2_PI + MAGIC) - MAGIC;
+        let r = ((x - k * DP1) - k * DP2) - k * DP3;
+        let z = r * r;
+        let s = r + r * z * (-1.666_665_5e-1 + z * (8.332_161e-3 + z * -1.951_529_6e-4));
+        let c =
+            1.0 - 0.5 * z + z * z * (4.166_664_6e-2 + z * (-1.388_731_6e-3 + z * 2.443_315_7e-5));
+        // SAFETY: |k| ≤ 1e5 · 2/π + 1 fits an i32.
+        let q: i32 = unsafe { k.to_int_unchecked() };
+        let swap = q & 1 != 0;
+        let (s1, c1) = (if swap { c } else { s }, if swap { s } else { c });
+        sn[l] = if q & 2 != 0 { -s1 } else { s1 };
+        cs[l] = if (q + 1) & 2 != 0 { -c1 } else { c1 };
+    }
+    (sn, cs)
+}
+
+impl CollisionChecker for SphereChecker {
+    fn is_free(&mut self, q: &[f64]) -> bool {
+        self.single(q).is_none()
+    }
+
+    fn first_contact(&mut self, q: &[f64]) -> Option<Contact> {
+        let h = self.single(q)?;
+        Some(self.contact(h))
+    }
+
+    fn checks(&self) -> u64 {
+        self.checks
+    }
+}
+
+/// The [`SphereChecker`] when the world's robots are made of spheres, else the [`FastChecker`].
+#[derive(Debug, Clone)]
+#[allow(clippy::large_enum_variant)]
+pub enum AutoChecker {
+    Spheres(SphereChecker),
+    Fast(FastChecker),
+}
+
+impl AutoChecker {
+    /// `padding` (metres) is added to every robot primitive in either model.
+    pub fn new(world: &CollisionWorld, padding: f64) -> AutoChecker {
+        match SphereChecker::new(world, padding) {
+            Some(s) => AutoChecker::Spheres(s),
+            None => AutoChecker::Fast(FastChecker::with_settings(
+                world,
+                FastModelSettings { padding },
+            )),
+        }
+    }
+
+    /// "spheres" or "fast".
+    pub fn kind(&self) -> &'static str {
+        match self {
+            AutoChecker::Spheres(_) => "spheres",
+            AutoChecker::Fast(_) => "fast",
+        }
+    }
+
+    /// Checks the states `a + (b − a)·k/n`, k = 1..=n, with 8-lane raked batches when the sphere
+    /// model is in use; `None` for the fast model (check the states one by one).
+    pub fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
+        match self {
+            AutoChecker::Spheres(s) => Some(s.segment_free(a, b, n)),
+            AutoChecker::Fast(_) => None,
+        }
+    }
+}
+
+impl CollisionChecker for AutoChecker {
+    fn is_free(&mut self, q: &[f64]) -> bool {
+        match self {
+            AutoChecker::Spheres(s) => s.is_free(q),
+            AutoChecker::Fast(f) => f.is_free(q),
+        }
+    }
+
+    fn first_contact(&mut self, q: &[f64]) -> Option<Contact> {
+        match self {
+            AutoChecker::Spheres(s) => s.first_contact(q),
+            AutoChecker::Fast(f) => f.first_contact(q),
+        }
+    }
+
+    fn checks(&self) -> u64 {
+        match self {
+            AutoChecker::Spheres(s) => s.checks(),
+            AutoChecker::Fast(f) => f.checks(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn sincos_f32_is_accurate() {
+        let mut worst: f64 = 0.0;
+        for i in 0..=200_000 {
+            let x = -10.0 + 20.0 * i as f64 / 200_000.0;
+            let (s, c) = super::sincos_lanes::<1>(&[x as f32]);
+            let (s, c) = (s[0], c[0]);
+            let xr = x as f32 as f64;
+            worst = worst
+                .max((s as f64 - xr.sin()).abs())
+                .max((c as f64 - xr.cos()).abs());
+        }
+        assert!(worst < 5e-7, "worst {worst:e}");
+    }
+}

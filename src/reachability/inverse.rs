@@ -1,0 +1,264 @@
+//! Inverse reachability and base placement (paper 002 = Vahrenkamp et al. 2010, §III-A/B/C).
+//!
+//! From a reachability grid whose frame is the mobile platform (e.g. `torso_right_arm`: hip +
+//! arm), the *inverse reachability map* of a grasp pose g gives, for every base position (x, y)
+//! on the floor, how likely g is reachable from there: each base pose B = (x, y, yaw) is tried
+//! for `yaw_bins` yaw angles and the entry of B⁻¹·g is looked up (§III-A; our grid does not
+//! contain the platform rotation, so the yaw is covered by the loop). Maps of a grasp set are
+//! united by the maximum, and every cell keeps the list of grasps reachable from it. The
+//! *bimanual map* is R_bi = min(R_left, R_right) (eq. 1, §III-B). [`ik_dual_arm`] is Alg. 1
+//! (§III-C): sample a base pose from R_bi, sample the free joints, solve both arms analytically
+//! only for the grasps the cell lists, collision-check.
+
+use std::f64::consts::PI;
+
+use rand::Rng;
+
+use super::grid::ReachabilityGrid;
+use crate::geometry::Pose;
+use crate::kinematics::dual_arm::DualArmIk;
+use crate::kinematics::link_pose;
+use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
+use crate::model::Robot;
+
+/// A 2-D map over base positions (x, y) and base yaw: per (cell, yaw bin) the best probability and
+/// the grasps above the threshold.
+#[derive(Debug, Clone)]
+pub struct InverseMap {
+    /// Lower corner (world x, y) and cell size.
+    pub origin: [f64; 2],
+    pub cell: f64,
+    pub dims: [usize; 2],
+    pub yaw_bins: usize,
+    /// `value[(ix·ny + iy)·yaw_bins + iw]`.
+    pub value: Vec<f32>,
+    /// Grasps reachable from each (cell, yaw) (same index as `value`).
+    pub grasps: Vec<Vec<u16>>,
+}
+
+impl InverseMap {
+    /// World (x, y) of a cell centre and the yaw of a bin.
+    pub fn cell_pose(&self, ix: usize, iy: usize, iw: usize) -> (f64, f64, f64) {
+        (
+            self.origin[0] + (ix as f64 + 0.5) * self.cell,
+            self.origin[1] + (iy as f64 + 0.5) * self.cell,
+            -PI + (iw as f64 + 0.5) * 2.0 * PI / self.yaw_bins as f64,
+        )
+    }
+
+    /// The 2-D map (maximum over yaw), row-major over (x, y).
+    pub fn xy(&self) -> Vec<f32> {
+        self.value
+            .chunks(self.yaw_bins)
+            .map(|c| c.iter().copied().fold(0.0, f32::max))
+            .collect()
+    }
+
+    /// Largest value.
+    pub fn max(&self) -> f32 {
+        self.value.iter().copied().fold(0.0, f32::max)
+    }
+}
+
+/// Platform pose in the world for base (x, y, yaw): the robot's base joints set, through FK.
+fn platform_pose(
+    robot: &Robot,
+    robot_base: &Pose,
+    q: &mut [f64],
+    base_vars: &[usize; 3],
+    platform: usize,
+    (x, y, w): (f64, f64, f64),
+) -> Pose {
+    q[base_vars[0]] = x;
+    q[base_vars[1]] = y;
+    q[base_vars[2]] = w;
+    robot_base * link_pose(robot, q, platform)
+}
+
+/// Inverse reachability map of a grasp set (002 §III-A): grasp poses `targets` (world), the
+/// platform-frame `grid` (its base link is the platform), base positions within `radius` of
+/// `centre` (world x, y) on a `cell` grid, `yaw_bins` base yaws; union over the grasps by maximum
+/// (maps to be combined by [`bimanual`] need the same centre, radius, cell and yaw bins).
+#[allow(clippy::too_many_arguments)]
+pub fn inverse_map(
+    robot: &Robot,
+    robot_base: &Pose,
+    start: &[f64],
+    base_vars: &[usize; 3],
+    grid: &ReachabilityGrid,
+    targets: &[Pose],
+    centre: [f64; 2],
+    cell: f64,
+    radius: f64,
+    yaw_bins: usize,
+    threshold: f64,
+) -> Option<InverseMap> {
+    let platform = robot.link(grid.base_link())?;
+    if targets.is_empty() || !(cell > 0.0 && radius > 0.0 && radius / cell < 10_000.0) {
+        return None;
+    }
+    let n = ((2.0 * radius / cell).ceil() as usize).max(1);
+    let yaw_bins = yaw_bins.max(1);
+    let origin = [centre[0] - radius, centre[1] - radius];
+    let mut q = start.to_vec();
+    let mut map = InverseMap {
+        origin,
+        cell,
+        dims: [n, n],
+        yaw_bins,
+        value: vec![0.0; n * n * yaw_bins],
+        grasps: vec![Vec::new(); n * n * yaw_bins],
+    };
+    for ix in 0..n {
+        for iy in 0..n {
+            for iw in 0..yaw_bins {
+                let xyw = map.cell_pose(ix, iy, iw);
+                let inv =
+                    platform_pose(robot, robot_base, &mut q, base_vars, platform, xyw).inverse();
+                let k = (ix * n + iy) * yaw_bins + iw;
+                for (g, t) in targets.iter().enumerate() {
+                    let p = grid.probability(&(inv * t));
+                    if p > threshold {
+                        map.value[k] = map.value[k].max(p as f32);
+                        map.grasps[k].push(g as u16);
+                    }
+                }
+            }
+        }
+    }
+    Some(map)
+}
+
+/// The bimanual map R_bi = min(R_left, R_right) (002 eq. 1), keeping both grasp lists per cell.
+/// Returns the map (values) and the left and right lists. `None` if the maps differ in layout.
+pub fn bimanual(left: &InverseMap, right: &InverseMap) -> Option<(InverseMap, Vec<Vec<u16>>)> {
+    if left.dims != right.dims || left.yaw_bins != right.yaw_bins || left.origin != right.origin {
+        return None;
+    }
+    let mut bi = left.clone();
+    for k in 0..bi.value.len() {
+        bi.value[k] = left.value[k].min(right.value[k]);
+        if bi.value[k] <= 0.0 {
+            bi.grasps[k].clear();
+        }
+    }
+    let rights = (0..bi.value.len())
+        .map(|k| {
+            if bi.value[k] > 0.0 {
+                right.grasps[k].clone()
+            } else {
+                Vec::new()
+            }
+        })
+        .collect();
+    Some((bi, rights))
+}
+
+/// A base-placement dual-arm answer: full configuration (base + hip + both arms).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BasePlacement {
+    pub config: Vec<f64>,
+    pub left_grasp: usize,
+    pub right_grasp: usize,
+    pub counters: IkCounters,
+}
+
+/// IkDualArm (002 Alg. 1): sample a base pose (x, y within the cell, yaw within the bin) from the
+/// bimanual map with probability ∝ R_bi, sample the free (hip) joints, solve both arms
+/// analytically only for the grasps that cell lists (left `targets_left[g]`, right
+/// `targets_right[g]`, world poses), and return the first collision-free combination.
+#[allow(clippy::too_many_arguments)]
+pub fn ik_dual_arm<R: Rng + ?Sized>(
+    ik: &DualArmIk,
+    robot_base: &Pose,
+    start: &[f64],
+    base_vars: &[usize; 3],
+    bi: &InverseMap,
+    rights: &[Vec<u16>],
+    targets_left: &[Pose],
+    targets_right: &[Pose],
+    settings: &RandomizedIkSettings,
+    rng: &mut R,
+    mut valid: impl FnMut(&[f64]) -> bool,
+) -> Result<BasePlacement, RandomizedIkError> {
+    let robot = ik.robot().clone();
+    if start.len() != robot.dof() {
+        return Err(RandomizedIkError::BadStart {
+            found: start.len(),
+            expected: robot.dof(),
+        });
+    }
+    // Cumulative distribution over (cell, yaw).
+    let mut cdf = Vec::with_capacity(bi.value.len());
+    let mut acc = 0.0f64;
+    for &v in &bi.value {
+        acc += v.max(0.0) as f64;
+        cdf.push(acc);
+    }
+    let mut c = IkCounters::default();
+    if acc <= 0.0 {
+        return Err(RandomizedIkError::NoSolution {
+            tries: 0,
+            counters: c,
+        });
+    }
+    let mut q = start.to_vec();
+    let wbin = 2.0 * PI / bi.yaw_bins as f64;
+    let mut sols_l = [[0.0; 7]; 8];
+    let mut sols_r = [[0.0; 7]; 8];
+    for _ in 0..settings.max_tries {
+        c.tries += 1;
+        let u = rng.random_range(0.0..acc);
+        let k = cdf.partition_point(|&v| v <= u).min(cdf.len() - 1);
+        let (iw, cell) = (k % bi.yaw_bins, k / bi.yaw_bins);
+        let (ix, iy) = (cell / bi.dims[1], cell % bi.dims[1]);
+        let (x, y, w) = bi.cell_pose(ix, iy, iw);
+        q[base_vars[0]] = x + rng.random_range(-0.5..0.5) * bi.cell;
+        q[base_vars[1]] = y + rng.random_range(-0.5..0.5) * bi.cell;
+        q[base_vars[2]] = w + rng.random_range(-0.5..0.5) * wbin;
+        crate::kinematics::randomized::sample_vars(&robot, ik.free_vars(), &mut q, rng);
+        let linv = (robot_base * link_pose(&robot, &q, ik.left().arm_base)).inverse();
+        let rinv = (robot_base * link_pose(&robot, &q, ik.right().arm_base)).inverse();
+        for &gl in &bi.grasps[k] {
+            let Some(tl) = targets_left.get(gl as usize) else {
+                continue;
+            };
+            let psi = rng.random_range(-PI..PI);
+            c.ik_calls += 1;
+            c.psi_solves += 1;
+            let nl = ik.left().arm.solve(&(linv * tl), psi, &mut sols_l);
+            if nl == 0 {
+                continue;
+            }
+            ik.left()
+                .arm
+                .to_config(&sols_l[rng.random_range(0..nl)], &mut q);
+            for &gr in &rights[k] {
+                let Some(tr) = targets_right.get(gr as usize) else {
+                    continue;
+                };
+                let psi = rng.random_range(-PI..PI);
+                c.ik_calls += 1;
+                c.psi_solves += 1;
+                let nr = ik.right().arm.solve(&(rinv * tr), psi, &mut sols_r);
+                c.ik_solutions += nr as u64;
+                for s in &sols_r[..nr] {
+                    ik.right().arm.to_config(s, &mut q);
+                    c.collision_checks += 1;
+                    if valid(&q) {
+                        return Ok(BasePlacement {
+                            config: q,
+                            left_grasp: gl as usize,
+                            right_grasp: gr as usize,
+                            counters: c,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    Err(RandomizedIkError::NoSolution {
+        tries: c.tries,
+        counters: c,
+    })
+}

@@ -1,0 +1,436 @@
+//! Request and response bodies of the HTTP API (serde + OpenAPI schemas). Request bodies deny
+//! unknown fields; configurations are `joint name → value` maps applied on top of a base
+//! configuration, so errors can name `robots[1].start.right_elbow`.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use utoipa::ToSchema;
+
+use super::error::ErrorDetail;
+
+/// `joint name → value` (radians or metres), applied on top of a base configuration.
+pub type ConfigMap = BTreeMap<String, f64>;
+
+/// A pose: `position` [x, y, z] in metres and either `rpy` [roll, pitch, yaw] (URDF fixed axes)
+/// or `quat_xyzw`. Missing parts are identity.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseBody {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rpy: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quat_xyzw: Option<[f64; 4]>,
+}
+
+/// A pose in every form: position, roll-pitch-yaw and quaternion.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct PoseOut {
+    pub position: [f64; 3],
+    pub rpy: [f64; 3],
+    pub quat_xyzw: [f64; 4],
+}
+
+/// Where a model came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// Loaded at start from the robots/scenes folders; read-only.
+    Builtin,
+    /// Uploaded with PUT and persisted under the data directory.
+    Uploaded,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct RobotSummary {
+    pub name: String,
+    pub dof: usize,
+    pub source: Source,
+    pub groups: Vec<String>,
+    pub end_effectors: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct JointInfo {
+    pub name: String,
+    /// `revolute`, `continuous` or `prismatic`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub lower: f64,
+    pub upper: f64,
+    pub velocity: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct GroupInfo {
+    pub name: String,
+    pub joints: Vec<String>,
+    /// `[base_link, tip_link]` for chain groups.
+    pub chain: Option<[String; 2]>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct EndEffectorInfo {
+    pub name: String,
+    pub parent_link: String,
+    pub group: String,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct RobotDetail {
+    pub name: String,
+    pub dof: usize,
+    pub source: Source,
+    /// Movable joints in configuration-variable order.
+    pub joints: Vec<JointInfo>,
+    pub links: Vec<String>,
+    pub groups: Vec<GroupInfo>,
+    pub end_effectors: Vec<EndEffectorInfo>,
+    pub named_states: Vec<String>,
+    pub warnings: Vec<String>,
+}
+
+/// Upload of a robot model.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RobotUpload {
+    /// URDF text. Mesh files must be relative paths inside the data directory.
+    pub urdf: String,
+    /// SRDF text (groups, end effectors, disabled pairs, group states).
+    #[serde(default)]
+    pub srdf: Option<String>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct SceneRobotInfo {
+    pub name: String,
+    pub model: String,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct SceneSummary {
+    pub name: String,
+    pub description: String,
+    pub source: Source,
+    pub robots: Vec<SceneRobotInfo>,
+    pub obstacles: usize,
+    pub objects: usize,
+    /// Grasps over all objects.
+    pub grasps: usize,
+}
+
+/// `POST /v1/fk`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FkRequest {
+    pub robot: String,
+    /// Group state the configuration starts from (default `home`, else zero).
+    #[serde(default)]
+    pub named: Option<String>,
+    #[serde(default)]
+    pub config: ConfigMap,
+    /// Only these links (default: all).
+    #[serde(default)]
+    pub links: Option<Vec<String>>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct LinkPose {
+    pub link: String,
+    pub pose: PoseOut,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct FkResponse {
+    pub robot: String,
+    /// Joint names of `config`.
+    pub joints: Vec<String>,
+    pub config: Vec<f64>,
+    pub links: Vec<LinkPose>,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum IkFrame {
+    /// The robot's root link.
+    #[default]
+    Root,
+    /// The base link of the group's chain.
+    Base,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum IkSolver {
+    /// Analytic for S-R-S arms, else numeric.
+    #[default]
+    Auto,
+    /// Analytic S-R-S: every solution over the enumerated swivel angles.
+    Analytic,
+    /// Damped least squares from the seed with random restarts: one solution.
+    Numeric,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum IkOrder {
+    /// Nearest to the seed configuration first.
+    #[default]
+    Seed,
+    Random,
+}
+
+/// `POST /v1/ik`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct IkRequest {
+    pub robot: String,
+    /// A chain group of the robot (e.g. `right_arm`).
+    pub group: String,
+    /// Target pose of the chain's tip link.
+    pub pose: PoseBody,
+    #[serde(default)]
+    pub frame: IkFrame,
+    /// Group state of the seed (default `home`, else zero).
+    #[serde(default)]
+    pub named: Option<String>,
+    /// Seed and values of the joints outside the chain.
+    #[serde(default)]
+    pub config: ConfigMap,
+    #[serde(default)]
+    pub solver: IkSolver,
+    /// Swivel angles enumerated by the analytic solver (1..=3600, default 36).
+    #[serde(default)]
+    pub psi_steps: Option<u32>,
+    #[serde(default)]
+    pub order: IkOrder,
+    /// At most this many solutions are returned (1..=10000, default 16).
+    #[serde(default)]
+    pub max_solutions: Option<u32>,
+    /// Seed of the random generator (numeric restarts, random order).
+    #[serde(default)]
+    pub seed: Option<u64>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct IkResponse {
+    pub robot: String,
+    pub group: String,
+    /// `analytic` or `numeric`.
+    pub solver: String,
+    pub solutions_found: usize,
+    /// Names of the chain joints, the order of each solution's values.
+    pub joints: Vec<String>,
+    pub solutions: Vec<Vec<f64>>,
+    pub time_us: f64,
+}
+
+/// Configuration of one robot of a scene.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SceneRobotConfig {
+    /// Robot instance name in the scene.
+    pub name: String,
+    /// Named configuration of the placement (scene `configs`) or of the model's group states;
+    /// default: the scene's start configuration.
+    #[serde(default)]
+    pub named: Option<String>,
+    #[serde(default)]
+    pub config: ConfigMap,
+}
+
+/// `POST /v1/check`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CheckRequest {
+    pub scene: String,
+    /// Robots not listed stay at their start configuration.
+    #[serde(default)]
+    pub robots: Vec<SceneRobotConfig>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct CheckFast {
+    pub collision: bool,
+    pub pair: Option<[String; 2]>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct CheckResponse {
+    pub scene: String,
+    /// Exact (parry) answer.
+    pub collision: bool,
+    /// The first colliding pair (`robot/link`, `obstacle:name`, `object:name`).
+    pub pair: Option<[String; 2]>,
+    /// The conservative fast checker's answer (may report contact where the exact one does not).
+    pub fast_checker: CheckFast,
+}
+
+/// One robot of a joint-space planning problem.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PlanRobot {
+    /// Robot instance name in the scene.
+    pub name: String,
+    /// Group whose joints are planned (default: all joints of the robot).
+    #[serde(default)]
+    pub group: Option<String>,
+    /// Start, on top of the scene's start configuration (default: that configuration).
+    #[serde(default)]
+    pub start: ConfigMap,
+    /// Goal, on top of the scene's start configuration.
+    pub goal: ConfigMap,
+}
+
+/// `kind: joint_space` — RRT-Connect from start to goal configurations of one or more robots
+/// of a scene, then shortcutting.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpacePlan {
+    pub scene: String,
+    pub robots: Vec<PlanRobot>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Shortcut the path (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+    /// EXTEND step (joint-space distance; default 0.2 × the space's extent).
+    #[serde(default)]
+    pub range: Option<f64>,
+}
+
+/// `kind: collision_sweep` — uniform random configurations of a scene's robots checked for
+/// collision: free-space fraction and the most frequent colliding pairs.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSweep {
+    pub scene: String,
+    /// Robot instances whose joints are sampled (default: all robots of the scene).
+    #[serde(default)]
+    pub robots: Option<Vec<String>>,
+    /// Number of samples (1..=1e9).
+    pub samples: u64,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+}
+
+/// `POST /v1/plans`: a problem, selected by `kind`. More kinds (IK-RRT, J+-RRT, regrasp,
+/// hand-off, bimanual, multi-robot) are added as the planners land.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum PlanRequest {
+    JointSpace(JointSpacePlan),
+    CollisionSweep(CollisionSweep),
+}
+
+impl PlanRequest {
+    pub const KINDS: [&'static str; 2] = ["joint_space", "collision_sweep"];
+
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PlanRequest::JointSpace(_) => "joint_space",
+            PlanRequest::CollisionSweep(_) => "collision_sweep",
+        }
+    }
+}
+
+/// Life cycle of a job.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize, ToSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum JobState {
+    Queued,
+    Running,
+    Succeeded,
+    Failed,
+    Cancelled,
+    /// The server stopped (or died) while the job was queued or running.
+    Interrupted,
+}
+
+impl JobState {
+    pub const ALL: [JobState; 6] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Succeeded,
+        JobState::Failed,
+        JobState::Cancelled,
+        JobState::Interrupted,
+    ];
+
+    pub fn is_final(self) -> bool {
+        !matches!(self, JobState::Queued | JobState::Running)
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Succeeded => "succeeded",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+            JobState::Interrupted => "interrupted",
+        }
+    }
+}
+
+/// A planning job: its request, state, progress and (when final) result or error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Job {
+    pub id: String,
+    pub kind: String,
+    pub state: JobState,
+    /// Unix time in milliseconds.
+    pub created_ms: u64,
+    pub started_ms: Option<u64>,
+    pub finished_ms: Option<u64>,
+    /// Effective time limit in seconds (after the server's cap).
+    pub time_limit: f64,
+    /// The request as accepted.
+    #[schema(value_type = Object)]
+    pub request: Value,
+    /// Latest progress (kind-specific counters: iterations, tree sizes, samples, …).
+    #[schema(value_type = Option<Object>)]
+    pub progress: Option<Value>,
+    /// Result of a succeeded job (kind-specific; `joint_space`: `joints`, `path`, `stats`).
+    #[schema(value_type = Option<Object>)]
+    pub result: Option<Value>,
+    pub error: Option<ErrorDetail>,
+}
+
+/// `GET /v1/plans`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct JobList {
+    pub jobs: Vec<JobSummary>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct JobSummary {
+    pub id: String,
+    pub kind: String,
+    pub state: JobState,
+    pub created_ms: u64,
+}
+
+/// `GET /healthz`, `GET /readyz`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct Health {
+    /// `ok`, or `shutting_down`.
+    pub status: String,
+    pub version: String,
+    pub robots: usize,
+    pub scenes: usize,
+    pub queue_depth: usize,
+    pub queue_capacity: usize,
+    pub workers: usize,
+}

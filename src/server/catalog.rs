@@ -1,0 +1,445 @@
+//! The robots and scenes the server knows: built-in ones loaded at start (read-only) and
+//! uploaded ones, validated on upload and persisted under `DATA_DIR/robots` and
+//! `DATA_DIR/scenes`.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock, RwLock};
+
+use crate::collision::CollisionWorld;
+use crate::model::{load_robot_dir, load_scene_dir, ModelError, RobotLibrary, SceneJson};
+use crate::{Robot, Scene};
+
+use super::api::Source;
+use super::error::{ApiError, ApiResult};
+
+pub struct RobotEntry {
+    pub robot: Arc<Robot>,
+    pub source: Source,
+}
+
+pub struct SceneEntry {
+    pub scene: Arc<Scene>,
+    pub source: Source,
+    world: OnceLock<Arc<CollisionWorld>>,
+}
+
+impl SceneEntry {
+    fn new(scene: Scene, source: Source) -> SceneEntry {
+        SceneEntry {
+            scene: Arc::new(scene),
+            source,
+            world: OnceLock::new(),
+        }
+    }
+
+    /// The scene's collision world, built on first use.
+    pub fn world(&self) -> Arc<CollisionWorld> {
+        self.world
+            .get_or_init(|| Arc::new(CollisionWorld::from_scene(&self.scene)))
+            .clone()
+    }
+}
+
+/// Robots and scenes by name.
+pub struct Catalog {
+    robots: RwLock<BTreeMap<String, Arc<RobotEntry>>>,
+    scenes: RwLock<BTreeMap<String, Arc<SceneEntry>>>,
+    robots_dir: PathBuf,
+    scenes_dir: PathBuf,
+    /// Serialises uploads and deletions (validation + files + maps).
+    write: std::sync::Mutex<()>,
+}
+
+/// A name usable as a file stem: 1..=64 of `[A-Za-z0-9_.-]`, not starting with a dot.
+pub fn check_name(name: &str, what: &str) -> ApiResult<()> {
+    let ok = !name.is_empty()
+        && name.len() <= 64
+        && !name.starts_with('.')
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'));
+    if ok {
+        Ok(())
+    } else {
+        Err(ApiError::invalid(
+            "name",
+            format!("{what} name '{name}' must be 1-64 characters of A-Z a-z 0-9 _ - . (not starting with '.')"),
+        ))
+    }
+}
+
+/// An uploaded file may only name meshes by relative paths without `..` (no reading of
+/// arbitrary server files).
+fn check_mesh_path(path: &str) -> Result<(), String> {
+    let p = path.strip_prefix("file://").unwrap_or(path);
+    if p.starts_with("package://") {
+        return Err(format!("'{path}': package:// URIs are not resolved; upload meshes relative to the data directory"));
+    }
+    let pp = Path::new(p);
+    if pp.is_absolute()
+        || pp
+            .components()
+            .any(|c| matches!(c, std::path::Component::ParentDir))
+    {
+        return Err(format!(
+            "'{path}': mesh paths must be relative and stay inside the data directory"
+        ));
+    }
+    Ok(())
+}
+
+fn lock_err<T>(p: std::sync::PoisonError<T>) -> T {
+    p.into_inner()
+}
+
+fn write_atomic(path: &Path, text: &str) -> ApiResult<()> {
+    let tmp = path.with_extension("tmp-upload");
+    std::fs::write(&tmp, text)
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| ApiError::internal(format!("writing {}: {e}", path.display())))
+}
+
+fn remove_file(path: &Path) -> ApiResult<()> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(ApiError::internal(format!(
+            "removing {}: {e}",
+            path.display()
+        ))),
+    }
+}
+
+impl Catalog {
+    /// Loads built-in robots and scenes from `robots_dir` / `scenes_dir` (errors there are fatal)
+    /// and the uploaded ones under `data_dir` (a broken upload is skipped with a warning).
+    pub fn load(
+        robots_dir: &Path,
+        scenes_dir: &Path,
+        data_dir: &Path,
+    ) -> Result<Catalog, ModelError> {
+        let up_robots = data_dir.join("robots");
+        let up_scenes = data_dir.join("scenes");
+        for d in [&up_robots, &up_scenes] {
+            std::fs::create_dir_all(d).map_err(|e| ModelError::Io {
+                file: d.display().to_string(),
+                reason: e.to_string(),
+            })?;
+        }
+        let mut robots = BTreeMap::new();
+        if robots_dir.is_dir() {
+            for (name, robot) in load_robot_dir(robots_dir)? {
+                robots.insert(
+                    name,
+                    Arc::new(RobotEntry {
+                        robot,
+                        source: Source::Builtin,
+                    }),
+                );
+            }
+        }
+        if let Ok(rd) = std::fs::read_dir(&up_robots) {
+            let mut files: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
+            files.sort();
+            for p in files
+                .iter()
+                .filter(|p| p.extension().and_then(|e| e.to_str()) == Some("urdf"))
+            {
+                let Some(name) = p.file_stem().and_then(|s| s.to_str()).map(str::to_string) else {
+                    continue;
+                };
+                if robots.contains_key(&name) {
+                    tracing::warn!(robot = %name, "uploaded robot shadows a built-in one; skipped");
+                    continue;
+                }
+                let srdf = p.with_extension("srdf");
+                match Robot::from_files(p, srdf.is_file().then_some(srdf.as_path())) {
+                    Ok(r) => {
+                        robots.insert(
+                            name,
+                            Arc::new(RobotEntry {
+                                robot: Arc::new(r),
+                                source: Source::Uploaded,
+                            }),
+                        );
+                    }
+                    Err(e) => {
+                        tracing::warn!(file = %p.display(), error = %e, "skipping uploaded robot")
+                    }
+                }
+            }
+        }
+        let lib: RobotLibrary = robots
+            .iter()
+            .map(|(k, v)| (k.clone(), v.robot.clone()))
+            .collect();
+        let mut scenes = BTreeMap::new();
+        if scenes_dir.is_dir() {
+            for (name, s) in load_scene_dir(scenes_dir, &lib)? {
+                scenes.insert(name, Arc::new(SceneEntry::new(s, Source::Builtin)));
+            }
+        }
+        if let Ok(rd) = std::fs::read_dir(&up_scenes) {
+            let mut files: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
+            files.sort();
+            for p in files
+                .iter()
+                .filter(|p| p.extension().and_then(|e| e.to_str()) == Some("json"))
+            {
+                let Some(name) = p.file_stem().and_then(|s| s.to_str()).map(str::to_string) else {
+                    continue;
+                };
+                if scenes.contains_key(&name) {
+                    tracing::warn!(scene = %name, "uploaded scene shadows a built-in one; skipped");
+                    continue;
+                }
+                match Scene::from_file(p, &lib) {
+                    Ok(s) => {
+                        scenes.insert(name, Arc::new(SceneEntry::new(s, Source::Uploaded)));
+                    }
+                    Err(e) => {
+                        tracing::warn!(file = %p.display(), error = %e, "skipping uploaded scene")
+                    }
+                }
+            }
+        }
+        Ok(Catalog {
+            robots: RwLock::new(robots),
+            scenes: RwLock::new(scenes),
+            robots_dir: up_robots,
+            scenes_dir: up_scenes,
+            write: std::sync::Mutex::new(()),
+        })
+    }
+
+    pub fn robots(&self) -> Vec<(String, Arc<RobotEntry>)> {
+        self.robots
+            .read()
+            .unwrap_or_else(lock_err)
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect()
+    }
+
+    pub fn scenes(&self) -> Vec<(String, Arc<SceneEntry>)> {
+        self.scenes
+            .read()
+            .unwrap_or_else(lock_err)
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect()
+    }
+
+    pub fn counts(&self) -> (usize, usize) {
+        (
+            self.robots.read().unwrap_or_else(lock_err).len(),
+            self.scenes.read().unwrap_or_else(lock_err).len(),
+        )
+    }
+
+    /// A robot by name, or 404 naming `field`.
+    pub fn robot(&self, name: &str, field: &str) -> ApiResult<Arc<RobotEntry>> {
+        self.robots
+            .read()
+            .unwrap_or_else(lock_err)
+            .get(name)
+            .cloned()
+            .ok_or_else(|| ApiError::not_found(field, format!("unknown robot '{name}'")))
+    }
+
+    /// A scene by name, or 404 naming `field`.
+    pub fn scene(&self, name: &str, field: &str) -> ApiResult<Arc<SceneEntry>> {
+        self.scenes
+            .read()
+            .unwrap_or_else(lock_err)
+            .get(name)
+            .cloned()
+            .ok_or_else(|| ApiError::not_found(field, format!("unknown scene '{name}'")))
+    }
+
+    fn library(&self) -> RobotLibrary {
+        self.robots
+            .read()
+            .unwrap_or_else(lock_err)
+            .iter()
+            .map(|(k, v)| (k.clone(), v.robot.clone()))
+            .collect()
+    }
+
+    /// Validates and stores an uploaded robot (CPU work: call it off the async runtime).
+    /// Returns true when it was created (false: replaced).
+    pub fn put_robot(&self, name: &str, urdf: &str, srdf: Option<&str>) -> ApiResult<bool> {
+        check_name(name, "robot")?;
+        check_urdf_meshes(urdf)?;
+        let robot = Robot::from_strings(urdf, srdf, &self.robots_dir).map_err(|e| {
+            let prefix = match &e {
+                ModelError::Invalid { file, .. }
+                | ModelError::Syntax { file, .. }
+                | ModelError::Io { file, .. }
+                    if file.ends_with(".srdf") =>
+                {
+                    "srdf"
+                }
+                _ => "urdf",
+            };
+            ApiError::from_model(&e, prefix)
+        })?;
+        let _w = self.write.lock().unwrap_or_else(lock_err);
+        let existing = self
+            .robots
+            .read()
+            .unwrap_or_else(lock_err)
+            .get(name)
+            .map(|e| e.source);
+        if existing == Some(Source::Builtin) {
+            return Err(ApiError::conflict(format!(
+                "robot '{name}' is built in and read-only"
+            )));
+        }
+        // Scenes using the model must still validate with the new one.
+        let mut lib = self.library();
+        let robot = Arc::new(robot);
+        lib.insert(name.to_string(), robot.clone());
+        let mut rescoped = Vec::new();
+        for (sname, entry) in self.scenes() {
+            if entry.scene.json.robots.iter().any(|r| r.model == name) {
+                let s = Scene::from_json(entry.scene.json.clone(), &sname, &self.scenes_dir, &lib).map_err(|e| {
+                    ApiError::conflict(format!("scene '{sname}' uses robot '{name}' and does not validate with the new model: {e}"))
+                })?;
+                rescoped.push((sname, SceneEntry::new(s, entry.source)));
+            }
+        }
+        write_atomic(&self.robots_dir.join(format!("{name}.urdf")), urdf)?;
+        let srdf_path = self.robots_dir.join(format!("{name}.srdf"));
+        match srdf {
+            Some(s) => write_atomic(&srdf_path, s)?,
+            None => remove_file(&srdf_path)?,
+        }
+        self.robots.write().unwrap_or_else(lock_err).insert(
+            name.to_string(),
+            Arc::new(RobotEntry {
+                robot,
+                source: Source::Uploaded,
+            }),
+        );
+        let mut scenes = self.scenes.write().unwrap_or_else(lock_err);
+        for (sname, e) in rescoped {
+            scenes.insert(sname, Arc::new(e));
+        }
+        Ok(existing.is_none())
+    }
+
+    pub fn delete_robot(&self, name: &str) -> ApiResult<()> {
+        let _w = self.write.lock().unwrap_or_else(lock_err);
+        let entry = self.robot(name, "name")?;
+        if entry.source == Source::Builtin {
+            return Err(ApiError::conflict(format!(
+                "robot '{name}' is built in and read-only"
+            )));
+        }
+        if let Some((s, _)) = self
+            .scenes()
+            .into_iter()
+            .find(|(_, e)| e.scene.json.robots.iter().any(|r| r.model == name))
+        {
+            return Err(ApiError::conflict(format!(
+                "robot '{name}' is used by scene '{s}'; delete the scene first"
+            )));
+        }
+        remove_file(&self.robots_dir.join(format!("{name}.urdf")))?;
+        remove_file(&self.robots_dir.join(format!("{name}.srdf")))?;
+        self.robots.write().unwrap_or_else(lock_err).remove(name);
+        Ok(())
+    }
+
+    /// Validates and stores an uploaded scene. Returns true when it was created.
+    pub fn put_scene(&self, name: &str, json: SceneJson) -> ApiResult<bool> {
+        check_name(name, "scene")?;
+        if json.name != name {
+            return Err(ApiError::invalid(
+                "name",
+                format!(
+                    "'{}' differs from the scene name '{name}' in the URL",
+                    json.name
+                ),
+            ));
+        }
+        for (list, bodies) in [("obstacles", &json.obstacles), ("objects", &json.objects)] {
+            for (i, b) in bodies.iter().enumerate() {
+                for (j, g) in b.shapes.iter().enumerate() {
+                    if let Some(p) = &g.path {
+                        check_mesh_path(p).map_err(|m| {
+                            ApiError::invalid(format!("{list}[{i}].shapes[{j}].path"), m)
+                        })?;
+                    }
+                }
+            }
+        }
+        let _w = self.write.lock().unwrap_or_else(lock_err);
+        let existing = self
+            .scenes
+            .read()
+            .unwrap_or_else(lock_err)
+            .get(name)
+            .map(|e| e.source);
+        if existing == Some(Source::Builtin) {
+            return Err(ApiError::conflict(format!(
+                "scene '{name}' is built in and read-only"
+            )));
+        }
+        let lib = self.library();
+        for (i, r) in json.robots.iter().enumerate() {
+            if !lib.contains_key(&r.model) {
+                return Err(ApiError::not_found(
+                    format!("robots[{i}].model"),
+                    format!("unknown robot '{}'", r.model),
+                ));
+            }
+        }
+        let text =
+            serde_json::to_string_pretty(&json).map_err(|e| ApiError::internal(e.to_string()))?;
+        let scene = Scene::from_json(json, name, &self.scenes_dir, &lib)
+            .map_err(|e| ApiError::from_model(&e, ""))?;
+        write_atomic(&self.scenes_dir.join(format!("{name}.json")), &text)?;
+        self.scenes.write().unwrap_or_else(lock_err).insert(
+            name.to_string(),
+            Arc::new(SceneEntry::new(scene, Source::Uploaded)),
+        );
+        Ok(existing.is_none())
+    }
+
+    pub fn delete_scene(&self, name: &str) -> ApiResult<()> {
+        let _w = self.write.lock().unwrap_or_else(lock_err);
+        let entry = self.scene(name, "name")?;
+        if entry.source == Source::Builtin {
+            return Err(ApiError::conflict(format!(
+                "scene '{name}' is built in and read-only"
+            )));
+        }
+        remove_file(&self.scenes_dir.join(format!("{name}.json")))?;
+        self.scenes.write().unwrap_or_else(lock_err).remove(name);
+        Ok(())
+    }
+}
+
+/// Mesh file names of an uploaded URDF must be relative paths inside the data directory.
+fn check_urdf_meshes(urdf: &str) -> ApiResult<()> {
+    let doc = match roxmltree::Document::parse(urdf) {
+        Ok(d) => d,
+        // The model parser reports the syntax error with its position.
+        Err(_) => return Ok(()),
+    };
+    for n in doc.descendants().filter(|n| n.has_tag_name("mesh")) {
+        if let Some(f) = n.attribute("filename") {
+            let link = n
+                .ancestors()
+                .find(|a| a.has_tag_name("link"))
+                .and_then(|a| a.attribute("name"))
+                .unwrap_or("?");
+            check_mesh_path(f)
+                .map_err(|m| ApiError::invalid(format!("urdf.link[{link}].mesh.filename"), m))?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,401 @@
+//! Job kinds: how a `PlanRequest` becomes work for a planner worker. A kind is a
+//! [`JobWork`] implementation plus a `prepare` step that validates the request against the
+//! catalog (errors name the field) and resolves everything the worker needs, so the work does
+//! not depend on later uploads or deletions. Adding a planner = a `PlanRequest` variant, a
+//! `prepare_*` function and a `JobWork` impl.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::{json, Value};
+
+use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use crate::planning::{
+    JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, ShortcutSettings, Termination,
+};
+
+use super::api::{CollisionSweep, JointSpacePlan, PlanRequest};
+use super::catalog::Catalog;
+use super::error::{ApiError, ApiResult};
+use super::queries::{apply_config, placement_base};
+
+/// Why a job did not succeed.
+#[derive(Debug, Clone)]
+pub struct JobFailure {
+    /// Ended by its stop flag (cancel or shutdown) rather than by a failure.
+    pub stopped: bool,
+    pub code: &'static str,
+    pub message: String,
+    /// Statistics gathered before the failure.
+    pub stats: Option<Value>,
+}
+
+/// What a worker gets besides the work: the stop flag, the time limit and a progress sink.
+pub struct JobContext {
+    pub stop: Arc<AtomicBool>,
+    pub time_limit: Duration,
+    progress: Box<dyn FnMut(Value) + Send>,
+}
+
+impl JobContext {
+    pub fn new(
+        stop: Arc<AtomicBool>,
+        time_limit: Duration,
+        progress: Box<dyn FnMut(Value) + Send>,
+    ) -> JobContext {
+        JobContext {
+            stop,
+            time_limit,
+            progress,
+        }
+    }
+
+    /// Publishes a progress snapshot (SSE `progress` event, `progress` of the job record).
+    pub fn progress(&mut self, v: Value) {
+        (self.progress)(v)
+    }
+
+    /// The planner termination condition of this job: time limit and stop flag.
+    pub fn termination(&self) -> Termination {
+        Termination::new()
+            .with_time_limit(self.time_limit)
+            .with_stop_flag(self.stop.clone())
+    }
+
+    pub fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+}
+
+/// A prepared job, run once on a planner worker thread.
+pub trait JobWork: Send + 'static {
+    fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure>;
+}
+
+/// A validated request ready to queue.
+pub struct Prepared {
+    pub work: Box<dyn JobWork>,
+    /// Effective time limit in seconds.
+    pub time_limit: f64,
+}
+
+/// Default time limit of a job when the request gives none, in seconds.
+pub const DEFAULT_TIME_LIMIT: f64 = 10.0;
+
+fn time_limit(t: Option<f64>, max: f64) -> ApiResult<f64> {
+    match t {
+        None => Ok(DEFAULT_TIME_LIMIT.min(max)),
+        Some(t) if t.is_finite() && t > 0.0 => Ok(t.min(max)),
+        Some(t) => Err(ApiError::invalid(
+            "time_limit",
+            format!("{t} is not a positive number of seconds"),
+        )),
+    }
+}
+
+/// Validates a request and resolves it into work (CPU: call on the pool).
+pub fn prepare(req: &PlanRequest, catalog: &Catalog, max_seconds: f64) -> ApiResult<Prepared> {
+    match req {
+        PlanRequest::JointSpace(r) => prepare_joint_space(r, catalog, max_seconds),
+        PlanRequest::CollisionSweep(r) => prepare_sweep(r, catalog, max_seconds),
+    }
+}
+
+fn stats_json(s: &PlanStats) -> Value {
+    json!({
+        "time_ms": s.time.as_secs_f64() * 1e3,
+        "simplify_time_ms": s.simplify_time.as_secs_f64() * 1e3,
+        "iterations": s.iterations,
+        "start_tree_size": s.start_tree_size,
+        "goal_tree_size": s.goal_tree_size,
+        "collision_checks": s.collision_checks,
+        "segments_checked": s.segments_checked,
+        "length_raw": s.length_raw,
+        "length_simplified": s.length_simplified,
+        "vertices_raw": s.vertices_raw,
+        "vertices_simplified": s.vertices_simplified,
+    })
+}
+
+// ---------------------------------------------------------------- joint_space (RRT-Connect)
+
+struct JointSpaceWork {
+    world: Arc<CollisionWorld>,
+    vars: Vec<usize>,
+    base: Vec<f64>,
+    start: Vec<f64>,
+    goal: Vec<f64>,
+    settings: RrtConnectSettings,
+    seed: u64,
+}
+
+fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
+    let time_limit = time_limit(r.time_limit, max)?;
+    if let Some(x) = r.range {
+        if !(x.is_finite() && x > 0.0) {
+            return Err(ApiError::invalid(
+                "range",
+                format!("{x} is not a positive number"),
+            ));
+        }
+    }
+    if r.robots.is_empty() {
+        return Err(ApiError::invalid("robots", "at least one robot is planned"));
+    }
+    let entry = catalog.scene(&r.scene, "scene")?;
+    let scene = &entry.scene;
+    let world = entry.world();
+    let mut base = CollisionWorld::start_config(scene);
+    let mut goal_world = base.clone();
+    let mut vars = Vec::new();
+    let mut seen = Vec::new();
+    for (i, pr) in r.robots.iter().enumerate() {
+        let field = format!("robots[{i}]");
+        let ri = scene
+            .robots
+            .iter()
+            .position(|p| p.name == pr.name)
+            .ok_or_else(|| {
+                ApiError::invalid(
+                    format!("{field}.name"),
+                    format!("scene '{}' has no robot '{}'", scene.name, pr.name),
+                )
+            })?;
+        if seen.contains(&ri) {
+            return Err(ApiError::invalid(
+                format!("{field}.name"),
+                format!("robot '{}' listed twice", pr.name),
+            ));
+        }
+        seen.push(ri);
+        let p = &scene.robots[ri];
+        let robot = &p.robot;
+        let group_vars: Vec<usize> = match &pr.group {
+            Some(g) => robot
+                .group(g)
+                .map(|g| g.vars.clone())
+                .filter(|v| !v.is_empty())
+                .ok_or_else(|| {
+                    ApiError::invalid(
+                        format!("{field}.group"),
+                        format!("robot '{}' has no group '{g}' with joints", pr.name),
+                    )
+                })?,
+            None => (0..robot.dof()).collect(),
+        };
+        let start_base = placement_base(p, None, &field)?;
+        let start = apply_config(robot, &start_base, &pr.start, &format!("{field}.start"))?;
+        let goal = apply_config(robot, &start, &pr.goal, &format!("{field}.goal"))?;
+        let off = world.robots[ri].offset;
+        base[off..off + start.len()].copy_from_slice(&start);
+        goal_world[off..off + goal.len()].copy_from_slice(&goal);
+        vars.extend(group_vars.iter().map(|v| off + v));
+    }
+    let start: Vec<f64> = vars.iter().map(|&v| base[v]).collect();
+    let goal: Vec<f64> = vars.iter().map(|&v| goal_world[v]).collect();
+    let settings = RrtConnectSettings {
+        range: r.range,
+        shortcut: r.simplify.unwrap_or(true).then(ShortcutSettings::default),
+        ..RrtConnectSettings::default()
+    };
+    Ok(Prepared {
+        work: Box::new(JointSpaceWork {
+            world,
+            vars,
+            base,
+            start,
+            goal,
+            settings,
+            seed: r.seed.unwrap_or(1),
+        }),
+        time_limit,
+    })
+}
+
+fn plan_failure(e: PlanError) -> JobFailure {
+    let code = match &e {
+        PlanError::InvalidInput(_) => "invalid_input",
+        PlanError::InvalidStart { .. } => "invalid_start",
+        PlanError::InvalidGoal { .. } => "invalid_goal",
+        PlanError::Timeout { .. } => "timeout",
+        PlanError::IterationLimit { .. } => "iteration_limit",
+        PlanError::Stopped { .. } => "cancelled",
+        PlanError::PathInvalid { .. } => "path_invalid",
+    };
+    JobFailure {
+        stopped: matches!(e, PlanError::Stopped { .. }),
+        code,
+        message: e.to_string(),
+        stats: e.stats().map(stats_json),
+    }
+}
+
+impl JobWork for JointSpaceWork {
+    fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
+        let w = *self;
+        let space = JointSpace::new(&w.world, &w.vars, w.base).map_err(plan_failure)?;
+        let names = space.names().to_vec();
+        let mut planner = RrtConnect::new(space, &w.world, w.settings).map_err(plan_failure)?;
+        ctx.progress(json!({"phase": "planning", "dimensions": names.len()}));
+        let mut term = ctx.termination();
+        let res = planner
+            .plan(&w.start, &[w.goal], &mut term, w.seed)
+            .map_err(plan_failure)?;
+        Ok(json!({
+            "planner": "rrt_connect",
+            "joints": names,
+            "path": res.path,
+            "goal_index": res.goal_index,
+            "stats": stats_json(&res.stats),
+        }))
+    }
+}
+
+// ---------------------------------------------------------------- collision_sweep
+
+struct SweepWork {
+    world: Arc<CollisionWorld>,
+    base: Vec<f64>,
+    vars: Vec<usize>,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    samples: u64,
+    seed: u64,
+}
+
+fn prepare_sweep(r: &CollisionSweep, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
+    let time_limit = time_limit(r.time_limit, max)?;
+    if !(1..=1_000_000_000).contains(&r.samples) {
+        return Err(ApiError::invalid(
+            "samples",
+            format!("{} is not in 1..=1000000000", r.samples),
+        ));
+    }
+    let entry = catalog.scene(&r.scene, "scene")?;
+    let scene = &entry.scene;
+    let world = entry.world();
+    let selected: Vec<usize> = match &r.robots {
+        Some(names) => names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                scene
+                    .robots
+                    .iter()
+                    .position(|p| &p.name == n)
+                    .ok_or_else(|| {
+                        ApiError::invalid(
+                            format!("robots[{i}]"),
+                            format!("scene '{}' has no robot '{n}'", scene.name),
+                        )
+                    })
+            })
+            .collect::<ApiResult<_>>()?,
+        None => (0..scene.robots.len()).collect(),
+    };
+    let mut vars = Vec::new();
+    let mut lower = Vec::new();
+    let mut upper = Vec::new();
+    for ri in selected {
+        let p = &world.robots[ri];
+        for v in 0..p.robot.dof() {
+            if vars.contains(&(p.offset + v)) {
+                continue;
+            }
+            let l = p.robot.var_limits(v);
+            vars.push(p.offset + v);
+            lower.push(if l.lower.is_finite() {
+                l.lower
+            } else {
+                -std::f64::consts::PI
+            });
+            upper.push(if l.upper.is_finite() {
+                l.upper
+            } else {
+                std::f64::consts::PI
+            });
+        }
+    }
+    if vars.is_empty() {
+        return Err(ApiError::invalid("robots", "no joints to sample"));
+    }
+    Ok(Prepared {
+        work: Box::new(SweepWork {
+            base: CollisionWorld::start_config(scene),
+            world,
+            vars,
+            lower,
+            upper,
+            samples: r.samples,
+            seed: r.seed.unwrap_or(1),
+        }),
+        time_limit,
+    })
+}
+
+impl JobWork for SweepWork {
+    fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
+        let mut checker = FastChecker::new(&self.world);
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        let mut q = self.base.clone();
+        let (mut free, mut colliding) = (0u64, 0u64);
+        let mut pairs: HashMap<(String, String), u64> = HashMap::new();
+        let t0 = Instant::now();
+        let mut last = t0;
+        let mut truncated = false;
+        let summary = |free: u64,
+                       colliding: u64,
+                       pairs: &HashMap<(String, String), u64>,
+                       truncated: bool| {
+            let n = free + colliding;
+            let mut top: Vec<_> = pairs.iter().collect();
+            top.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+            json!({
+                "samples": n,
+                "free": free,
+                "colliding": colliding,
+                "free_fraction": if n > 0 { free as f64 / n as f64 } else { 0.0 },
+                "truncated_by_time_limit": truncated,
+                "checker": "fast (conservative)",
+                "time_ms": t0.elapsed().as_secs_f64() * 1e3,
+                "top_pairs": top.iter().take(10).map(|((a, b), c)| json!({"a": a, "b": b, "count": c})).collect::<Vec<_>>(),
+            })
+        };
+        for i in 0..self.samples {
+            if ctx.stopped() {
+                return Err(JobFailure {
+                    stopped: true,
+                    code: "cancelled",
+                    message: format!("stopped on request after {i} samples"),
+                    stats: Some(summary(free, colliding, &pairs, false)),
+                });
+            }
+            if i % 64 == 0 {
+                let now = Instant::now();
+                if now - t0 >= ctx.time_limit {
+                    truncated = true;
+                    break;
+                }
+                if now - last >= Duration::from_millis(100) {
+                    last = now;
+                    ctx.progress(json!({"samples_done": i, "samples": self.samples, "free": free, "colliding": colliding}));
+                }
+            }
+            for (k, &v) in self.vars.iter().enumerate() {
+                q[v] = self.lower[k] + (self.upper[k] - self.lower[k]) * rng.random::<f64>();
+            }
+            match checker.first_contact(&q) {
+                None => free += 1,
+                Some(c) => {
+                    colliding += 1;
+                    *pairs.entry((c.a, c.b)).or_insert(0) += 1;
+                }
+            }
+        }
+        Ok(summary(free, colliding, &pairs, truncated))
+    }
+}

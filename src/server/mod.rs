@@ -1,0 +1,452 @@
+//! The HTTP/JSON server (`manyhands serve`).
+//!
+//! The server is a thin adapter: routes parse and validate a request (errors name the field),
+//! hand it to the library (synchronous queries on a bounded CPU pool) or to the job runner
+//! (planners on dedicated worker threads), and serialise the answer. The async runtime only
+//! does I/O. The planning core must not depend on this module (no tokio/axum/HTTP types in
+//! `model`, `kinematics`, `collision`, `planning`).
+//!
+//! Modules: [`api`] request/response types, [`error`] the one error type, [`extract`] the
+//! strict JSON extractor, [`catalog`] robots and scenes, [`queries`] FK/IK/check, [`kinds`] job
+//! kinds, [`jobs`] the runner, [`store`] persistence, [`metrics`] Prometheus, [`openapi`] the
+//! spec.
+
+pub mod api;
+pub mod catalog;
+pub mod error;
+pub mod extract;
+pub mod jobs;
+pub mod kinds;
+pub mod metrics;
+pub mod openapi;
+pub mod plans;
+pub mod pool;
+pub mod queries;
+pub mod resources;
+pub mod store;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
+use axum::http::{header, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use tokio::sync::watch;
+
+use self::api::Health;
+use self::catalog::Catalog;
+use self::error::ApiError;
+use self::jobs::{Jobs, RunnerConfig};
+use self::metrics::{Gauges, Metrics};
+use self::pool::CpuPool;
+use self::store::{Store, StoreError};
+
+/// Settings of `manyhands serve`.
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub bind: SocketAddr,
+    /// Job store and uploaded robots/scenes.
+    pub data_dir: PathBuf,
+    /// Built-in (read-only) robots and scenes.
+    pub robots_dir: PathBuf,
+    pub scenes_dir: PathBuf,
+    /// Planner worker threads.
+    pub workers: usize,
+    /// Threads of the synchronous-query pool.
+    pub query_threads: usize,
+    /// Jobs waiting for a worker before 429.
+    pub max_queue: usize,
+    /// Cap of any job's time limit, seconds.
+    pub max_plan_seconds: f64,
+    /// Bearer token; required when `bind` is not a loopback address.
+    pub token: Option<String>,
+    /// Request body limit in bytes.
+    pub max_body: usize,
+    /// Final jobs older than this are deleted.
+    pub retention: Duration,
+    /// Running jobs get this long to finish at shutdown.
+    pub shutdown_grace: Duration,
+}
+
+impl Config {
+    /// Defaults for `bind` and `data_dir`, built-in models from `data_root()`.
+    pub fn new(bind: SocketAddr, data_dir: PathBuf) -> Config {
+        let root = crate::model::data_root();
+        let cores = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(2);
+        Config {
+            bind,
+            data_dir,
+            robots_dir: root.join("robots"),
+            scenes_dir: root.join("scenes"),
+            workers: cores,
+            query_threads: cores,
+            max_queue: 64,
+            max_plan_seconds: 60.0,
+            token: None,
+            max_body: 2 * 1024 * 1024,
+            retention: Duration::from_secs(7 * 24 * 3600),
+            shutdown_grace: Duration::from_secs(10),
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), ServerError> {
+        if !self.bind.ip().is_loopback() && self.token.as_deref().is_none_or(str::is_empty) {
+            return Err(ServerError::Config(format!(
+                "binding {} (not loopback) requires a token (--token or MANYHANDS_TOKEN)",
+                self.bind
+            )));
+        }
+        if self.workers == 0 || self.query_threads == 0 || self.max_queue == 0 {
+            return Err(ServerError::Config(
+                "workers, query threads and max queue must be ≥ 1".into(),
+            ));
+        }
+        if !(self.max_plan_seconds.is_finite() && self.max_plan_seconds > 0.0) {
+            return Err(ServerError::Config(
+                "max plan seconds must be a positive number".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Why the server could not start or stop cleanly.
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    #[error("configuration: {0}")]
+    Config(String),
+    #[error("cannot bind {addr}: {source}")]
+    Bind {
+        addr: SocketAddr,
+        source: std::io::Error,
+    },
+    #[error("loading models: {0}")]
+    Model(#[from] crate::model::ModelError),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error("server: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// State shared by all handlers.
+pub struct AppState {
+    pub cfg: Config,
+    pub catalog: Catalog,
+    pub jobs: Arc<Jobs>,
+    pub metrics: Arc<Metrics>,
+    pub pool: CpuPool,
+    pub shutting_down: AtomicBool,
+}
+
+impl AppState {
+    fn gauges(&self) -> Gauges {
+        let (robots, scenes) = self.catalog.counts();
+        Gauges {
+            queue_depth: self.jobs.queue_depth(),
+            queue_capacity: self.cfg.max_queue,
+            workers: self.cfg.workers,
+            jobs_by_state: self.jobs.counts_by_state(),
+            robots,
+            scenes,
+        }
+    }
+
+    fn health(&self) -> Health {
+        let g = self.gauges();
+        Health {
+            status: if self.shutting_down.load(Ordering::Relaxed) {
+                "shutting_down"
+            } else {
+                "ok"
+            }
+            .into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            robots: g.robots,
+            scenes: g.scenes,
+            queue_depth: g.queue_depth,
+            queue_capacity: g.queue_capacity,
+            workers: g.workers,
+        }
+    }
+}
+
+#[utoipa::path(get, path = "/healthz", tag = "operations", security(()), responses((status = 200, body = Health, description = "the process is alive")))]
+async fn healthz(State(st): State<Arc<AppState>>) -> Json<Health> {
+    Json(st.health())
+}
+
+#[utoipa::path(get, path = "/readyz", tag = "operations", security(()),
+    responses((status = 200, body = Health, description = "accepting work"), (status = 503, body = Health, description = "shutting down")))]
+async fn readyz(State(st): State<Arc<AppState>>) -> Response {
+    let h = st.health();
+    let code = if h.status == "ok" {
+        StatusCode::OK
+    } else {
+        StatusCode::SERVICE_UNAVAILABLE
+    };
+    (code, Json(h)).into_response()
+}
+
+#[utoipa::path(get, path = "/metrics", tag = "operations", security(()),
+    responses((status = 200, content_type = "text/plain", description = "Prometheus text format")))]
+async fn metrics_handler(State(st): State<Arc<AppState>>) -> Response {
+    let text = st.metrics.render(&st.gauges());
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
+}
+
+async fn openapi_handler() -> Response {
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        openapi::openapi_json(),
+    )
+        .into_response()
+}
+
+async fn not_found() -> ApiError {
+    ApiError::not_found("", "no such endpoint")
+}
+
+async fn method_not_allowed() -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        "method_not_allowed",
+        "method not allowed on this endpoint",
+    )
+}
+
+/// Bearer-token check (all routes except health, readiness, metrics and the spec).
+async fn auth(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
+    if let Some(token) = st.cfg.token.as_deref().filter(|t| !t.is_empty()) {
+        let open = matches!(
+            req.uri().path(),
+            "/healthz" | "/readyz" | "/metrics" | "/openapi.json"
+        );
+        if !open {
+            let ok = req
+                .headers()
+                .get(header::AUTHORIZATION)
+                .and_then(|v| v.to_str().ok())
+                .and_then(|v| v.strip_prefix("Bearer "))
+                .is_some_and(|t| constant_time_eq(t.trim().as_bytes(), token.as_bytes()));
+            if !ok {
+                return ApiError::unauthorized().into_response();
+            }
+        }
+    }
+    next.run(req).await
+}
+
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Request metrics and a debug log line per request (errors at warn/error).
+async fn observe(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
+    let t0 = Instant::now();
+    let method = req.method().as_str().to_string();
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map(|m| m.as_str().to_string())
+        .unwrap_or_else(|| "unmatched".into());
+    let path = req.uri().path().to_string();
+    let resp = next.run(req).await;
+    let secs = t0.elapsed().as_secs_f64();
+    let status = resp.status().as_u16();
+    st.metrics.record_request(&method, &route, status, secs);
+    if status >= 500 {
+        tracing::error!(%method, %path, status, ms = secs * 1e3, "request failed");
+    } else {
+        tracing::debug!(%method, %path, status, ms = secs * 1e3, "request");
+    }
+    resp
+}
+
+/// The router of the API over `state`.
+pub fn router(state: Arc<AppState>) -> Router {
+    let max_body = state.cfg.max_body;
+    Router::new()
+        .route("/healthz", get(healthz))
+        .route("/readyz", get(readyz))
+        .route("/metrics", get(metrics_handler))
+        .route("/openapi.json", get(openapi_handler))
+        .route("/v1/robots", get(resources::list_robots))
+        .route(
+            "/v1/robots/{name}",
+            get(resources::get_robot)
+                .put(resources::put_robot)
+                .delete(resources::delete_robot),
+        )
+        .route("/v1/scenes", get(resources::list_scenes))
+        .route(
+            "/v1/scenes/{name}",
+            get(resources::get_scene)
+                .put(resources::put_scene)
+                .delete(resources::delete_scene),
+        )
+        .route("/v1/fk", post(queries::fk))
+        .route("/v1/ik", post(queries::ik))
+        .route("/v1/check", post(queries::check))
+        .route("/v1/plans", post(plans::submit).get(plans::list))
+        .route("/v1/plans/{id}", get(plans::get).delete(plans::cancel))
+        .route("/v1/plans/{id}/events", get(plans::events))
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(middleware::from_fn_with_state(state.clone(), auth))
+        .route_layer(middleware::from_fn_with_state(state.clone(), observe))
+        .layer(DefaultBodyLimit::max(max_body))
+        .layer(tower_http::catch_panic::CatchPanicLayer::custom(|_| {
+            ApiError::internal("handler panicked").into_response()
+        }))
+        .with_state(state)
+}
+
+/// A running server.
+pub struct Server {
+    addr: SocketAddr,
+    state: Arc<AppState>,
+    stop_tx: watch::Sender<bool>,
+    serve: tokio::task::JoinHandle<std::io::Result<()>>,
+    retention: tokio::task::JoinHandle<()>,
+}
+
+impl Server {
+    /// Loads the models, opens the job store (jobs left running become `interrupted`), starts
+    /// the workers and binds. Port 0 picks a free port (see [`Server::addr`]).
+    pub async fn start(cfg: Config) -> Result<Server, ServerError> {
+        cfg.validate()?;
+        std::fs::create_dir_all(&cfg.data_dir)?;
+        let c2 = cfg.clone();
+        let (catalog, store) = tokio::task::spawn_blocking(move || -> Result<_, ServerError> {
+            let catalog = Catalog::load(&c2.robots_dir, &c2.scenes_dir, &c2.data_dir)?;
+            let store = Store::open(&c2.data_dir.join("jobs.redb"))?;
+            Ok((catalog, store))
+        })
+        .await
+        .map_err(|e| ServerError::Config(format!("start-up task: {e}")))??;
+        let metrics = Arc::new(Metrics::default());
+        let jobs = Jobs::start(
+            RunnerConfig {
+                workers: cfg.workers,
+                max_queue: cfg.max_queue,
+                retention: cfg.retention,
+            },
+            store,
+            metrics.clone(),
+        )?;
+        let pool = CpuPool::new(cfg.query_threads, cfg.query_threads * 256)
+            .map_err(ServerError::Config)?;
+        let listener = tokio::net::TcpListener::bind(cfg.bind)
+            .await
+            .map_err(|source| ServerError::Bind {
+                addr: cfg.bind,
+                source,
+            })?;
+        let addr = listener.local_addr()?;
+        let state = Arc::new(AppState {
+            cfg,
+            catalog,
+            jobs,
+            metrics,
+            pool,
+            shutting_down: AtomicBool::new(false),
+        });
+        let (robots, scenes) = state.catalog.counts();
+        tracing::info!(%addr, robots, scenes, workers = state.cfg.workers, max_queue = state.cfg.max_queue,
+            data_dir = %state.cfg.data_dir.display(), "manyhands server listening");
+        let (stop_tx, mut stop_rx) = watch::channel(false);
+        let app = router(state.clone());
+        let serve = tokio::spawn(async move {
+            axum::serve(listener, app)
+                .with_graceful_shutdown(async move {
+                    let _ = stop_rx.wait_for(|s| *s).await;
+                })
+                .await
+        });
+        let jobs = state.jobs.clone();
+        let period =
+            (state.cfg.retention / 10).clamp(Duration::from_millis(100), Duration::from_secs(60));
+        let retention = tokio::spawn(async move {
+            let mut tick = tokio::time::interval(period);
+            loop {
+                tick.tick().await;
+                let j = jobs.clone();
+                let _ = tokio::task::spawn_blocking(move || j.expire()).await;
+            }
+        });
+        Ok(Server {
+            addr,
+            state,
+            stop_tx,
+            serve,
+            retention,
+        })
+    }
+
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    pub fn state(&self) -> &Arc<AppState> {
+        &self.state
+    }
+
+    /// Graceful shutdown: stop accepting, interrupt queued jobs, give running ones the grace
+    /// period, persist everything, close the store, wait for open connections (bounded).
+    pub async fn shutdown(self) -> Result<(), ServerError> {
+        tracing::info!("shutting down");
+        self.state.shutting_down.store(true, Ordering::SeqCst);
+        let _ = self.stop_tx.send(true);
+        self.retention.abort();
+        let jobs = self.state.jobs.clone();
+        let grace = self.state.cfg.shutdown_grace;
+        tokio::task::spawn_blocking(move || jobs.shutdown(grace))
+            .await
+            .map_err(|e| ServerError::Config(format!("shutdown task: {e}")))?;
+        match tokio::time::timeout(Duration::from_secs(5), self.serve).await {
+            Ok(Ok(r)) => r?,
+            Ok(Err(e)) => tracing::error!(error = %e, "server task failed"),
+            Err(_) => tracing::warn!("connections still open after 5 s; closing"),
+        }
+        tracing::info!("stopped");
+        Ok(())
+    }
+}
+
+/// Runs until SIGINT or SIGTERM, then shuts down gracefully.
+pub async fn run(cfg: Config) -> Result<(), ServerError> {
+    let server = Server::start(cfg).await?;
+    shutdown_signal().await;
+    server.shutdown().await
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => tracing::info!("SIGINT received"),
+        _ = term => tracing::info!("SIGTERM received"),
+    }
+}

@@ -1,0 +1,210 @@
+//! Reachability grids (paper 000 §II-B): deterministic parallel build, versioned file refused on
+//! other parameters / chain / kinematics / corruption, lookups consistent with FK.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use manyhands::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use manyhands::geometry::Pose;
+use manyhands::kinematics::Chain;
+use manyhands::model::load_robot_dir;
+use manyhands::reachability::{slice_svg, GridParams, ReachError, ReachabilityGrid, SliceAxes};
+use manyhands::Robot;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn armar() -> Arc<Robot> {
+    let lib =
+        load_robot_dir(&Path::new(env!("CARGO_MANIFEST_DIR")).join("robots")).expect("robots");
+    lib.get("armar").expect("armar").clone()
+}
+
+fn params(robot: &Robot, group: &str, samples: u64, seed: u64) -> GridParams {
+    let chain = Chain::from_group(robot, group).expect("chain");
+    GridParams::auto(robot, &chain, 0.08, 6, samples, seed).expect("params")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("manyhands-reach-{}-{name}", std::process::id()))
+}
+
+#[test]
+fn build_is_deterministic_and_thread_count_independent() {
+    let robot = armar();
+    let p = params(&robot, "right_arm", 60_000, 5);
+    let a = ReachabilityGrid::build(&robot, "right_arm", &p, &|_| {}).expect("build");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let b = one
+        .install(|| ReachabilityGrid::build(&robot, "right_arm", &p, &|_| {}))
+        .expect("build");
+    assert_eq!(a.data(), b.data());
+    assert_eq!(a.stats(), b.stats());
+    let s = a.stats();
+    assert_eq!(s.samples, 60_000);
+    assert!(s.free > 30_000 && s.free < 60_000, "free {}", s.free);
+    assert!(s.filled > 1000);
+    // Another seed gives another grid.
+    let c = ReachabilityGrid::build(
+        &robot,
+        "right_arm",
+        &params(&robot, "right_arm", 60_000, 6),
+        &|_| {},
+    )
+    .expect("build");
+    assert_ne!(a.data(), c.data());
+}
+
+#[test]
+fn lookups_agree_with_fk_and_collision() {
+    let robot = armar();
+    let p = params(&robot, "right_arm", 300_000, 1);
+    let g = ReachabilityGrid::build(&robot, "right_arm", &p, &|_| {}).expect("build");
+    let chain = Chain::from_group(&robot, "right_arm").expect("chain");
+    let mut checker = FastChecker::new(&CollisionWorld::single(robot.clone(), Pose::identity()));
+    let mut rng = ChaCha8Rng::seed_from_u64(99);
+    let mut q = robot.named_config("home").expect("home");
+    let (mut n, mut hit) = (0, 0);
+    while n < 2000 {
+        for &v in &chain.vars {
+            let l = robot.var_limits(v);
+            q[v] = rng.random_range(l.lower..=l.upper);
+        }
+        if !checker.is_free(&q) {
+            continue;
+        }
+        n += 1;
+        let tip = chain.tip_pose(&robot, &q);
+        assert!(
+            g.cell_of(&tip).is_some(),
+            "a reachable TCP pose lies outside the extents"
+        );
+        if g.probability(&tip) > 0.0 {
+            hit += 1;
+        }
+    }
+    // New samples fall mostly into cells the build filled.
+    assert!(hit as f64 > 0.6 * n as f64, "{hit} of {n}");
+    // Far away: probability 0; the best cell has probability 1.
+    let far = Pose::translation(5.0, 0.0, 0.0);
+    assert_eq!(g.probability(&far), 0.0);
+    assert!(g.data().iter().any(|&e| e == g.max_entry()) && g.max_entry() > 0);
+}
+
+#[test]
+fn file_roundtrip_and_refusals() {
+    let robot = armar();
+    let p = params(&robot, "left_arm", 20_000, 2);
+    let g = ReachabilityGrid::build(&robot, "left_arm", &p, &|_| {}).expect("build");
+    let f = tmp("left.reach");
+    g.save(&f).expect("save");
+    let back = ReachabilityGrid::load(&f, &robot, "left_arm", Some(&p)).expect("load");
+    assert_eq!(back.data(), g.data());
+    assert_eq!(back.params(), g.params());
+    assert_eq!(back.stats().free, g.stats().free);
+
+    // Built with other parameters: refused with a clear error.
+    let mut other = p.clone();
+    other.resolution = 0.05;
+    let e = ReachabilityGrid::load(&f, &robot, "left_arm", Some(&other)).expect_err("refused");
+    assert!(matches!(e, ReachError::ParamsMismatch { .. }), "{e}");
+    assert!(e.to_string().contains("resolution"), "{e}");
+    let mut other = p.clone();
+    other.samples += 1;
+    let e = ReachabilityGrid::load(&f, &robot, "left_arm", Some(&other)).expect_err("refused");
+    assert!(e.to_string().contains("samples"), "{e}");
+
+    // Another chain.
+    let e = ReachabilityGrid::load(&f, &robot, "right_arm", None).expect_err("refused");
+    assert!(
+        matches!(
+            e,
+            ReachError::Mismatch {
+                what: "chain group",
+                ..
+            }
+        ),
+        "{e}"
+    );
+
+    // Changed kinematics of the chain (elbow moved by 1 cm).
+    let mut changed = (*robot).clone();
+    let j = changed.joint("left_elbow").expect("joint");
+    changed.joints[j].origin.translation.z -= 0.01;
+    let e = ReachabilityGrid::load(&f, &changed, "left_arm", None).expect_err("refused");
+    assert!(matches!(e, ReachError::KinematicsChanged { .. }), "{e}");
+    // A change outside the chain does not matter.
+    let mut outside = (*robot).clone();
+    let j = outside.joint("right_elbow").expect("joint");
+    outside.joints[j].origin.translation.z -= 0.01;
+    ReachabilityGrid::load(&f, &outside, "left_arm", None).expect("other arm changed: still valid");
+
+    // Another robot name.
+    let mut renamed = (*robot).clone();
+    renamed.name = "other".into();
+    let e = ReachabilityGrid::load(&f, &renamed, "left_arm", None).expect_err("refused");
+    assert!(
+        matches!(e, ReachError::Mismatch { what: "robot", .. }),
+        "{e}"
+    );
+
+    // Truncated, flipped byte, wrong version, not a grid file.
+    let bytes = std::fs::read(&f).expect("read");
+    let t = tmp("bad.reach");
+    std::fs::write(&t, &bytes[..bytes.len() / 2]).expect("write");
+    let e = ReachabilityGrid::load(&t, &robot, "left_arm", None).expect_err("refused");
+    assert!(matches!(e, ReachError::Corrupt { .. }), "{e}");
+    let mut flipped = bytes.clone();
+    let k = bytes.len() - 100;
+    flipped[k] ^= 0x5a;
+    std::fs::write(&t, &flipped).expect("write");
+    let e = ReachabilityGrid::load(&t, &robot, "left_arm", None).expect_err("refused");
+    assert!(matches!(e, ReachError::Corrupt { .. }), "{e}");
+    let mut v2 = bytes.clone();
+    v2[8] = 99;
+    std::fs::write(&t, &v2).expect("write");
+    let e = ReachabilityGrid::load(&t, &robot, "left_arm", None).expect_err("refused");
+    assert!(matches!(e, ReachError::Version { found: 99, .. }), "{e}");
+    std::fs::write(&t, b"hello world, not a grid").expect("write");
+    let e = ReachabilityGrid::load(&t, &robot, "left_arm", None).expect_err("refused");
+    assert!(matches!(e, ReachError::BadMagic { .. }), "{e}");
+    let e = ReachabilityGrid::load(&tmp("missing.reach"), &robot, "left_arm", None)
+        .expect_err("refused");
+    assert!(matches!(e, ReachError::Io { .. }), "{e}");
+    let _ = std::fs::remove_file(&f);
+    let _ = std::fs::remove_file(&t);
+}
+
+#[test]
+fn invalid_parameters_are_errors() {
+    let robot = armar();
+    let chain = Chain::from_group(&robot, "right_arm").expect("chain");
+    assert!(GridParams::auto(&robot, &chain, 0.0, 8, 10, 1).is_err());
+    assert!(GridParams::auto(&robot, &chain, f64::NAN, 8, 10, 1).is_err());
+    let mut p = GridParams::auto(&robot, &chain, 0.1, 8, 10, 1).expect("params");
+    p.rot_bins = 0;
+    assert!(ReachabilityGrid::build(&robot, "right_arm", &p, &|_| {}).is_err());
+    let p = GridParams::auto(&robot, &chain, 0.1, 8, 10, 1).expect("params");
+    let e = ReachabilityGrid::build(&robot, "no_such_group", &p, &|_| {}).expect_err("no chain");
+    assert!(matches!(e, ReachError::NoChain { .. }));
+}
+
+#[test]
+fn svg_slice_has_cells() {
+    let robot = armar();
+    let p = params(&robot, "right_arm", 30_000, 4);
+    let g = ReachabilityGrid::build(&robot, "right_arm", &p, &|_| {}).expect("build");
+    // Slice through the shoulder height (torso frame z = 0.45 − 0.3).
+    let svg = slice_svg(
+        &g,
+        &SliceAxes {
+            normal: 2,
+            at: 0.15,
+            max: false,
+        },
+    );
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert!(svg.matches("<rect").count() > 20, "few cells drawn");
+}
