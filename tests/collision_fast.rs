@@ -194,3 +194,42 @@ fn motion_validator_rejects_a_sweep_through_the_counter() {
     assert!(mv.is_valid(&q0, &tiny) == exact.is_free(&tiny));
     assert_eq!(mv.steps(&q0, &far), 500);
 }
+
+/// Shipped scenes: robots start free, and no object rests inside an obstacle.
+#[test]
+fn shipped_scenes_start_free_and_objects_clear_of_obstacles() {
+    let lib = library();
+    for name in ["kitchen", "empty", "obstacle", "handoff"] {
+        let s = scene(name, &lib);
+        let q0 = CollisionWorld::start_config(&s);
+        let world = CollisionWorld::from_scene(&s);
+        let mut exact = ExactChecker::new(&world);
+        assert!(exact.is_free(&q0), "{name}: {:?}", exact.first_contact(&q0));
+        for o in &s.objects {
+            // Hang the object on the first robot's root, every robot link allowed to touch it:
+            // only object–obstacle pairs remain.
+            let mut w = CollisionWorld::from_scene(&s);
+            let links: Vec<usize> = (0..w.robots[0].robot.links.len()).collect();
+            w.attach(&o.body.name, 0, 0, &q0, links).expect("attach");
+            for other in 1..w.robots.len() {
+                let n = w.robots[other].robot.links.len();
+                for l in 0..n {
+                    w.allow(
+                        manyhands::collision::BodyId::Attached(0),
+                        manyhands::collision::BodyId::Link {
+                            robot: other,
+                            link: l,
+                        },
+                    );
+                }
+            }
+            let mut ex = ExactChecker::new(&w);
+            assert!(
+                ex.is_free(&q0),
+                "{name}: object {} touches {:?}",
+                o.body.name,
+                ex.first_contact(&q0)
+            );
+        }
+    }
+}
