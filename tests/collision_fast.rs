@@ -3,14 +3,14 @@
 
 use std::path::PathBuf;
 
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use manyhands::collision::{
-    random_boxes, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, MotionValidator,
-    RandomBoxes,
+    random_boxes, random_config_near, CollisionChecker, CollisionWorld, ExactChecker, FastChecker,
+    MotionValidator, RandomBoxes,
 };
-use manyhands::model::{load_robot_dir, JointKind, RobotLibrary};
+use manyhands::model::{load_robot_dir, RobotLibrary};
 use manyhands::Scene;
 
 fn root() -> PathBuf {
@@ -23,39 +23,6 @@ fn library() -> RobotLibrary {
 
 fn scene(name: &str, lib: &RobotLibrary) -> Scene {
     Scene::from_file(&root().join(format!("scenes/{name}.json")), lib).unwrap()
-}
-
-/// Base joints near the start (±0.3 m, ±0.5 rad), every other joint uniform in its limits.
-fn random_config(
-    scene: &Scene,
-    world: &CollisionWorld,
-    start: &[f64],
-    rng: &mut ChaCha8Rng,
-) -> Vec<f64> {
-    let mut q = start.to_vec();
-    for (ri, p) in world.robots.iter().enumerate() {
-        let r = &p.robot;
-        let base: Vec<usize> = scene.robots[ri]
-            .robot
-            .group("base")
-            .map(|g| g.vars.clone())
-            .unwrap_or_default();
-        for v in 0..r.dof() {
-            let l = r.var_limits(v);
-            let i = p.offset + v;
-            q[i] = if base.contains(&v) {
-                let w = if r.joints[r.vars[v]].kind == JointKind::Prismatic {
-                    0.3
-                } else {
-                    0.5
-                };
-                (start[i] + rng.random_range(-w..w)).clamp(l.lower, l.upper)
-            } else {
-                rng.random_range(l.lower..=l.upper)
-            };
-        }
-    }
-    q
 }
 
 /// Compares both checkers on `n` random configurations; returns (collisions, free-with-margin).
@@ -71,7 +38,7 @@ fn compare(scene: &Scene, world: &CollisionWorld, n: usize, seed: u64) -> (usize
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut hits, mut clear) = (0, 0);
     for k in 0..n {
-        let q = random_config(scene, world, &start, &mut rng);
+        let q = random_config_near(world, &start, 0.3, 0.5, &mut rng);
         let f = fast.is_free(&q);
         if !exact.is_free(&q) {
             hits += 1;

@@ -4,12 +4,13 @@ use std::time::Instant;
 
 use anyhow::{anyhow, Result};
 use clap::Subcommand;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde_json::json;
 
 use manyhands::collision::{
-    random_boxes, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, RandomBoxes,
+    random_boxes, random_config_near, CollisionChecker, CollisionWorld, ExactChecker, FastChecker,
+    RandomBoxes,
 };
 use manyhands::geometry::Pose;
 use manyhands::kinematics::numeric::NumericIk;
@@ -130,41 +131,10 @@ fn time_each<T>(inputs: &[T], mut f: impl FnMut(&T)) -> (f64, f64) {
 /// Random world configurations: every robot near its start pose on the floor (base joints
 /// ±0.3 m, ±0.5 rad around the start), all other joints uniform within their limits.
 fn random_configs(scene: &Scene, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+    let world = CollisionWorld::from_scene(scene);
     let start = CollisionWorld::start_config(scene);
-    let base_vars: Vec<Vec<usize>> = scene
-        .robots
-        .iter()
-        .map(|p| {
-            p.robot
-                .group("base")
-                .map(|g| g.vars.clone())
-                .unwrap_or_default()
-        })
-        .collect();
     (0..n)
-        .map(|_| {
-            let mut q = start.clone();
-            let mut off = 0;
-            for (ri, p) in scene.robots.iter().enumerate() {
-                let r = &p.robot;
-                for v in 0..r.dof() {
-                    let l = r.var_limits(v);
-                    q[off + v] = if base_vars[ri].contains(&v) {
-                        let w =
-                            if r.joints[r.vars[v]].kind == manyhands::model::JointKind::Prismatic {
-                                0.3
-                            } else {
-                                0.5
-                            };
-                        (start[off + v] + rng.random_range(-w..w)).clamp(l.lower, l.upper)
-                    } else {
-                        rng.random_range(l.lower..=l.upper)
-                    };
-                }
-                off += r.dof();
-            }
-            q
-        })
+        .map(|_| random_config_near(&world, &start, 0.3, 0.5, rng))
         .collect()
 }
 
@@ -334,10 +304,8 @@ fn kinematics_rows(ctx: &Ctx, samples: usize, seed: u64) -> Result<Vec<Row>> {
 }
 
 fn uniform(r: &Robot, rng: &mut ChaCha8Rng) -> Vec<f64> {
-    (0..r.dof())
-        .map(|v| {
-            let l = r.var_limits(v);
-            rng.random_range(l.lower..=l.upper)
-        })
-        .collect()
+    let mut q = r.zero_config();
+    let all: Vec<usize> = (0..r.dof()).collect();
+    r.sample_vars(&all, &mut q, rng);
+    q
 }

@@ -29,7 +29,7 @@ use crate::model::Robot;
 
 /// Converts a nalgebra isometry into a parry (glam) pose.
 #[inline]
-fn to_parry(p: &Pose) -> PPose {
+pub(crate) fn to_parry(p: &Pose) -> PPose {
     let t = &p.translation.vector;
     let q = &p.rotation.as_ref().coords; // (i, j, k, w)
     PPose::from_parts(
@@ -104,16 +104,7 @@ fn convert(shape: &Shape) -> (SharedShape, Pose, f64) {
                 ),
                 None => {
                     // Fallback: the box of the vertices' bounding box (conservative).
-                    let mut lo = Vector3::repeat(f64::INFINITY);
-                    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-                    for v in &m.vertices {
-                        lo = lo.inf(&v.coords);
-                        hi = hi.sup(&v.coords);
-                    }
-                    if m.vertices.is_empty() {
-                        lo = Vector3::zeros();
-                        hi = Vector3::zeros();
-                    }
+                    let (lo, hi) = m.aabb();
                     let centre = (lo + hi) * 0.5;
                     let half = ((hi - lo) * 0.5).map(|h| h.max(1e-9));
                     (
@@ -125,6 +116,13 @@ fn convert(shape: &Shape) -> (SharedShape, Pose, f64) {
             }
         }
     }
+}
+
+/// The parry shape of a geometry and its pose in the body frame (cylinder axis fix and mesh
+/// hull/box placement included): the one conversion every parry-based check uses.
+pub(crate) fn parry_shape(g: &Geometry) -> (SharedShape, Pose) {
+    let (shape, fix, _) = convert(&g.shape);
+    (shape, g.origin * fix)
 }
 
 fn convert_all(geoms: &[Geometry], out: &mut Vec<ShapeRec>) {

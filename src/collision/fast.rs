@@ -92,12 +92,7 @@ impl Prim {
                 h: *half_length,
             },
             Shape::Mesh(m) => {
-                let mut lo = Vector3::repeat(f64::INFINITY);
-                let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-                for v in &m.vertices {
-                    lo = lo.inf(&v.coords);
-                    hi = hi.sup(&v.coords);
-                }
+                let (lo, hi) = m.aabb();
                 let mid = (lo + hi) * 0.5;
                 Prim::Obb {
                     c: c + rot * mid,

@@ -134,3 +134,36 @@ fn overlaps(a: &super::StaticBody, b: &super::StaticBody) -> bool {
         })
     })
 }
+
+/// A random world configuration around `start`: the variables of each robot's SRDF `base` group
+/// move at most `linear` metres (prismatic) or `angular` radians (revolute) from the start,
+/// clamped into the limits; every other variable is uniform within its limits. Used by the
+/// collision benchmarks and the fast-vs-exact tests.
+pub fn random_config_near<R: Rng + ?Sized>(
+    world: &CollisionWorld,
+    start: &[f64],
+    linear: f64,
+    angular: f64,
+    rng: &mut R,
+) -> Vec<f64> {
+    let mut q = start.to_vec();
+    for p in &world.robots {
+        let r = &p.robot;
+        let base = r.group("base").map(|g| g.vars.as_slice()).unwrap_or(&[]);
+        for v in 0..r.dof() {
+            let l = r.var_limits(v);
+            let i = p.offset + v;
+            q[i] = if base.contains(&v) {
+                let w = if r.joints[r.vars[v]].kind == crate::model::JointKind::Prismatic {
+                    linear
+                } else {
+                    angular
+                };
+                (start[i] + rng.random_range(-w..w)).clamp(l.lower, l.upper)
+            } else {
+                l.sample(rng)
+            };
+        }
+    }
+    q
+}

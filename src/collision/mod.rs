@@ -17,8 +17,9 @@ mod spheres;
 mod world;
 
 pub use exact::ExactChecker;
+pub(crate) use exact::{parry_shape, to_parry};
 pub use fast::{FastChecker, FastModelSettings};
-pub use generate::{random_boxes, RandomBoxes};
+pub use generate::{random_boxes, random_config_near, RandomBoxes};
 pub use motion::MotionValidator;
 pub use spheres::{AutoChecker, SphereChecker, LANES};
 pub use world::{AttachedBody, BodyId, CollisionWorld, PlacedRobot, StaticBody, StaticKind};

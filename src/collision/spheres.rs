@@ -354,15 +354,10 @@ impl SphereChecker {
                         (c, radius + half_length),
                     ),
                     Shape::Mesh(m) => {
-                        let mut lo = Vector3::repeat(f64::INFINITY);
-                        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-                        for v in &m.vertices {
-                            lo = lo.inf(&v.coords);
-                            hi = hi.sup(&v.coords);
-                        }
                         if m.vertices.is_empty() {
                             continue;
                         }
+                        let (lo, hi) = m.aabb();
                         let mid = c + rot * ((lo + hi) * 0.5);
                         let half = (hi - lo) * 0.5;
                         (

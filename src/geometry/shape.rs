@@ -66,6 +66,20 @@ impl Mesh {
         })
     }
 
+    /// Corners `(lo, hi)` of the axis-aligned box around the vertices (zeros for an empty mesh).
+    pub fn aabb(&self) -> (Vector3<f64>, Vector3<f64>) {
+        if self.vertices.is_empty() {
+            return (Vector3::zeros(), Vector3::zeros());
+        }
+        self.vertices.iter().fold(
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
+            |(lo, hi), v| (lo.inf(&v.coords), hi.sup(&v.coords)),
+        )
+    }
+
     /// Radius of the smallest origin-centred sphere holding every vertex.
     pub fn max_radius(&self) -> f64 {
         self.vertices

@@ -20,8 +20,8 @@ use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rand::Rng;
 
 use super::randomized::{
-    gradient_ascent, sample_vars, try_arm, ArmChain, IkCounters, RandomizedIkError,
-    RandomizedIkSettings, ReachabilityMap,
+    gradient_ascent, try_arm, ArmChain, IkCounters, RandomizedIkError, RandomizedIkSettings,
+    ReachabilityMap,
 };
 use crate::geometry::Pose;
 use crate::model::Robot;
@@ -155,7 +155,7 @@ impl DualArmIk {
         let (nl, nr) = (query.left_grasps.len(), query.right_grasps.len());
         for _ in 0..settings.max_tries {
             c.tries += 1;
-            sample_vars(robot, &self.free_vars, &mut q, rng);
+            robot.sample_vars(&self.free_vars, &mut q, rng);
             let pos = Vector3::from_fn(|k, _| {
                 if hi[k] > lo[k] {
                     rng.random_range(lo[k]..=hi[k])

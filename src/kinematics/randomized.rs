@@ -215,26 +215,6 @@ impl ArmChain {
     }
 }
 
-/// Draws `vars` uniformly within their limits (unbounded joints over [−π, π)).
-#[inline]
-pub(crate) fn sample_vars<R: Rng + ?Sized>(
-    robot: &Robot,
-    vars: &[usize],
-    q: &mut [f64],
-    rng: &mut R,
-) {
-    for &v in vars {
-        let l = robot.var_limits(v);
-        q[v] = if l.bounded && l.upper > l.lower {
-            rng.random_range(l.lower..=l.upper)
-        } else if l.bounded {
-            l.lower
-        } else {
-            rng.random_range(-PI..PI)
-        };
-    }
-}
-
 /// One analytic arm-IK query: solves the arm for `target` (arm-base frame) at `psi_samples` swivel
 /// angles evenly spaced from a random offset, stopping at the first ψ with solutions, and hands
 /// each solution (random order) to `valid`; true when one was accepted (left in `q`).
@@ -342,7 +322,7 @@ impl RandomizedIk {
         let arm = &self.split.arm;
         for _ in 0..settings.max_tries {
             counters.tries += 1;
-            sample_vars(robot, &self.split.free_vars, &mut q, rng);
+            robot.sample_vars(&self.split.free_vars, &mut q, rng);
             let inv = self.arm_base_pose(&query.robot_base, &q).inverse();
             cand.clear();
             match reach {

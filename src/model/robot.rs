@@ -42,6 +42,18 @@ pub struct Limits {
 }
 
 impl Limits {
+    /// A value drawn uniformly within the limits; unbounded (continuous) joints over [−π, π),
+    /// a joint whose limits coincide gets that value.
+    pub fn sample<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        if self.bounded && self.upper > self.lower {
+            rng.random_range(self.lower..=self.upper)
+        } else if self.bounded {
+            self.lower
+        } else {
+            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)
+        }
+    }
+
     /// True when `v` lies within the position limits (always true for unbounded joints).
     pub fn contains(&self, v: f64) -> bool {
         !self.bounded || (v >= self.lower && v <= self.upper)
@@ -290,6 +302,14 @@ impl Robot {
             }
         }
         found.then_some(q)
+    }
+
+    /// Draws the variables `vars` of the full configuration `q` uniformly within their limits
+    /// ([`Limits::sample`]); the other values stay.
+    pub fn sample_vars<R: rand::Rng + ?Sized>(&self, vars: &[usize], q: &mut [f64], rng: &mut R) {
+        for &v in vars {
+            q[v] = self.var_limits(v).sample(rng);
+        }
     }
 
     /// Value of every joint (mimic joints resolved) for configuration `q`; fixed joints get 0.

@@ -16,7 +16,7 @@ use std::io::{Read, Write};
 use std::path::Path;
 use std::sync::Arc;
 
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use thiserror::Error;
@@ -110,7 +110,7 @@ impl GridParams {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         for _ in 0..20_000 {
-            sample_chain(robot, chain, &mut q, &mut rng);
+            robot.sample_vars(&chain.vars, &mut q, &mut rng);
             let t = chain.tip_pose(robot, &q).translation.vector;
             for k in 0..3 {
                 lo[k] = lo[k].min(t[k]);
@@ -227,20 +227,6 @@ pub struct ReachabilityGrid {
     data: Vec<u8>,
 }
 
-/// Draws the chain's variables uniformly within their limits (unbounded joints over [−π, π)).
-fn sample_chain<R: Rng + ?Sized>(robot: &Robot, chain: &Chain, q: &mut [f64], rng: &mut R) {
-    for &v in &chain.vars {
-        let l = robot.var_limits(v);
-        q[v] = if l.bounded && l.upper > l.lower {
-            rng.random_range(l.lower..=l.upper)
-        } else if l.bounded {
-            l.lower
-        } else {
-            rng.random_range(-PI..PI)
-        };
-    }
-}
-
 /// FNV-1a, 64 bit.
 fn fnv(bytes: &[u8], mut h: u64) -> u64 {
     for &b in bytes {
@@ -321,7 +307,7 @@ impl ReachabilityGrid {
                     let mut hits = Vec::with_capacity(n as usize);
                     let (mut free, mut outside) = (0u64, 0u64);
                     for i in 0..n {
-                        sample_chain(robot, &chain, &mut q, &mut rng);
+                        robot.sample_vars(&chain.vars, &mut q, &mut rng);
                         if checker.is_free(&q) {
                             free += 1;
                             let tip = chain.tip_pose(robot, &q);

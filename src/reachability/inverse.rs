@@ -216,7 +216,7 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
         q[base_vars[0]] = x + rng.random_range(-0.5..0.5) * bi.cell;
         q[base_vars[1]] = y + rng.random_range(-0.5..0.5) * bi.cell;
         q[base_vars[2]] = w + rng.random_range(-0.5..0.5) * wbin;
-        crate::kinematics::randomized::sample_vars(&robot, ik.free_vars(), &mut q, rng);
+        robot.sample_vars(ik.free_vars(), &mut q, rng);
         let linv = (robot_base * link_pose(&robot, &q, ik.left().arm_base)).inverse();
         let rinv = (robot_base * link_pose(&robot, &q, ik.right().arm_base)).inverse();
         for &gl in &bi.grasps[k] {

@@ -9,13 +9,13 @@
 //! [`ObjectPlacement`]: a free object pose against the scene's fixed bodies (parry3d), used by the
 //! gradient ascent and the dual-arm IK before any arm is solved.
 
-use nalgebra::{Translation3, UnitQuaternion, Vector3};
-use parry3d_f64::math::{Pose as PPose, Rot3, Vector as PVector};
 use parry3d_f64::query;
 use parry3d_f64::shape::SharedShape;
 
-use crate::collision::{AttachedBody, CollisionChecker, CollisionWorld, FastChecker};
-use crate::geometry::{Geometry, Pose, Shape};
+use crate::collision::{
+    parry_shape, to_parry, AttachedBody, CollisionChecker, CollisionWorld, FastChecker,
+};
+use crate::geometry::{Geometry, Pose};
 use crate::model::Robot;
 
 /// The links of end effector `name` (its SRDF group's links and its parent link), which may touch
@@ -126,58 +126,6 @@ impl GraspCheckers {
     /// Collision checks performed by all checkers.
     pub fn checks(&self) -> u64 {
         self.checkers.iter().map(|c| c.checks()).sum()
-    }
-}
-
-/// Converts a nalgebra pose into a parry pose.
-fn to_parry(p: &Pose) -> PPose {
-    let t = &p.translation.vector;
-    let q = &p.rotation.as_ref().coords;
-    PPose::from_parts(
-        PVector::new(t.x, t.y, t.z),
-        Rot3::from_xyzw(q[0], q[1], q[2], q[3]),
-    )
-}
-
-/// A parry shape for a geometry and its pose in the body frame (meshes: the box of their vertices,
-/// conservative).
-fn parry_shape(g: &Geometry) -> (SharedShape, Pose) {
-    let fix_cyl = Pose::from_parts(
-        Translation3::identity(),
-        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
-    );
-    match &g.shape {
-        Shape::Box { half_extents: h } => (SharedShape::cuboid(h.x, h.y, h.z), g.origin),
-        Shape::Cylinder {
-            radius,
-            half_length,
-        } => (
-            SharedShape::cylinder(*half_length, *radius),
-            g.origin * fix_cyl,
-        ),
-        Shape::Sphere { radius } => (SharedShape::ball(*radius), g.origin),
-        Shape::Capsule {
-            radius,
-            half_length,
-        } => (SharedShape::capsule_z(*half_length, *radius), g.origin),
-        Shape::Mesh(m) => {
-            let mut lo = Vector3::repeat(f64::INFINITY);
-            let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-            for v in &m.vertices {
-                lo = lo.inf(&v.coords);
-                hi = hi.sup(&v.coords);
-            }
-            if !(lo.iter().all(|v| v.is_finite()) && hi.iter().all(|v| v.is_finite())) {
-                lo = Vector3::zeros();
-                hi = Vector3::zeros();
-            }
-            let h = (hi - lo) * 0.5;
-            let c = (hi + lo) * 0.5;
-            (
-                SharedShape::cuboid(h.x.max(1e-6), h.y.max(1e-6), h.z.max(1e-6)),
-                g.origin * Translation3::from(c),
-            )
-        }
     }
 }
 
