@@ -269,6 +269,11 @@ impl RandomizedIk {
         Ok(RandomizedIk { robot, split })
     }
 
+    /// The solver for an already split chain of `robot`.
+    pub fn from_chain(robot: Arc<Robot>, split: ArmChain) -> RandomizedIk {
+        RandomizedIk { robot, split }
+    }
+
     pub fn robot(&self) -> &Arc<Robot> {
         &self.robot
     }

@@ -8,6 +8,8 @@
 //! termination, seed) → result with statistics. [`mbm`] loads the MotionBenchMaker problem sets
 //! used as the outside benchmark.
 
+pub mod grasping;
+mod ik_rrt;
 pub mod mbm;
 mod result;
 mod rrt_connect;
@@ -17,6 +19,7 @@ mod termination;
 mod tree;
 mod validity;
 
+pub use ik_rrt::{GoalSampler, IkRrt, IkRrtSettings};
 pub use result::{PlanError, PlanResult, PlanStats};
 pub use rrt_connect::{RrtConnect, RrtConnectSettings};
 pub use shortcut::{ShortcutSettings, ShortcutStats};

@@ -33,6 +33,14 @@ pub struct PlanStats {
     pub vertices_raw: usize,
     /// Vertices of the returned path.
     pub vertices_simplified: usize,
+    /// Goal-sampler (IK) queries made by planners that search their goals (IK-RRT family).
+    pub ik_queries: u64,
+    /// Valid goal configurations found and added to the goal tree (IK solutions, 000 Alg. 3).
+    pub ik_solutions: u64,
+    /// Analytic arm-IK calls made by those queries.
+    pub ik_calls: u64,
+    /// Jacobian pseudoinverse steps (J+-RRT family, 000 Alg. 2 and 5).
+    pub jacobian_steps: u64,
 }
 
 /// A solved query: a collision-free path from the start to one of the goals.

@@ -46,9 +46,37 @@ impl Default for RrtConnectSettings {
     }
 }
 
+impl RrtConnectSettings {
+    /// Checks the resolutions and returns the EXTEND range for `space` (explicit, or 0.2 × the
+    /// space's maximum extent).
+    pub fn checked_range(&self, space: &JointSpace) -> Result<f64, PlanError> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !pos(self.angular_resolution) || !pos(self.linear_resolution) {
+            return Err(PlanError::InvalidInput(
+                "resolutions must be finite and > 0".into(),
+            ));
+        }
+        let range = match self.range {
+            Some(r) if pos(r) => r,
+            Some(r) => {
+                return Err(PlanError::InvalidInput(format!(
+                    "range must be finite and > 0, got {r}"
+                )))
+            }
+            None => 0.2 * space.max_extent(),
+        };
+        if !pos(range) {
+            return Err(PlanError::InvalidInput(
+                "the space has no extent (all bounds equal)".into(),
+            ));
+        }
+        Ok(range)
+    }
+}
+
 /// Outcome of one EXTEND step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Extend {
+pub(super) enum Extend {
     Trapped,
     Advanced(u32),
     Reached(u32),
@@ -88,26 +116,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
         checker: C,
         settings: RrtConnectSettings,
     ) -> Result<Self, PlanError> {
-        let pos = |v: f64| v.is_finite() && v > 0.0;
-        if !pos(settings.angular_resolution) || !pos(settings.linear_resolution) {
-            return Err(PlanError::InvalidInput(
-                "resolutions must be finite and > 0".into(),
-            ));
-        }
-        let range = match settings.range {
-            Some(r) if pos(r) => r,
-            Some(r) => {
-                return Err(PlanError::InvalidInput(format!(
-                    "range must be finite and > 0, got {r}"
-                )))
-            }
-            None => 0.2 * space.max_extent(),
-        };
-        if !pos(range) {
-            return Err(PlanError::InvalidInput(
-                "the space has no extent (all bounds equal)".into(),
-            ));
-        }
+        let range = settings.checked_range(&space)?;
         let dim = space.dim();
         let weights = space.weights().to_vec();
         Ok(RrtConnect {
@@ -224,11 +233,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 stats.iterations = iterations;
                 stats.start_tree_size = ts.len();
                 stats.goal_tree_size = tg.len();
-                stats.collision_checks = validator.checks() - checks0;
-                stats.segments_checked = validator.segments() - segments0;
-                stats.time = t0.elapsed();
-                let reason = term.reason().unwrap_or(super::StopReason::Requested);
-                return Err(PlanError::stopped(reason, stats));
+                return Err(stopped(validator, stats, (t0, checks0, segments0), term));
             }
             iterations += 1;
             validator.space().sample_uniform(&mut rng, q_rand);
@@ -241,14 +246,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 Extend::Trapped => {}
                 Extend::Advanced(i) | Extend::Reached(i) => {
                     q_target.copy_from_slice(ta.state(i));
-                    let reached = loop {
-                        match extend(tb, validator, range, q_target, q_new) {
-                            Extend::Advanced(_) => continue,
-                            Extend::Reached(j) => break Some(j),
-                            Extend::Trapped => break None,
-                        }
-                    };
-                    if let Some(j) = reached {
+                    if let Some(j) = connect(tb, validator, range, q_target, q_new) {
                         found = Some(if start_side { (i, j) } else { (j, i) });
                     }
                 }
@@ -260,52 +258,13 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 "internal: search ended without a solution".into(),
             ));
         };
-
-        // Start root … s, then g … goal root.
-        let mut path: Vec<Vec<f64>> = Vec::new();
-        ts.path_from_root(s, idx);
-        path.extend(idx.iter().map(|&i| ts.state(i).to_vec()));
-        tg.path_from_root(g, idx);
-        for (n, &i) in idx.iter().rev().enumerate() {
-            let q = tg.state(i);
-            if n == 0 && path.last().is_some_and(|l| l.as_slice() == q) {
-                continue;
-            }
-            path.push(q.to_vec());
-        }
-        let root = tg.root_of(g) as usize;
-        let goal_index = goal_ids[root];
-
+        let path = join_trees(ts, s, tg, g, idx);
+        let goal_index = goal_ids[tg.root_of(g) as usize];
         stats.iterations = iterations;
         stats.start_tree_size = ts.len();
         stats.goal_tree_size = tg.len();
-        let checked = if settings.revalidate {
-            validator.validate_path(&path)
-        } else {
-            Ok(())
-        };
-        if let Err(k) = checked {
-            stats.collision_checks = validator.checks() - checks0;
-            stats.segments_checked = validator.segments() - segments0;
-            stats.time = t0.elapsed();
-            return Err(PlanError::PathInvalid {
-                segment: k,
-                stats: Box::new(stats),
-            });
-        }
-        stats.collision_checks = validator.checks() - checks0;
-        stats.segments_checked = validator.segments() - segments0;
-        stats.length_raw = validator.space().path_length(&path);
-        stats.vertices_raw = path.len();
-        stats.time = t0.elapsed();
-
-        if let Some(sc) = settings.shortcut {
-            let t1 = Instant::now();
-            simplify(validator, &mut path, &sc, &mut rng, term);
-            stats.simplify_time = t1.elapsed();
-        }
-        stats.length_simplified = validator.space().path_length(&path);
-        stats.vertices_simplified = path.len();
+        let counters = (t0, checks0, segments0);
+        let (path, stats) = finish(validator, path, settings, stats, counters, &mut rng, term)?;
         Ok(PlanResult {
             path,
             goal_index,
@@ -314,10 +273,104 @@ impl<C: SegmentChecker> RrtConnect<C> {
     }
 }
 
+/// The path start root … `s` (in `ts`), then `g` … goal root (in `tg`), without repeating a state
+/// the two trees share.
+pub(super) fn join_trees(
+    ts: &Tree,
+    s: u32,
+    tg: &Tree,
+    g: u32,
+    idx: &mut Vec<u32>,
+) -> Vec<Vec<f64>> {
+    let mut path: Vec<Vec<f64>> = Vec::new();
+    ts.path_from_root(s, idx);
+    path.extend(idx.iter().map(|&i| ts.state(i).to_vec()));
+    tg.path_from_root(g, idx);
+    for (n, &i) in idx.iter().rev().enumerate() {
+        let q = tg.state(i);
+        if n == 0 && path.last().is_some_and(|l| l.as_slice() == q) {
+            continue;
+        }
+        path.push(q.to_vec());
+    }
+    path
+}
+
+/// The common end of every tree planner: re-validates the raw `path` at the validator's
+/// resolution (when the settings ask for it), fills the statistics (`counters`: the search's start
+/// time and the validator's check and segment counts at that time), then simplifies the path.
+pub(super) fn finish<C: SegmentChecker>(
+    validator: &mut SpaceValidator<C>,
+    mut path: Vec<Vec<f64>>,
+    settings: &RrtConnectSettings,
+    mut stats: PlanStats,
+    (t0, checks0, segments0): (Instant, u64, u64),
+    rng: &mut ChaCha8Rng,
+    term: &mut Termination,
+) -> Result<(Vec<Vec<f64>>, PlanStats), PlanError> {
+    let checked = if settings.revalidate {
+        validator.validate_path(&path)
+    } else {
+        Ok(())
+    };
+    stats.collision_checks = validator.checks() - checks0;
+    stats.segments_checked = validator.segments() - segments0;
+    if let Err(k) = checked {
+        stats.time = t0.elapsed();
+        return Err(PlanError::PathInvalid {
+            segment: k,
+            stats: Box::new(stats),
+        });
+    }
+    stats.length_raw = validator.space().path_length(&path);
+    stats.vertices_raw = path.len();
+    stats.time = t0.elapsed();
+    if let Some(sc) = settings.shortcut {
+        let t1 = Instant::now();
+        simplify(validator, &mut path, &sc, rng, term);
+        stats.simplify_time = t1.elapsed();
+    }
+    stats.length_simplified = validator.space().path_length(&path);
+    stats.vertices_simplified = path.len();
+    Ok((path, stats))
+}
+
+/// The statistics of a search that was stopped.
+pub(super) fn stopped<C: SegmentChecker>(
+    validator: &SpaceValidator<C>,
+    mut stats: PlanStats,
+    (t0, checks0, segments0): (Instant, u64, u64),
+    term: &Termination,
+) -> PlanError {
+    stats.collision_checks = validator.checks() - checks0;
+    stats.segments_checked = validator.segments() - segments0;
+    stats.time = t0.elapsed();
+    let reason = term.reason().unwrap_or(super::StopReason::Requested);
+    PlanError::stopped(reason, stats)
+}
+
+/// CONNECT (Kuffner & LaValle 2000): EXTEND toward `target` until it is reached (its index) or
+/// the tree is trapped (`None`).
+pub(super) fn connect<C: SegmentChecker>(
+    tree: &mut Tree,
+    v: &mut SpaceValidator<C>,
+    range: f64,
+    target: &[f64],
+    q_new: &mut [f64],
+) -> Option<u32> {
+    loop {
+        match extend(tree, v, range, target, q_new) {
+            Extend::Advanced(_) => continue,
+            Extend::Reached(j) => return Some(j),
+            Extend::Trapped => return None,
+        }
+    }
+}
+
 /// EXTEND (Kuffner & LaValle 2000): step from the nearest state of `tree` toward `target` by at
 /// most `range`; add the new state when the motion to it is valid.
 #[inline]
-fn extend<C: SegmentChecker>(
+pub(super) fn extend<C: SegmentChecker>(
     tree: &mut Tree,
     v: &mut SpaceValidator<C>,
     range: f64,

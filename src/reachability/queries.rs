@@ -90,7 +90,7 @@ pub fn grasp_set(scene: &Scene, object: &str, end_effector: &str) -> Result<Gras
 }
 
 /// The end effector whose parent link is `link`.
-fn end_effector_at(robot: &Robot, link: usize, group: &str) -> Result<String, QueryError> {
+pub fn end_effector_at(robot: &Robot, link: usize, group: &str) -> Result<String, QueryError> {
     robot
         .end_effectors
         .iter()

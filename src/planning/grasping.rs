@@ -1,0 +1,545 @@
+//! Grasp-planning problems on a scene (paper 000 §IV–VI): what is checked (the
+//! [`CollisionWorld`] with the object resting or held), where the planner searches (the
+//! [`JointSpace`] of the moving chains) and which goals count (a grasp set), plus the
+//! [`GoalSampler`]s that feed [`super::IkRrt`]:
+//!
+//! * [`ReachProblem`] + [`ArmGoals`]: one "hip + arm" chain reaches one of an object's grasps
+//!   (000 §IV, IK-RRT / J+-RRT), or — with the object in the hand — brings it to a place pose.
+//! * [`HandOffProblem`] + [`HandOffGoals`]: the object is held by one hand; the goal is every
+//!   configuration where another hand — of the same robot (dual-arm re-grasp, 000 §V) or of a
+//!   second robot (hand-off, 000 §VI-D) — reaches one of its grasps on it.
+//!
+//! Contact conventions (as MoveIt's pick pipeline): the links of the hand that is about to grasp an
+//! object may touch that object (a grasp *is* a contact); the hand holding an object may touch it;
+//! every other pair is checked.
+
+use std::sync::Arc;
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+use super::{GoalSampler, JointSpace, PlanError};
+use crate::collision::{BodyId, CollisionChecker, CollisionWorld, FastChecker};
+use crate::geometry::Pose;
+use crate::kinematics::link_pose;
+use crate::kinematics::randomized::{
+    try_arm, ArmChain, GraspQuery, IkCounters, RandomizedIk, RandomizedIkSettings, ReachabilityMap,
+};
+use crate::model::Scene;
+use crate::reachability::queries::{end_effector_at, grasp_set, GraspSet};
+use crate::reachability::{hand_links, ReachabilityGrid};
+
+/// One hand: a "free joints + S-R-S arm" chain of a robot of the world, its end effector and the
+/// links that may touch what it grasps.
+#[derive(Debug, Clone)]
+pub struct Hand {
+    /// Index of the robot in the world.
+    pub robot: usize,
+    pub arm: ArmChain,
+    pub end_effector: String,
+    /// Links of the end effector (and its parent link).
+    pub touch: Vec<usize>,
+}
+
+impl Hand {
+    /// The hand at the tip of chain group `group` of world robot `robot` (instance name).
+    pub fn new(world: &CollisionWorld, robot: &str, group: &str) -> Result<Hand, PlanError> {
+        let ri = world
+            .robots
+            .iter()
+            .position(|p| p.name == robot)
+            .ok_or_else(|| PlanError::InvalidInput(format!("the scene has no robot '{robot}'")))?;
+        let model = &world.robots[ri].robot;
+        let arm =
+            ArmChain::new(model, group).map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+        let tip = arm.chain.tip_link;
+        let end_effector = end_effector_at(model, tip, group)
+            .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+        let touch = hand_links(model, &end_effector).unwrap_or_else(|| vec![tip]);
+        Ok(Hand {
+            robot: ri,
+            arm,
+            end_effector,
+            touch,
+        })
+    }
+
+    pub fn tcp_link(&self) -> usize {
+        self.arm.chain.tip_link
+    }
+
+    /// World variables of the whole chain (free joints and arm).
+    pub fn world_vars(&self, world: &CollisionWorld) -> Vec<usize> {
+        let off = world.robots[self.robot].offset;
+        self.arm.chain.vars.iter().map(|v| v + off).collect()
+    }
+
+    /// World pose of the TCP for world configuration `world_q`.
+    pub fn tcp_pose(&self, world: &CollisionWorld, world_q: &[f64]) -> Pose {
+        let p = &world.robots[self.robot];
+        p.base
+            * link_pose(
+                &p.robot,
+                world.robot_config(self.robot, world_q),
+                self.tcp_link(),
+            )
+    }
+
+    /// Lets the hand touch fixed body `object` of `world` (no-op if there is none).
+    pub fn allow_touching_static(&self, world: &mut CollisionWorld, object: &str) {
+        if let Some(si) = world.statics.iter().position(|s| s.name == object) {
+            for &l in &self.touch {
+                world.allow(
+                    BodyId::Link {
+                        robot: self.robot,
+                        link: l,
+                    },
+                    BodyId::Static(si),
+                );
+            }
+        }
+    }
+
+    /// Lets the hand touch attached body `index` of `world`.
+    pub fn allow_touching_attached(&self, world: &mut CollisionWorld, index: usize) {
+        for &l in &self.touch {
+            world.allow(
+                BodyId::Link {
+                    robot: self.robot,
+                    link: l,
+                },
+                BodyId::Attached(index),
+            );
+        }
+    }
+}
+
+fn finite_pose(p: &Pose) -> bool {
+    p.translation.vector.iter().all(|v| v.is_finite())
+        && p.rotation.coords.iter().all(|v| v.is_finite())
+}
+
+fn check_world_config(world: &CollisionWorld, q: &[f64]) -> Result<(), PlanError> {
+    if q.len() != world.dof() {
+        return Err(PlanError::InvalidInput(format!(
+            "world configuration has {} values, the world has {} variables",
+            q.len(),
+            world.dof()
+        )));
+    }
+    Ok(())
+}
+
+/// Moves fixed body `object` of `world` to `pose` and attaches it to the hand's TCP (held by the
+/// grasp whose TCP, in the object frame, is `grasp`); the hand may touch it. Returns the attached
+/// index.
+pub fn attach_by_grasp(
+    world: &mut CollisionWorld,
+    hand: &Hand,
+    object: &str,
+    grasp: &Pose,
+    world_q: &[f64],
+) -> Result<usize, PlanError> {
+    let si = world
+        .statics
+        .iter()
+        .position(|s| s.name == object)
+        .ok_or_else(|| PlanError::InvalidInput(format!("no free object '{object}'")))?;
+    world.statics[si].pose = hand.tcp_pose(world, world_q) * grasp.inverse();
+    world
+        .attach(
+            object,
+            hand.robot,
+            hand.tcp_link(),
+            world_q,
+            hand.touch.clone(),
+        )
+        .ok_or_else(|| PlanError::InvalidInput(format!("cannot attach '{object}'")))
+}
+
+/// Reaching with one "hip + arm" chain (000 §IV): to a grasp of a resting object, or — with the
+/// object held — to a place pose.
+#[derive(Debug, Clone)]
+pub struct ReachProblem {
+    pub world: CollisionWorld,
+    pub space: JointSpace,
+    pub hand: Hand,
+    pub object: String,
+    /// World pose of the object at the goal.
+    pub object_pose: Pose,
+    /// TCP poses in the object frame that count as goals, with their names.
+    pub grasps: Vec<Pose>,
+    pub grasp_names: Vec<String>,
+    /// Start state (space coordinates).
+    pub start: Vec<f64>,
+}
+
+impl ReachProblem {
+    /// Grasp `object` (a fixed body of `world`, with grasps in `scene`) with the hand at the tip of
+    /// `group` of robot `robot`, from world configuration `world_q`.
+    pub fn grasp(
+        scene: &Scene,
+        world: &CollisionWorld,
+        world_q: &[f64],
+        robot: &str,
+        group: &str,
+        object: &str,
+    ) -> Result<ReachProblem, PlanError> {
+        check_world_config(world, world_q)?;
+        let hand = Hand::new(world, robot, group)?;
+        let set: GraspSet = grasp_set(scene, object, &hand.end_effector)
+            .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+        let object_pose = world
+            .statics
+            .iter()
+            .find(|s| s.name == object)
+            .map(|s| s.pose)
+            .ok_or_else(|| {
+                PlanError::InvalidInput(format!("'{object}' is not a free object of the scene"))
+            })?;
+        let mut w = world.clone();
+        hand.allow_touching_static(&mut w, object);
+        let space = JointSpace::new(&w, &hand.world_vars(&w), world_q.to_vec())?;
+        let start = space.from_world(world_q);
+        Ok(ReachProblem {
+            world: w,
+            space,
+            hand,
+            object: object.to_string(),
+            object_pose,
+            grasps: set.tcps,
+            grasp_names: set.names,
+            start,
+        })
+    }
+
+    /// Carry `object`, held by the hand with grasp `grasp` (TCP in the object frame) and attached
+    /// in `world`, to `place_pose` (world pose of the object).
+    pub fn place(
+        world: &CollisionWorld,
+        world_q: &[f64],
+        hand: Hand,
+        object: &str,
+        grasp: Pose,
+        place_pose: Pose,
+    ) -> Result<ReachProblem, PlanError> {
+        check_world_config(world, world_q)?;
+        if !finite_pose(&place_pose) || !finite_pose(&grasp) {
+            return Err(PlanError::InvalidInput(
+                "place pose and grasp must be finite".into(),
+            ));
+        }
+        if !world.attached.iter().any(|a| a.name == object) {
+            return Err(PlanError::InvalidInput(format!(
+                "'{object}' is not held by a hand"
+            )));
+        }
+        let space = JointSpace::new(world, &hand.world_vars(world), world_q.to_vec())?;
+        let start = space.from_world(world_q);
+        Ok(ReachProblem {
+            world: world.clone(),
+            space,
+            hand,
+            object: object.to_string(),
+            object_pose: place_pose,
+            grasps: vec![grasp],
+            grasp_names: vec!["held".into()],
+            start,
+        })
+    }
+
+    /// World TCP targets, one per grasp.
+    pub fn targets(&self) -> Vec<Pose> {
+        self.grasps.iter().map(|g| self.object_pose * g).collect()
+    }
+
+    /// The goal sampler of IK-RRT for this problem: randomized IK (000 §II-D) with at most
+    /// `settings.max_tries` tries per query, filtered by `grid` when given.
+    pub fn goals(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        settings: RandomizedIkSettings,
+    ) -> ArmGoals {
+        let p = &self.world.robots[self.hand.robot];
+        let world_q = self.space.base().to_vec();
+        ArmGoals {
+            ik: RandomizedIk::from_chain(p.robot.clone(), self.hand.arm.clone()),
+            grid,
+            settings,
+            robot_base: p.base,
+            object_pose: self.object_pose,
+            grasps: self.grasps.clone(),
+            robot_q: world_q[p.offset..p.offset + p.robot.dof()].to_vec(),
+            offset: p.offset,
+            checker: FastChecker::new(&self.world),
+            space: self.space.clone(),
+            world_q,
+            counters: IkCounters::default(),
+        }
+    }
+}
+
+/// IK-RRT goals of a [`ReachProblem`]: randomized IK for the grasp set, each answer checked in
+/// the problem's world.
+pub struct ArmGoals {
+    ik: RandomizedIk,
+    grid: Option<Arc<ReachabilityGrid>>,
+    settings: RandomizedIkSettings,
+    robot_base: Pose,
+    object_pose: Pose,
+    grasps: Vec<Pose>,
+    robot_q: Vec<f64>,
+    offset: usize,
+    checker: FastChecker,
+    space: JointSpace,
+    world_q: Vec<f64>,
+    counters: IkCounters,
+}
+
+impl ArmGoals {
+    pub fn counters(&self) -> &IkCounters {
+        &self.counters
+    }
+}
+
+impl GoalSampler for ArmGoals {
+    fn sample_goal(&mut self, rng: &mut ChaCha8Rng, out: &mut [f64]) -> Option<usize> {
+        let query = GraspQuery {
+            robot_base: self.robot_base,
+            object_pose: self.object_pose,
+            grasps: &self.grasps,
+            start: &self.robot_q,
+        };
+        let reach = self.grid.as_deref().map(|g| g as &dyn ReachabilityMap);
+        let (checker, world_q, offset) = (&mut self.checker, &mut self.world_q, self.offset);
+        let r = self.ik.solve(&query, reach, &self.settings, rng, |_, q| {
+            world_q[offset..offset + q.len()].copy_from_slice(q);
+            checker.is_free(world_q)
+        });
+        match r {
+            Ok(sol) => {
+                self.counters.add(&sol.counters);
+                self.world_q[offset..offset + sol.config.len()].copy_from_slice(&sol.config);
+                for (o, &v) in out.iter_mut().zip(self.space.vars()) {
+                    *o = self.world_q[v];
+                }
+                Some(sol.grasp)
+            }
+            Err(crate::kinematics::randomized::RandomizedIkError::NoSolution {
+                counters, ..
+            }) => {
+                self.counters.add(&counters);
+                None
+            }
+            Err(_) => None,
+        }
+    }
+
+    fn ik_calls(&self) -> u64 {
+        self.counters.ik_calls
+    }
+}
+
+/// Dual-arm re-grasping (000 §V) and hand-off between two robots (000 §VI-D): the object is held
+/// by the `giver` hand; the goal is every configuration where the `receiver` hand reaches one of
+/// its grasps on the object. Both chains move (hip + both arms = 17 DoF for one robot, 2 × 10 for
+/// two).
+#[derive(Debug, Clone)]
+pub struct HandOffProblem {
+    pub world: CollisionWorld,
+    pub space: JointSpace,
+    pub giver: Hand,
+    pub receiver: Hand,
+    pub object: String,
+    /// The giver's grasp (TCP in the object frame).
+    pub held: Pose,
+    /// The receiver's grasps (TCP in the object frame) and their names.
+    pub grasps: Vec<Pose>,
+    pub grasp_names: Vec<String>,
+    pub start: Vec<f64>,
+}
+
+impl HandOffProblem {
+    /// `world` has `object` either resting (it is then put into the giver's hand by `held`, at
+    /// the pose that grasp implies for `world_q`) or already attached to the giver's hand.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        scene: &Scene,
+        world: &CollisionWorld,
+        world_q: &[f64],
+        giver: (&str, &str),
+        receiver: (&str, &str),
+        object: &str,
+        held: Pose,
+    ) -> Result<HandOffProblem, PlanError> {
+        check_world_config(world, world_q)?;
+        if !finite_pose(&held) {
+            return Err(PlanError::InvalidInput("held grasp must be finite".into()));
+        }
+        let g = Hand::new(world, giver.0, giver.1)?;
+        let r = Hand::new(world, receiver.0, receiver.1)?;
+        if g.robot == r.robot
+            && g.arm
+                .arm
+                .vars()
+                .iter()
+                .any(|v| r.arm.arm.vars().contains(v))
+        {
+            return Err(PlanError::InvalidInput(format!(
+                "giver chain '{}' and receiver chain '{}' share arm joints",
+                giver.1, receiver.1
+            )));
+        }
+        let set = grasp_set(scene, object, &r.end_effector)
+            .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+        let mut w = world.clone();
+        let ai = match w.attached.iter().position(|a| a.name == object) {
+            Some(i) => i,
+            None => attach_by_grasp(&mut w, &g, object, &held, world_q)?,
+        };
+        r.allow_touching_attached(&mut w, ai);
+        let mut vars = g.world_vars(&w);
+        for v in r.world_vars(&w) {
+            if !vars.contains(&v) {
+                vars.push(v);
+            }
+        }
+        let space = JointSpace::new(&w, &vars, world_q.to_vec())?;
+        let start = space.from_world(world_q);
+        Ok(HandOffProblem {
+            world: w,
+            space,
+            giver: g,
+            receiver: r,
+            object: object.to_string(),
+            held,
+            grasps: set.tcps,
+            grasp_names: set.names,
+            start,
+        })
+    }
+
+    /// The goal sampler of dual-arm IK-RRT (000 §V-B) for this problem.
+    pub fn goals(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        settings: RandomizedIkSettings,
+    ) -> HandOffGoals {
+        let world_q = self.space.base().to_vec();
+        let mut sampled = self.giver.world_vars(&self.world);
+        let roff = self.world.robots[self.receiver.robot].offset;
+        for v in &self.receiver.arm.free_vars {
+            if !sampled.contains(&(v + roff)) {
+                sampled.push(v + roff);
+            }
+        }
+        HandOffGoals {
+            world: self.world.clone(),
+            checker: FastChecker::new(&self.world),
+            giver: self.giver.clone(),
+            receiver: self.receiver.clone(),
+            held_inv: self.held.inverse(),
+            grasps: self.grasps.clone(),
+            grid,
+            settings,
+            sampled,
+            space: self.space.clone(),
+            world_q,
+            cand: Vec::new(),
+            counters: IkCounters::default(),
+        }
+    }
+}
+
+/// Goals of a [`HandOffProblem`]: the 17-D dual-arm IK of 000 §III with the object held (giver's
+/// hip and arm sampled, the object pose follows from the giver's TCP, the receiver's arm solved
+/// analytically for its grasps, filtered by its reachability grid when given), generalised to a
+/// receiver of another robot (its free joints sampled too).
+pub struct HandOffGoals {
+    world: CollisionWorld,
+    checker: FastChecker,
+    giver: Hand,
+    receiver: Hand,
+    held_inv: Pose,
+    grasps: Vec<Pose>,
+    grid: Option<Arc<ReachabilityGrid>>,
+    settings: RandomizedIkSettings,
+    /// World variables sampled per try.
+    sampled: Vec<usize>,
+    space: JointSpace,
+    world_q: Vec<f64>,
+    cand: Vec<(f64, usize)>,
+    counters: IkCounters,
+}
+
+impl HandOffGoals {
+    pub fn counters(&self) -> &IkCounters {
+        &self.counters
+    }
+}
+
+impl GoalSampler for HandOffGoals {
+    fn sample_goal(&mut self, rng: &mut ChaCha8Rng, out: &mut [f64]) -> Option<usize> {
+        let rp = &self.world.robots[self.receiver.robot];
+        let (roff, rdof) = (rp.offset, rp.robot.dof());
+        for _ in 0..self.settings.max_tries {
+            self.counters.tries += 1;
+            for &w in &self.sampled {
+                let (lo, hi) = (self.space.lower(), self.space.upper());
+                let Some(i) = self.space.vars().iter().position(|&v| v == w) else {
+                    continue;
+                };
+                self.world_q[w] = lo[i] + (hi[i] - lo[i]) * rng.random::<f64>();
+            }
+            let object = self.giver.tcp_pose(&self.world, &self.world_q) * self.held_inv;
+            let rq = &self.world_q[roff..roff + rdof];
+            let inv = (rp.base * link_pose(&rp.robot, rq, self.receiver.arm.arm_base)).inverse();
+            self.cand.clear();
+            match self.grid.as_deref() {
+                Some(map) if rng.random::<f64>() < self.settings.reach_probability => {
+                    for (g, t) in self.grasps.iter().enumerate() {
+                        self.counters.reach_lookups += 1;
+                        let p = map.probability(&(inv * object * t));
+                        if p > self.settings.threshold {
+                            self.cand.push((p, g));
+                        }
+                    }
+                    self.cand.sort_by(|a, b| b.0.total_cmp(&a.0));
+                }
+                _ => self
+                    .cand
+                    .push((0.0, rng.random_range(0..self.grasps.len()))),
+            }
+            let mut rqv = self.world_q[roff..roff + rdof].to_vec();
+            for k in 0..self.cand.len() {
+                let g = self.cand[k].1;
+                let target = inv * object * self.grasps[g];
+                let (checker, world_q) = (&mut self.checker, &mut self.world_q);
+                let ok = try_arm(
+                    &self.receiver.arm.arm,
+                    &target,
+                    self.settings.psi_samples,
+                    &mut rqv,
+                    &mut self.counters,
+                    rng,
+                    |q| {
+                        world_q[roff..roff + rdof].copy_from_slice(q);
+                        checker.is_free(world_q)
+                    },
+                );
+                if ok {
+                    self.world_q[roff..roff + rdof].copy_from_slice(&rqv);
+                    for (o, &v) in out.iter_mut().zip(self.space.vars()) {
+                        *o = self.world_q[v];
+                    }
+                    return Some(g);
+                }
+            }
+        }
+        None
+    }
+
+    fn ik_calls(&self) -> u64 {
+        self.counters.ik_calls
+    }
+}
