@@ -188,3 +188,79 @@ fn dual_arm_ik_rrt_regrasps_the_wok() {
         assert_exactly_free(&h.world, &h.space, &r.path);
     }
 }
+
+/// The reach planners check the approaching hand against the object along the whole path; that
+/// relies on the shipped grasps being open-hand poses free of the object. Every IK answer must be.
+#[test]
+fn shipped_grasps_leave_the_hand_free_of_the_object() {
+    use manyhands::collision::{CollisionChecker, ExactChecker};
+    use manyhands::planning::GoalSampler;
+    use rand::SeedableRng;
+    for group in ["torso_right_arm", "torso_left_arm"] {
+        let (_s, p) = reach_problem("kitchen", group);
+        let mut exact = ExactChecker::new(&p.world);
+        let mut goals = p.goals(None, ik_settings());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let mut out = p.start.clone();
+        let mut n = 0;
+        for _ in 0..100 {
+            if goals.sample_goal(&mut rng, &mut out).is_some() {
+                n += 1;
+                let wq = p.space.to_world(&out);
+                assert_eq!(exact.first_contact(&wq), None, "{group}");
+            }
+        }
+        assert!(n > 10, "{group}: only {n} IK answers");
+    }
+}
+
+#[test]
+fn kitchen_task_grasps_regrasps_and_places_the_wok() {
+    use manyhands::planning::task::{kitchen_task, EventKind, KitchenTask};
+    let s = scene("kitchen");
+    let task = KitchenTask::armar_wok();
+    for seed in 0..3 {
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+        let plan = kitchen_task(&s, &task, &mut term, seed)
+            .unwrap_or_else(|e| panic!("seed {seed}: {e} {:?}", e.stats()));
+        eprintln!(
+            "kitchen task seed {seed}: {:.1} ms, {} waypoints, phases {:?}",
+            plan.time.as_secs_f64() * 1e3,
+            plan.waypoints.len(),
+            plan.phases
+                .iter()
+                .map(|p| format!(
+                    "{} {:.1} ms",
+                    p.name,
+                    (p.stats.time + p.stats.simplify_time).as_secs_f64() * 1e3
+                ))
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(plan.waypoints[0], CollisionWorld::start_config(&s));
+        assert_eq!(plan.phases.len(), 4);
+        let kinds: Vec<(EventKind, &str)> = plan
+            .events
+            .iter()
+            .map(|e| (e.kind, e.end_effector.as_str()))
+            .collect();
+        assert_eq!(
+            kinds,
+            vec![
+                (EventKind::Grasp, "right_hand"),
+                (EventKind::Grasp, "left_hand"),
+                (EventKind::Release, "right_hand"),
+                (EventKind::Release, "left_hand"),
+            ]
+        );
+        for (k, ph) in plan.phases.iter().enumerate() {
+            if k > 0 {
+                assert_eq!(ph.first, plan.phases[k - 1].last, "phases are joined");
+            }
+            let seg = &plan.waypoints[ph.first..=ph.last];
+            let space = JointSpace::all(&ph.world, seg[0].clone()).expect("space");
+            assert_exactly_free(&ph.world, &space, seg);
+        }
+        assert_eq!(plan.events[0].waypoint, plan.phases[0].last);
+        assert_eq!(plan.events[3].waypoint, plan.waypoints.len() - 1);
+    }
+}

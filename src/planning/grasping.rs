@@ -9,9 +9,11 @@
 //!   configuration where another hand — of the same robot (dual-arm re-grasp, 000 §V) or of a
 //!   second robot (hand-off, 000 §VI-D) — reaches one of its grasps on it.
 //!
-//! Contact conventions (as MoveIt's pick pipeline): the links of the hand that is about to grasp an
-//! object may touch that object (a grasp *is* a contact); the hand holding an object may touch it;
-//! every other pair is checked.
+//! Contact conventions: only the hand *holding* an object may touch it (the attached body's touch
+//! links). A hand about to grasp is checked against the object like any other link, along the
+//! whole path and at the goal: the grasp sets of the shipped scenes are open-hand TCP poses free
+//! of the object (tests/grasp_planners.rs checks that every IK answer is), so the approach can
+//! never pass through the object.
 
 use std::sync::Arc;
 
@@ -19,7 +21,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::{GoalSampler, JointSpace, PlanError};
-use crate::collision::{BodyId, CollisionChecker, CollisionWorld, FastChecker};
+use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::geometry::Pose;
 use crate::kinematics::link_pose;
 use crate::kinematics::randomized::{
@@ -83,34 +85,6 @@ impl Hand {
                 world.robot_config(self.robot, world_q),
                 self.tcp_link(),
             )
-    }
-
-    /// Lets the hand touch fixed body `object` of `world` (no-op if there is none).
-    pub fn allow_touching_static(&self, world: &mut CollisionWorld, object: &str) {
-        if let Some(si) = world.statics.iter().position(|s| s.name == object) {
-            for &l in &self.touch {
-                world.allow(
-                    BodyId::Link {
-                        robot: self.robot,
-                        link: l,
-                    },
-                    BodyId::Static(si),
-                );
-            }
-        }
-    }
-
-    /// Lets the hand touch attached body `index` of `world`.
-    pub fn allow_touching_attached(&self, world: &mut CollisionWorld, index: usize) {
-        for &l in &self.touch {
-            world.allow(
-                BodyId::Link {
-                    robot: self.robot,
-                    link: l,
-                },
-                BodyId::Attached(index),
-            );
-        }
     }
 }
 
@@ -197,8 +171,7 @@ impl ReachProblem {
             .ok_or_else(|| {
                 PlanError::InvalidInput(format!("'{object}' is not a free object of the scene"))
             })?;
-        let mut w = world.clone();
-        hand.allow_touching_static(&mut w, object);
+        let w = world.clone();
         let space = JointSpace::new(&w, &hand.world_vars(&w), world_q.to_vec())?;
         let start = space.from_world(world_q);
         Ok(ReachProblem {
@@ -214,19 +187,23 @@ impl ReachProblem {
     }
 
     /// Carry `object`, held by the hand with grasp `grasp` (TCP in the object frame) and attached
-    /// in `world`, to `place_pose` (world pose of the object).
+    /// in `world`, to any of `place_poses` (world poses of the object). The goal labels index
+    /// `place_poses`.
     pub fn place(
         world: &CollisionWorld,
         world_q: &[f64],
         hand: Hand,
         object: &str,
         grasp: Pose,
-        place_pose: Pose,
+        place_poses: &[Pose],
     ) -> Result<ReachProblem, PlanError> {
         check_world_config(world, world_q)?;
-        if !finite_pose(&place_pose) || !finite_pose(&grasp) {
+        if place_poses.is_empty() {
+            return Err(PlanError::InvalidInput("no place pose given".into()));
+        }
+        if !place_poses.iter().all(finite_pose) || !finite_pose(&grasp) {
             return Err(PlanError::InvalidInput(
-                "place pose and grasp must be finite".into(),
+                "place poses and grasp must be finite".into(),
             ));
         }
         if !world.attached.iter().any(|a| a.name == object) {
@@ -236,14 +213,17 @@ impl ReachProblem {
         }
         let space = JointSpace::new(world, &hand.world_vars(world), world_q.to_vec())?;
         let start = space.from_world(world_q);
+        // Goals as TCP poses in the world: object pose = identity, "grasps" = place · grasp.
         Ok(ReachProblem {
             world: world.clone(),
             space,
             hand,
             object: object.to_string(),
-            object_pose: place_pose,
-            grasps: vec![grasp],
-            grasp_names: vec!["held".into()],
+            object_pose: Pose::identity(),
+            grasps: place_poses.iter().map(|p| p * grasp).collect(),
+            grasp_names: (0..place_poses.len())
+                .map(|i| format!("place_{i}"))
+                .collect(),
             start,
         })
     }
@@ -393,11 +373,9 @@ impl HandOffProblem {
         let set = grasp_set(scene, object, &r.end_effector)
             .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
         let mut w = world.clone();
-        let ai = match w.attached.iter().position(|a| a.name == object) {
-            Some(i) => i,
-            None => attach_by_grasp(&mut w, &g, object, &held, world_q)?,
-        };
-        r.allow_touching_attached(&mut w, ai);
+        if !w.attached.iter().any(|a| a.name == object) {
+            attach_by_grasp(&mut w, &g, object, &held, world_q)?;
+        }
         let mut vars = g.world_vars(&w);
         for v in r.world_vars(&w) {
             if !vars.contains(&v) {

@@ -180,7 +180,10 @@ impl<C: SegmentChecker> IkRrt<C> {
             stats.iterations += 1;
             if roots.is_empty() || (roots.len() < max_goals && rng.random::<f64>() < p_ik) {
                 stats.ik_queries += 1;
-                let Some(label) = goals.sample_goal(&mut rng, q_target) else {
+                let t_ik = Instant::now();
+                let answer = goals.sample_goal(&mut rng, q_target);
+                stats.ik_time += t_ik.elapsed();
+                let Some(label) = answer else {
                     continue;
                 };
                 // The sampler checks its answers in its own world; the planner's validator has the

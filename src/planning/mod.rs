@@ -15,6 +15,7 @@ mod result;
 mod rrt_connect;
 pub mod shortcut;
 mod space;
+pub mod task;
 mod termination;
 mod tree;
 mod validity;

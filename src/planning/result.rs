@@ -35,6 +35,8 @@ pub struct PlanStats {
     pub vertices_simplified: usize,
     /// Goal-sampler (IK) queries made by planners that search their goals (IK-RRT family).
     pub ik_queries: u64,
+    /// Wall time spent in those queries (part of `time`; 000 Table 5's "IK solving").
+    pub ik_time: Duration,
     /// Valid goal configurations found and added to the goal tree (IK solutions, 000 Alg. 3).
     pub ik_solutions: u64,
     /// Analytic arm-IK calls made by those queries.
@@ -74,6 +76,12 @@ pub enum PlanError {
     /// The external stop flag was raised.
     #[error("stopped on request after {} iterations", .stats.iterations)]
     Stopped { stats: Box<PlanStats> },
+    /// A phase of a chained task failed (see [`super::task`]).
+    #[error("{phase}: {source}")]
+    InPhase {
+        phase: String,
+        source: Box<PlanError>,
+    },
     /// The path found failed its final re-validation (a bug in a planner, never expected).
     #[error("path failed re-validation at segment {segment}")]
     PathInvalid {
@@ -93,6 +101,14 @@ impl PlanError {
         }
     }
 
+    /// The error itself, or the one inside a failed phase.
+    pub fn root(&self) -> &PlanError {
+        match self {
+            PlanError::InPhase { source, .. } => source.root(),
+            e => e,
+        }
+    }
+
     /// Statistics gathered before the failure, when the search ran.
     pub fn stats(&self) -> Option<&PlanStats> {
         match self {
@@ -100,6 +116,7 @@ impl PlanError {
             | PlanError::IterationLimit { stats }
             | PlanError::Stopped { stats }
             | PlanError::PathInvalid { stats, .. } => Some(stats),
+            PlanError::InPhase { source, .. } => source.stats(),
             _ => None,
         }
     }

@@ -217,7 +217,7 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
 }
 
 fn plan_failure(e: PlanError) -> JobFailure {
-    let code = match &e {
+    let code = match e.root() {
         PlanError::InvalidInput(_) => "invalid_input",
         PlanError::InvalidStart { .. } => "invalid_start",
         PlanError::InvalidGoal { .. } => "invalid_goal",
@@ -225,9 +225,10 @@ fn plan_failure(e: PlanError) -> JobFailure {
         PlanError::IterationLimit { .. } => "iteration_limit",
         PlanError::Stopped { .. } => "cancelled",
         PlanError::PathInvalid { .. } => "path_invalid",
+        PlanError::InPhase { .. } => "failed",
     };
     JobFailure {
-        stopped: matches!(e, PlanError::Stopped { .. }),
+        stopped: matches!(e.root(), PlanError::Stopped { .. }),
         code,
         message: e.to_string(),
         stats: e.stats().map(stats_json),

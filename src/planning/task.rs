@@ -1,0 +1,332 @@
+//! Chained manipulation tasks: several planning queries whose results are joined into one
+//! trajectory of world configurations with the grasp and release events marked.
+//!
+//! [`kitchen_task`] is paper 000's kitchen experiment (§VI-C, Table 5): grasp the wok with one
+//! hand (IK-RRT), re-grasp it to the other hand (dual-arm IK-RRT), move the first arm out of the
+//! way (RRT-Connect back to its start joint values; the paper does not say what the free arm
+//! does), place the wok in the cabinet (IK-RRT with the object held, goals = a set of place
+//! poses). Unlike the paper, which fixed one IK
+//! solution per step before planning (and so lost probabilistic completeness, as it notes), each
+//! step here searches its IK solutions while planning.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use super::grasping::{attach_by_grasp, Hand, HandOffProblem, ReachProblem};
+use super::{
+    IkRrt, IkRrtSettings, JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings,
+    Termination,
+};
+use crate::collision::CollisionWorld;
+use crate::geometry::{iso_from_rpy, Pose};
+use crate::kinematics::randomized::RandomizedIkSettings;
+use crate::model::Scene;
+use crate::reachability::ReachabilityGrid;
+
+/// What happens at a waypoint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EventKind {
+    /// The hand closes on the object (it moves with the hand from here on).
+    Grasp,
+    /// The hand opens; the object stays where it is (or in the other hand).
+    Release,
+}
+
+/// A grasp or release at a waypoint of a [`TaskPlan`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TaskEvent {
+    /// Index into [`TaskPlan::waypoints`].
+    pub waypoint: usize,
+    pub kind: EventKind,
+    /// Robot instance name.
+    pub robot: String,
+    /// End effector (SRDF) name.
+    pub end_effector: String,
+    pub object: String,
+    /// Grasp name (scene grasp set), or the place pose label on the final release.
+    pub grasp: String,
+}
+
+/// One planning query of a task.
+#[derive(Debug, Clone, Serialize)]
+pub struct TaskPhase {
+    pub name: String,
+    pub planner: String,
+    /// Waypoint range `[first, last]` of the phase.
+    pub first: usize,
+    pub last: usize,
+    pub stats: PlanStats,
+    /// What the phase was checked in (the object resting or held), for independent re-checks.
+    #[serde(skip)]
+    pub world: CollisionWorld,
+}
+
+/// A chained task's answer: world configurations (every robot of the scene) and what happens
+/// where.
+#[derive(Debug, Clone, Serialize)]
+pub struct TaskPlan {
+    pub waypoints: Vec<Vec<f64>>,
+    pub phases: Vec<TaskPhase>,
+    pub events: Vec<TaskEvent>,
+    /// Wall time of the whole task.
+    pub time: Duration,
+}
+
+impl TaskPlan {
+    fn append(
+        &mut self,
+        name: &str,
+        planner: &str,
+        path: Vec<Vec<f64>>,
+        stats: PlanStats,
+        world: &CollisionWorld,
+    ) {
+        let first = self.waypoints.len().saturating_sub(1);
+        let skip = usize::from(!self.waypoints.is_empty());
+        self.waypoints.extend(path.into_iter().skip(skip));
+        self.phases.push(TaskPhase {
+            name: name.into(),
+            planner: planner.into(),
+            first,
+            last: self.waypoints.len() - 1,
+            stats,
+            world: world.clone(),
+        });
+    }
+
+    fn event(&mut self, kind: EventKind, robot: &str, ee: &str, object: &str, grasp: &str) {
+        self.events.push(TaskEvent {
+            waypoint: self.waypoints.len() - 1,
+            kind,
+            robot: robot.into(),
+            end_effector: ee.into(),
+            object: object.into(),
+            grasp: grasp.into(),
+        });
+    }
+}
+
+/// Parameters of [`kitchen_task`].
+#[derive(Debug, Clone)]
+pub struct KitchenTask {
+    pub robot: String,
+    pub object: String,
+    /// Chain of the hand that picks the object up (e.g. `torso_right_arm`).
+    pub first: String,
+    /// Chain of the hand it is re-grasped to and placed with (e.g. `torso_left_arm`).
+    pub second: String,
+    /// Candidate place poses of the object (world).
+    pub place_poses: Vec<Pose>,
+    /// Reachability grids of the first and second arm (optional; see `reach build`).
+    pub grids: (Option<Arc<ReachabilityGrid>>, Option<Arc<ReachabilityGrid>>),
+    pub planner: IkRrtSettings,
+    /// RRT-Connect settings of the retreat of the first arm.
+    pub retreat: RrtConnectSettings,
+    /// Randomized-IK settings per goal query (`max_tries` bounds one query).
+    pub ik: RandomizedIkSettings,
+}
+
+/// Place poses on a horizontal surface: a grid of `nx × ny` positions over `centre ± half`
+/// (x, y; z fixed) times the yaws `yaws` (radians). The object's z axis stays vertical.
+pub fn surface_places(centre: [f64; 3], half: [f64; 2], n: [usize; 2], yaws: &[f64]) -> Vec<Pose> {
+    let mut out = Vec::new();
+    let step = |k: usize, n: usize, h: f64| {
+        if n <= 1 {
+            0.0
+        } else {
+            -h + 2.0 * h * k as f64 / (n - 1) as f64
+        }
+    };
+    for ix in 0..n[0] {
+        for iy in 0..n[1] {
+            for &yaw in yaws {
+                out.push(iso_from_rpy(
+                    [
+                        centre[0] + step(ix, n[0], half[0]),
+                        centre[1] + step(iy, n[1], half[1]),
+                        centre[2],
+                    ],
+                    [0.0, 0.0, yaw],
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// The place poses of the shipped kitchen (`scenes/kitchen.json`): the bottom and middle shelves
+/// of `cabinet` (board tops at z = 0.92 m and 1.21 m, inner x 0.60…0.98 m, y 0.27…0.93 m), the
+/// wok 1.1 cm above the board, its centre on a 2 × 3 grid (x 0.74…0.80, y 0.45…0.75), every 30°
+/// of yaw (which yaws fit depends on the grasp the hand holds; the IK decides): 144 poses.
+pub fn kitchen_cabinet_places() -> Vec<Pose> {
+    let yaws: Vec<f64> = (0..12).map(|k| (k as f64 * 30.0).to_radians()).collect();
+    let mut out = surface_places([0.77, 0.6, 0.931], [0.03, 0.15], [2, 3], &yaws);
+    out.extend(surface_places(
+        [0.77, 0.6, 1.221],
+        [0.03, 0.15],
+        [2, 3],
+        &yaws,
+    ));
+    out
+}
+
+impl KitchenTask {
+    /// The paper's setup on `scene`: robot `armar`, wok picked with the right hand, re-grasped to
+    /// the left, the right arm back to its start joint values, the wok placed on a cabinet shelf.
+    pub fn armar_wok() -> KitchenTask {
+        KitchenTask {
+            robot: "armar".into(),
+            object: "wok".into(),
+            first: "torso_right_arm".into(),
+            second: "torso_left_arm".into(),
+            place_poses: kitchen_cabinet_places(),
+            grids: (None, None),
+            planner: IkRrtSettings::default(),
+            retreat: RrtConnectSettings::default(),
+            ik: RandomizedIkSettings {
+                max_tries: 50,
+                ..RandomizedIkSettings::default()
+            },
+        }
+    }
+}
+
+/// Paper 000's kitchen task (§VI-C) on `scene` from its start configuration: grasp → re-grasp →
+/// place, each an IK-RRT query; `term` bounds the whole task. The phases' seeds derive from
+/// `seed`.
+pub fn kitchen_task(
+    scene: &Scene,
+    task: &KitchenTask,
+    term: &mut Termination,
+    seed: u64,
+) -> Result<TaskPlan, PlanError> {
+    let t0 = Instant::now();
+    let world = CollisionWorld::from_scene(scene);
+    let q0 = CollisionWorld::start_config(scene);
+    let mut plan = TaskPlan {
+        waypoints: Vec::new(),
+        phases: Vec::new(),
+        events: Vec::new(),
+        time: Duration::ZERO,
+    };
+    let tagged = |phase: &str, e: PlanError| PlanError::InPhase {
+        phase: phase.into(),
+        source: Box::new(e),
+    };
+
+    // 1. Grasp with the first hand.
+    let p1 = ReachProblem::grasp(scene, &world, &q0, &task.robot, &task.first, &task.object)
+        .map_err(|e| tagged("grasp", e))?;
+    let mut planner =
+        IkRrt::new(p1.space.clone(), &p1.world, task.planner).map_err(|e| tagged("grasp", e))?;
+    let mut goals = p1.goals(task.grids.0.clone(), task.ik);
+    let r1 = planner
+        .plan(&p1.start, &mut goals, term, seed)
+        .map_err(|e| tagged("grasp", e))?;
+    let q1 = p1.space.to_world(r1.path.last().map_or(&p1.start, |v| v));
+    let held1 = p1.grasps[r1.goal_index];
+    let path: Vec<Vec<f64>> = r1.path.iter().map(|q| p1.space.to_world(q)).collect();
+    plan.append("grasp", "ik_rrt", path, r1.stats, &p1.world);
+    let name1 = &p1.grasp_names[r1.goal_index];
+    plan.event(
+        EventKind::Grasp,
+        &task.robot,
+        &p1.hand.end_effector,
+        &task.object,
+        name1,
+    );
+
+    // 2. Re-grasp to the second hand.
+    let p2 = HandOffProblem::new(
+        scene,
+        &world,
+        &q1,
+        (&task.robot, &task.first),
+        (&task.robot, &task.second),
+        &task.object,
+        held1,
+    )
+    .map_err(|e| tagged("regrasp", e))?;
+    let mut planner =
+        IkRrt::new(p2.space.clone(), &p2.world, task.planner).map_err(|e| tagged("regrasp", e))?;
+    let mut goals = p2.goals(task.grids.1.clone(), task.ik);
+    let r2 = planner
+        .plan(&p2.start, &mut goals, term, seed.wrapping_add(1))
+        .map_err(|e| tagged("regrasp", e))?;
+    let q2 = p2.space.to_world(r2.path.last().map_or(&p2.start, |v| v));
+    let held2 = p2.grasps[r2.goal_index];
+    let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
+    plan.append("regrasp", "dual_arm_ik_rrt", path, r2.stats, &p2.world);
+    let name2 = &p2.grasp_names[r2.goal_index];
+    plan.event(
+        EventKind::Grasp,
+        &task.robot,
+        &p2.receiver.end_effector,
+        &task.object,
+        name2,
+    );
+    plan.event(
+        EventKind::Release,
+        &task.robot,
+        &p2.giver.end_effector,
+        &task.object,
+        name1,
+    );
+
+    // 3. The first hand lets go and its arm (not the hip, which the second hand's chain shares)
+    //    returns to its joint values of the start configuration (RRT-Connect), the object held by
+    //    the second hand.
+    let hand1 = Hand::new(&world, &task.robot, &task.first).map_err(|e| tagged("retreat", e))?;
+    let hand2 = Hand::new(&world, &task.robot, &task.second).map_err(|e| tagged("retreat", e))?;
+    let mut w3 = world.clone();
+    attach_by_grasp(&mut w3, &hand2, &task.object, &held2, &q2)
+        .map_err(|e| tagged("retreat", e))?;
+    let off = w3.robots[hand1.robot].offset;
+    let arm_vars: Vec<usize> = hand1
+        .arm
+        .chain
+        .vars
+        .iter()
+        .filter(|v| !hand1.arm.free_vars.contains(v))
+        .map(|v| v + off)
+        .collect();
+    let space3 = JointSpace::new(&w3, &arm_vars, q2.clone()).map_err(|e| tagged("retreat", e))?;
+    let mut planner =
+        RrtConnect::new(space3.clone(), &w3, task.retreat).map_err(|e| tagged("retreat", e))?;
+    let r3 = planner
+        .plan(
+            &space3.from_world(&q2),
+            &[space3.from_world(&q0)],
+            term,
+            seed.wrapping_add(2),
+        )
+        .map_err(|e| tagged("retreat", e))?;
+    let q3 = space3.to_world(r3.path.last().map_or(&q2, |v| v));
+    let path: Vec<Vec<f64>> = r3.path.iter().map(|q| space3.to_world(q)).collect();
+    plan.append("retreat", "rrt_connect", path, r3.stats, &w3);
+
+    // 4. Place with the second hand.
+    let p4 = ReachProblem::place(&w3, &q3, hand2, &task.object, held2, &task.place_poses)
+        .map_err(|e| tagged("place", e))?;
+    let mut planner =
+        IkRrt::new(p4.space.clone(), &p4.world, task.planner).map_err(|e| tagged("place", e))?;
+    let mut goals = p4.goals(task.grids.1.clone(), task.ik);
+    let r4 = planner
+        .plan(&p4.start, &mut goals, term, seed.wrapping_add(3))
+        .map_err(|e| tagged("place", e))?;
+    let path: Vec<Vec<f64>> = r4.path.iter().map(|q| p4.space.to_world(q)).collect();
+    plan.append("place", "ik_rrt", path, r4.stats, &p4.world);
+    let place = p4.grasp_names[r4.goal_index].clone();
+    plan.event(
+        EventKind::Release,
+        &task.robot,
+        &p4.hand.end_effector,
+        &task.object,
+        &place,
+    );
+    plan.time = t0.elapsed();
+    Ok(plan)
+}
