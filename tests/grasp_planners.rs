@@ -264,3 +264,84 @@ fn kitchen_task_grasps_regrasps_and_places_the_wok() {
         assert_eq!(plan.events[3].waypoint, plan.waypoints.len() - 1);
     }
 }
+
+/// Checks a chained plan: starts at the scene's start, phases joined, every phase exactly free in
+/// the world it was planned in.
+fn check_task(s: &Scene, plan: &manyhands::planning::task::TaskPlan) {
+    assert_eq!(plan.waypoints[0], CollisionWorld::start_config(s));
+    for (k, ph) in plan.phases.iter().enumerate() {
+        if k > 0 {
+            assert_eq!(ph.first, plan.phases[k - 1].last, "phases are joined");
+        }
+        let seg = &plan.waypoints[ph.first..=ph.last];
+        let space = JointSpace::all(&ph.world, seg[0].clone()).expect("space");
+        assert_exactly_free(&ph.world, &space, seg);
+    }
+}
+
+#[test]
+fn hand_off_between_two_robots() {
+    use manyhands::planning::task::{regrasp_task, EventKind, RegraspTask};
+    let s = scene("handoff");
+    let task = RegraspTask {
+        giver: ("armar_a".into(), "torso_right_arm".into()),
+        receiver: ("armar_b".into(), "torso_left_arm".into()),
+        object: "wok".into(),
+        held: None,
+        grid: None,
+        planner: IkRrtSettings::default(),
+        ik: ik_settings(),
+    };
+    for seed in 0..3 {
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        let plan =
+            regrasp_task(&s, &task, &mut term, seed).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        eprintln!(
+            "hand-off seed {seed}: {:.1} ms, phases {:?}",
+            plan.time.as_secs_f64() * 1e3,
+            plan.phases
+                .iter()
+                .map(|p| p.name.as_str())
+                .collect::<Vec<_>>()
+        );
+        // The wok floats in front of armar_a, which grasps it first.
+        assert_eq!(plan.phases.len(), 2);
+        let ev: Vec<(EventKind, &str)> = plan
+            .events
+            .iter()
+            .map(|e| (e.kind, e.robot.as_str()))
+            .collect();
+        assert_eq!(
+            ev,
+            vec![
+                (EventKind::Grasp, "armar_a"),
+                (EventKind::Grasp, "armar_b"),
+                (EventKind::Release, "armar_a")
+            ]
+        );
+        check_task(&s, &plan);
+    }
+}
+
+#[test]
+fn regrasp_task_grasps_first_when_the_object_rests() {
+    use manyhands::planning::task::{regrasp_task, RegraspTask};
+    let s = scene("kitchen");
+    let mut task = RegraspTask {
+        giver: ("armar".into(), "torso_right_arm".into()),
+        receiver: ("armar".into(), "torso_left_arm".into()),
+        object: "wok".into(),
+        held: None,
+        grid: None,
+        planner: IkRrtSettings::default(),
+        ik: ik_settings(),
+    };
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+    let plan = regrasp_task(&s, &task, &mut term, 1).expect("regrasp");
+    assert_eq!(plan.phases.len(), 2);
+    assert_eq!(plan.events.len(), 3);
+    check_task(&s, &plan);
+    task.held = Some("no_such_grasp".into());
+    let e = regrasp_task(&s, &task, &mut Termination::new(), 1).expect_err("bad grasp name");
+    assert!(e.to_string().contains("no_such_grasp"), "{e}");
+}

@@ -8,6 +8,7 @@
 //! termination, seed) → result with statistics. [`mbm`] loads the MotionBenchMaker problem sets
 //! used as the outside benchmark.
 
+pub mod bimanual_ik_rrt;
 pub mod grasping;
 mod ik_rrt;
 pub mod mbm;

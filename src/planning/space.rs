@@ -115,6 +115,27 @@ impl JointSpace {
         Ok(self)
     }
 
+    /// Narrows the bounds of dimension `k` to `[lo, hi]` ∩ its joint limits (e.g. a mobile base's
+    /// x, y to the region of a task).
+    pub fn with_bounds(mut self, k: usize, lo: f64, hi: f64) -> Result<JointSpace, PlanError> {
+        if k >= self.dim() {
+            return Err(PlanError::InvalidInput(format!(
+                "dimension {k} of a {}-dimensional space",
+                self.dim()
+            )));
+        }
+        let (l, u) = (self.lower[k].max(lo), self.upper[k].min(hi));
+        if !(l.is_finite() && u.is_finite() && l <= u) {
+            return Err(PlanError::InvalidInput(format!(
+                "{}: bounds [{lo}, {hi}] do not meet the limits [{}, {}]",
+                self.names[k], self.lower[k], self.upper[k]
+            )));
+        }
+        self.lower[k] = l;
+        self.upper[k] = u;
+        Ok(self)
+    }
+
     /// Number of dimensions.
     #[inline]
     pub fn dim(&self) -> usize {

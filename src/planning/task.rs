@@ -23,6 +23,7 @@ use crate::collision::CollisionWorld;
 use crate::geometry::{iso_from_rpy, Pose};
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
+use crate::reachability::queries::grasp_set;
 use crate::reachability::ReachabilityGrid;
 
 /// What happens at a waypoint.
@@ -326,6 +327,159 @@ pub fn kitchen_task(
         &p4.hand.end_effector,
         &task.object,
         &place,
+    );
+    plan.time = t0.elapsed();
+    Ok(plan)
+}
+
+/// Parameters of [`regrasp_task`]: dual-arm re-grasping (000 §V, one robot's two hands) or a
+/// hand-off between two robots (000 §VI-D) — the same query with other chains.
+#[derive(Debug, Clone)]
+pub struct RegraspTask {
+    /// (robot instance, chain group) of the hand holding the object at the end of the grasp.
+    pub giver: (String, String),
+    /// (robot instance, chain group) of the hand that takes it.
+    pub receiver: (String, String),
+    pub object: String,
+    /// Name of the giver's grasp when the object is to be put into the giver's hand at the start
+    /// configuration. `None`: the object is already held when one of the giver's grasps matches
+    /// where it lies (within 5 mm / 0.01 rad), otherwise the giver grasps it first (IK-RRT).
+    pub held: Option<String>,
+    pub grid: Option<Arc<ReachabilityGrid>>,
+    pub planner: IkRrtSettings,
+    pub ik: RandomizedIkSettings,
+}
+
+/// The giver grasp (index into its grasp set) that holds `object` where it lies in `world` at
+/// `world_q`, if any (5 mm / 0.01 rad).
+pub fn grasp_holding(
+    scene: &Scene,
+    world: &CollisionWorld,
+    world_q: &[f64],
+    hand: &Hand,
+    object: &str,
+) -> Result<Option<usize>, PlanError> {
+    let set = grasp_set(scene, object, &hand.end_effector)
+        .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+    let pose = world
+        .statics
+        .iter()
+        .find(|s| s.name == object)
+        .map(|s| s.pose)
+        .ok_or_else(|| {
+            PlanError::InvalidInput(format!("'{object}' is not a free object of the scene"))
+        })?;
+    let tcp = hand.tcp_pose(world, world_q);
+    Ok(set.tcps.iter().position(|g| {
+        let o = tcp * g.inverse();
+        (o.translation.vector - pose.translation.vector).norm() < 0.005
+            && o.rotation.angle_to(&pose.rotation) < 0.01
+    }))
+}
+
+/// Re-grasp (or hand-off) from `scene`'s start configuration, see [`RegraspTask`]: an optional
+/// grasp phase (IK-RRT), then the hand-over (dual-arm IK-RRT, 000 §V-B). The plan's events: the
+/// giver's grasp (when planned), the receiver's grasp, the giver's release.
+pub fn regrasp_task(
+    scene: &Scene,
+    task: &RegraspTask,
+    term: &mut Termination,
+    seed: u64,
+) -> Result<TaskPlan, PlanError> {
+    let t0 = Instant::now();
+    let world = CollisionWorld::from_scene(scene);
+    let q0 = CollisionWorld::start_config(scene);
+    let mut plan = TaskPlan {
+        waypoints: vec![q0.clone()],
+        phases: Vec::new(),
+        events: Vec::new(),
+        time: Duration::ZERO,
+    };
+    let tagged = |phase: &str, e: PlanError| PlanError::InPhase {
+        phase: phase.into(),
+        source: Box::new(e),
+    };
+    let giver = Hand::new(&world, &task.giver.0, &task.giver.1)?;
+    let set = grasp_set(scene, &task.object, &giver.end_effector)
+        .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+    let (q1, held, held_name) = match &task.held {
+        Some(name) => {
+            let k = set.names.iter().position(|n| n == name).ok_or_else(|| {
+                PlanError::InvalidInput(format!(
+                    "held: '{name}' is not a grasp of '{}' for {}",
+                    task.object, giver.end_effector
+                ))
+            })?;
+            (q0.clone(), set.tcps[k], name.clone())
+        }
+        None => match grasp_holding(scene, &world, &q0, &giver, &task.object)? {
+            Some(k) => (q0.clone(), set.tcps[k], set.names[k].clone()),
+            None => {
+                let p1 = ReachProblem::grasp(
+                    scene,
+                    &world,
+                    &q0,
+                    &task.giver.0,
+                    &task.giver.1,
+                    &task.object,
+                )
+                .map_err(|e| tagged("grasp", e))?;
+                let mut planner = IkRrt::new(p1.space.clone(), &p1.world, task.planner)
+                    .map_err(|e| tagged("grasp", e))?;
+                let mut goals = p1.goals(task.grid.clone(), task.ik);
+                let r1 = planner
+                    .plan(&p1.start, &mut goals, term, seed)
+                    .map_err(|e| tagged("grasp", e))?;
+                let q1 = p1.space.to_world(r1.path.last().map_or(&p1.start, |v| v));
+                let path: Vec<Vec<f64>> = r1.path.iter().map(|q| p1.space.to_world(q)).collect();
+                plan.waypoints.clear();
+                plan.append("grasp", "ik_rrt", path, r1.stats, &p1.world);
+                let name = p1.grasp_names[r1.goal_index].clone();
+                plan.event(
+                    EventKind::Grasp,
+                    &task.giver.0,
+                    &giver.end_effector,
+                    &task.object,
+                    &name,
+                );
+                (q1, p1.grasps[r1.goal_index], name)
+            }
+        },
+    };
+    let p2 = HandOffProblem::new(
+        scene,
+        &world,
+        &q1,
+        (&task.giver.0, &task.giver.1),
+        (&task.receiver.0, &task.receiver.1),
+        &task.object,
+        held,
+    )
+    .map_err(|e| tagged("regrasp", e))?;
+    let mut planner =
+        IkRrt::new(p2.space.clone(), &p2.world, task.planner).map_err(|e| tagged("regrasp", e))?;
+    let mut goals = p2.goals(task.grid.clone(), task.ik);
+    let r2 = planner
+        .plan(&p2.start, &mut goals, term, seed.wrapping_add(1))
+        .map_err(|e| tagged("regrasp", e))?;
+    let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
+    if plan.phases.is_empty() {
+        plan.waypoints.clear();
+    }
+    plan.append("regrasp", "dual_arm_ik_rrt", path, r2.stats, &p2.world);
+    plan.event(
+        EventKind::Grasp,
+        &task.receiver.0,
+        &p2.receiver.end_effector,
+        &task.object,
+        &p2.grasp_names[r2.goal_index],
+    );
+    plan.event(
+        EventKind::Release,
+        &task.giver.0,
+        &p2.giver.end_effector,
+        &task.object,
+        &held_name,
     );
     plan.time = t0.elapsed();
     Ok(plan)
