@@ -6,6 +6,7 @@
 
 pub mod collision;
 pub mod geometry;
+pub mod grasp;
 pub mod kinematics;
 pub mod model;
 pub mod planning;

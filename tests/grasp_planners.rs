@@ -289,6 +289,7 @@ fn hand_off_between_two_robots() {
         object: "wok".into(),
         held: None,
         grid: None,
+        algorithm: Default::default(),
         planner: IkRrtSettings::default(),
         ik: ik_settings(),
     };
@@ -333,6 +334,7 @@ fn regrasp_task_grasps_first_when_the_object_rests() {
         object: "wok".into(),
         held: None,
         grid: None,
+        algorithm: Default::default(),
         planner: IkRrtSettings::default(),
         ik: ik_settings(),
     };

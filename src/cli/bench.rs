@@ -40,6 +40,9 @@ pub enum BenchCmd {
     /// Randomized IK (paper 000 Tables 1 and 2): 10-DoF hip + arm and dual-arm IK on the wok,
     /// with/without reachability, without/with obstacle.
     Ik(super::bench_ik::IkBenchArgs),
+    /// Grasp planners (paper 000 Tables 3–5, 002 Bimanual IK-RRT): N seeded runs per row,
+    /// without and with the obstacle, the paper's figure beside ours.
+    Planners(super::bench_planners::PlannersBenchArgs),
     /// MotionBenchMaker problem sets (Panda, Baxter) with RRT-Connect, paths verified exactly.
     Mbm(super::mbm::MbmArgs),
 }
@@ -57,6 +60,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         }
         BenchCmd::Mbm(a) => super::mbm::run(ctx, a)?,
         BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
+        BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
     }
     Ok(())
 }

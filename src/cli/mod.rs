@@ -2,9 +2,12 @@
 
 mod bench;
 mod bench_ik;
+mod bench_planners;
 mod commands;
+mod grasp;
 mod loadtest;
 mod mbm;
+mod plan;
 mod reach;
 mod serve;
 
@@ -51,10 +54,20 @@ pub enum Command {
         #[command(subcommand)]
         cmd: SceneCmd,
     },
+    /// Grasp quality: force closure and Ferrari–Canny ε of scene grasps or given contacts.
+    Grasp {
+        #[command(subcommand)]
+        cmd: grasp::GraspCmd,
+    },
     /// Reachability grids: build (with progress bar), info, SVG slice plot.
     Reach {
         #[command(subcommand)]
         cmd: reach::ReachCmd,
+    },
+    /// Grasp planning on a scene: reach (IK-RRT), regrasp / hand-off, the kitchen task, bimanual.
+    Plan {
+        #[command(subcommand)]
+        cmd: plan::PlanCmd,
     },
     /// Benchmarks (medians over many seeded runs).
     Bench {
@@ -105,9 +118,11 @@ pub fn run() -> Result<()> {
         Command::Scene {
             cmd: SceneCmd::RandomBoxes(a),
         } => commands::random_boxes(&ctx, a),
+        Command::Grasp { cmd } => grasp::run(&ctx, cmd),
         Command::Reach { cmd } => reach::run(&ctx, cmd),
         Command::Serve(a) => serve::run(&ctx, a),
         Command::Loadtest(a) => loadtest::run(&ctx, a),
         Command::Bench { cmd } => bench::run(&ctx, cmd),
+        Command::Plan { cmd } => plan::run(&ctx, cmd),
     }
 }

@@ -215,6 +215,36 @@ impl ArmChain {
     }
 }
 
+/// The analytic arm IK for `target` (arm-base frame) at up to `psi_samples` swivel angles evenly
+/// spaced from a random offset: the solutions (into `sols`) of the first ψ that has any; 0 when
+/// none has.
+#[inline]
+pub(crate) fn solve_psi<R: Rng + ?Sized>(
+    arm: &SrsArm,
+    target: &Pose,
+    psi_samples: u32,
+    sols: &mut [[f64; 7]; 8],
+    counters: &mut IkCounters,
+    rng: &mut R,
+) -> usize {
+    let k = psi_samples.max(1);
+    let psi0 = rng.random_range(-PI..PI);
+    counters.ik_calls += 1;
+    for i in 0..k {
+        let mut psi = psi0 + 2.0 * PI * i as f64 / k as f64;
+        if psi >= PI {
+            psi -= 2.0 * PI;
+        }
+        counters.psi_solves += 1;
+        let n = arm.solve(target, psi, sols);
+        if n > 0 {
+            counters.ik_solutions += n as u64;
+            return n;
+        }
+    }
+    0
+}
+
 /// One analytic arm-IK query: solves the arm for `target` (arm-base frame) at `psi_samples` swivel
 /// angles evenly spaced from a random offset, stopping at the first ψ with solutions, and hands
 /// each solution (random order) to `valid`; true when one was accepted (left in `q`).

@@ -11,6 +11,7 @@
 pub mod bimanual_ik_rrt;
 pub mod grasping;
 mod ik_rrt;
+pub mod j_plus_rrt;
 pub mod mbm;
 mod result;
 mod rrt_connect;
@@ -22,6 +23,7 @@ mod tree;
 mod validity;
 
 pub use ik_rrt::{GoalSampler, IkRrt, IkRrtSettings};
+pub use j_plus_rrt::{DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings};
 pub use result::{PlanError, PlanResult, PlanStats};
 pub use rrt_connect::{RrtConnect, RrtConnectSettings};
 pub use shortcut::{ShortcutSettings, ShortcutStats};

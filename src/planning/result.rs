@@ -45,6 +45,30 @@ pub struct PlanStats {
     pub jacobian_steps: u64,
 }
 
+impl PlanStats {
+    /// JSON with times in milliseconds (the form the CLI and the server print).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "time_ms": self.time.as_secs_f64() * 1e3,
+            "simplify_time_ms": self.simplify_time.as_secs_f64() * 1e3,
+            "iterations": self.iterations,
+            "start_tree_size": self.start_tree_size,
+            "goal_tree_size": self.goal_tree_size,
+            "collision_checks": self.collision_checks,
+            "segments_checked": self.segments_checked,
+            "length_raw": self.length_raw,
+            "length_simplified": self.length_simplified,
+            "vertices_raw": self.vertices_raw,
+            "vertices_simplified": self.vertices_simplified,
+            "ik_queries": self.ik_queries,
+            "ik_time_ms": self.ik_time.as_secs_f64() * 1e3,
+            "ik_solutions": self.ik_solutions,
+            "ik_calls": self.ik_calls,
+            "jacobian_steps": self.jacobian_steps,
+        })
+    }
+}
+
 /// A solved query: a collision-free path from the start to one of the goals.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanResult {
@@ -77,10 +101,10 @@ pub enum PlanError {
     #[error("stopped on request after {} iterations", .stats.iterations)]
     Stopped { stats: Box<PlanStats> },
     /// A phase of a chained task failed (see [`super::task`]).
-    #[error("{phase}: {source}")]
+    #[error("{phase}: {error}")]
     InPhase {
         phase: String,
-        source: Box<PlanError>,
+        error: Box<PlanError>,
     },
     /// The path found failed its final re-validation (a bug in a planner, never expected).
     #[error("path failed re-validation at segment {segment}")]
@@ -104,7 +128,7 @@ impl PlanError {
     /// The error itself, or the one inside a failed phase.
     pub fn root(&self) -> &PlanError {
         match self {
-            PlanError::InPhase { source, .. } => source.root(),
+            PlanError::InPhase { error, .. } => error.root(),
             e => e,
         }
     }
@@ -116,7 +140,7 @@ impl PlanError {
             | PlanError::IterationLimit { stats }
             | PlanError::Stopped { stats }
             | PlanError::PathInvalid { stats, .. } => Some(stats),
-            PlanError::InPhase { source, .. } => source.stats(),
+            PlanError::InPhase { error, .. } => error.stats(),
             _ => None,
         }
     }

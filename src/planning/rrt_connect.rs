@@ -308,28 +308,41 @@ pub(super) fn finish<C: SegmentChecker>(
     rng: &mut ChaCha8Rng,
     term: &mut Termination,
 ) -> Result<(Vec<Vec<f64>>, PlanStats), PlanError> {
-    let checked = if settings.revalidate {
-        validator.validate_path(&path)
-    } else {
-        Ok(())
-    };
-    stats.collision_checks = validator.checks() - checks0;
-    stats.segments_checked = validator.segments() - segments0;
-    if let Err(k) = checked {
-        stats.time = t0.elapsed();
-        return Err(PlanError::PathInvalid {
-            segment: k,
-            stats: Box::new(stats),
-        });
-    }
+    // The returned path is re-validated at the resolution: a simplified path by `simplify`
+    // (which restores the raw path if that fails); the raw path here when it is returned as is.
     stats.length_raw = validator.space().path_length(&path);
     stats.vertices_raw = path.len();
-    stats.time = t0.elapsed();
+    let mut must_check_raw = settings.revalidate;
     if let Some(sc) = settings.shortcut {
+        stats.time = t0.elapsed();
         let t1 = Instant::now();
-        simplify(validator, &mut path, &sc, rng, term);
+        let st = simplify(validator, &mut path, &sc, rng, term);
         stats.simplify_time = t1.elapsed();
+        // Shortcuts were validated and the result re-validated; a reverted (raw) path and a path
+        // too short to simplify are checked below.
+        must_check_raw &= st.reverted || st.checked_whole == 0;
     }
+    if must_check_raw {
+        let t2 = Instant::now();
+        let checked = validator.validate_path(&path);
+        if settings.shortcut.is_some() {
+            stats.simplify_time += t2.elapsed();
+        }
+        if let Err(k) = checked {
+            stats.collision_checks = validator.checks() - checks0;
+            stats.segments_checked = validator.segments() - segments0;
+            stats.time = t0.elapsed();
+            return Err(PlanError::PathInvalid {
+                segment: k,
+                stats: Box::new(stats),
+            });
+        }
+    }
+    if settings.shortcut.is_none() {
+        stats.time = t0.elapsed();
+    }
+    stats.collision_checks = validator.checks() - checks0;
+    stats.segments_checked = validator.segments() - segments0;
     stats.length_simplified = validator.space().path_length(&path);
     stats.vertices_simplified = path.len();
     Ok((path, stats))

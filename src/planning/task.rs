@@ -16,8 +16,8 @@ use serde::Serialize;
 
 use super::grasping::{attach_by_grasp, Hand, HandOffProblem, ReachProblem};
 use super::{
-    IkRrt, IkRrtSettings, JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings,
-    Termination,
+    DualArmJPlusRrt, IkRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError,
+    PlanResult, PlanStats, RrtConnect, RrtConnectSettings, Termination,
 };
 use crate::collision::CollisionWorld;
 use crate::geometry::{iso_from_rpy, Pose};
@@ -25,6 +25,96 @@ use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
 use crate::reachability::queries::grasp_set;
 use crate::reachability::ReachabilityGrid;
+
+/// Which of paper 000's grasp planners searches a grasp or re-grasp phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GraspAlgorithm {
+    /// IK-RRT (000 Alg. 3) / dual-arm IK-RRT (000 §V-B): goal tree fed by randomized IK.
+    #[default]
+    IkRrt,
+    /// J+-RRT (000 Alg. 1–2) / dual-arm J+-RRT (000 Alg. 4–5): no IK, Jacobian steps toward the
+    /// grasps, with [`JPlusRrtSettings::default`] and the IK-RRT settings' RRT part.
+    JPlusRrt,
+}
+
+impl GraspAlgorithm {
+    /// Parses `ik-rrt` / `ik_rrt` / `j-plus-rrt` / `j_plus_rrt`.
+    pub fn parse(s: &str) -> Option<GraspAlgorithm> {
+        match s.replace('-', "_").as_str() {
+            "ik_rrt" => Some(GraspAlgorithm::IkRrt),
+            "j_plus_rrt" | "jplus_rrt" => Some(GraspAlgorithm::JPlusRrt),
+            _ => None,
+        }
+    }
+
+    /// Phase planner name of a single-hand grasp.
+    fn reach_name(self) -> &'static str {
+        match self {
+            GraspAlgorithm::IkRrt => "ik_rrt",
+            GraspAlgorithm::JPlusRrt => "j_plus_rrt",
+        }
+    }
+
+    /// Phase planner name of a re-grasp.
+    fn regrasp_name(self) -> &'static str {
+        match self {
+            GraspAlgorithm::IkRrt => "dual_arm_ik_rrt",
+            GraspAlgorithm::JPlusRrt => "dual_arm_j_plus_rrt",
+        }
+    }
+
+    fn j_plus(planner: &IkRrtSettings) -> JPlusRrtSettings {
+        JPlusRrtSettings {
+            rrt: planner.rrt,
+            ..JPlusRrtSettings::default()
+        }
+    }
+
+    /// Plans a grasp of `p` with this algorithm.
+    pub fn plan_reach(
+        self,
+        p: &ReachProblem,
+        grid: Option<Arc<ReachabilityGrid>>,
+        planner: IkRrtSettings,
+        ik: RandomizedIkSettings,
+        term: &mut Termination,
+        seed: u64,
+    ) -> Result<PlanResult, PlanError> {
+        match self {
+            GraspAlgorithm::IkRrt => {
+                let mut rrt = IkRrt::new(p.space.clone(), &p.world, planner)?;
+                let mut goals = p.goals(grid, ik);
+                rrt.plan(&p.start, &mut goals, term, seed)
+            }
+            GraspAlgorithm::JPlusRrt => {
+                JPlusRrt::for_problem(p, Self::j_plus(&planner))?.plan(&p.start, term, seed)
+            }
+        }
+    }
+
+    /// Plans a re-grasp / hand-off of `h` with this algorithm.
+    pub fn plan_regrasp(
+        self,
+        h: &HandOffProblem,
+        grid: Option<Arc<ReachabilityGrid>>,
+        planner: IkRrtSettings,
+        ik: RandomizedIkSettings,
+        term: &mut Termination,
+        seed: u64,
+    ) -> Result<PlanResult, PlanError> {
+        match self {
+            GraspAlgorithm::IkRrt => {
+                let mut rrt = IkRrt::new(h.space.clone(), &h.world, planner)?;
+                let mut goals = h.goals(grid, ik);
+                rrt.plan(&h.start, &mut goals, term, seed)
+            }
+            GraspAlgorithm::JPlusRrt => {
+                DualArmJPlusRrt::for_problem(h, Self::j_plus(&planner))?.plan(&h.start, term, seed)
+            }
+        }
+    }
+}
 
 /// What happens at a waypoint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -215,7 +305,7 @@ pub fn kitchen_task(
     };
     let tagged = |phase: &str, e: PlanError| PlanError::InPhase {
         phase: phase.into(),
-        source: Box::new(e),
+        error: Box::new(e),
     };
 
     // 1. Grasp with the first hand.
@@ -277,30 +367,33 @@ pub fn kitchen_task(
         name1,
     );
 
-    // 3. The first hand lets go and its arm (not the hip, which the second hand's chain shares)
-    //    returns to its joint values of the start configuration (RRT-Connect), the object held by
-    //    the second hand.
+    // 3. The first hand lets go and its arm returns to its joint values of the start
+    //    configuration (RRT-Connect over the hip and both arms, the object held by the second
+    //    hand, so the object can move out of the opening hand's way; hip and second arm end
+    //    where they were).
     let hand1 = Hand::new(&world, &task.robot, &task.first).map_err(|e| tagged("retreat", e))?;
     let hand2 = Hand::new(&world, &task.robot, &task.second).map_err(|e| tagged("retreat", e))?;
     let mut w3 = world.clone();
     attach_by_grasp(&mut w3, &hand2, &task.object, &held2, &q2)
         .map_err(|e| tagged("retreat", e))?;
     let off = w3.robots[hand1.robot].offset;
-    let arm_vars: Vec<usize> = hand1
-        .arm
-        .chain
-        .vars
-        .iter()
-        .filter(|v| !hand1.arm.free_vars.contains(v))
-        .map(|v| v + off)
-        .collect();
-    let space3 = JointSpace::new(&w3, &arm_vars, q2.clone()).map_err(|e| tagged("retreat", e))?;
+    let mut vars = hand1.world_vars(&w3);
+    for v in hand2.world_vars(&w3) {
+        if !vars.contains(&v) {
+            vars.push(v);
+        }
+    }
+    let mut goal3 = q2.clone();
+    for v in hand1.arm.arm.vars() {
+        goal3[v + off] = q0[v + off];
+    }
+    let space3 = JointSpace::new(&w3, &vars, q2.clone()).map_err(|e| tagged("retreat", e))?;
     let mut planner =
         RrtConnect::new(space3.clone(), &w3, task.retreat).map_err(|e| tagged("retreat", e))?;
     let r3 = planner
         .plan(
             &space3.from_world(&q2),
-            &[space3.from_world(&q0)],
+            &[space3.from_world(&goal3)],
             term,
             seed.wrapping_add(2),
         )
@@ -346,6 +439,9 @@ pub struct RegraspTask {
     /// where it lies (within 5 mm / 0.01 rad), otherwise the giver grasps it first (IK-RRT).
     pub held: Option<String>,
     pub grid: Option<Arc<ReachabilityGrid>>,
+    /// Grasp and re-grasp planner.
+    pub algorithm: GraspAlgorithm,
+    /// IK-RRT settings (J+-RRT takes their RRT part).
     pub planner: IkRrtSettings,
     pub ik: RandomizedIkSettings,
 }
@@ -397,7 +493,7 @@ pub fn regrasp_task(
     };
     let tagged = |phase: &str, e: PlanError| PlanError::InPhase {
         phase: phase.into(),
-        source: Box::new(e),
+        error: Box::new(e),
     };
     let giver = Hand::new(&world, &task.giver.0, &task.giver.1)?;
     let set = grasp_set(scene, &task.object, &giver.end_effector)
@@ -424,16 +520,20 @@ pub fn regrasp_task(
                     &task.object,
                 )
                 .map_err(|e| tagged("grasp", e))?;
-                let mut planner = IkRrt::new(p1.space.clone(), &p1.world, task.planner)
-                    .map_err(|e| tagged("grasp", e))?;
-                let mut goals = p1.goals(task.grid.clone(), task.ik);
-                let r1 = planner
-                    .plan(&p1.start, &mut goals, term, seed)
+                let r1 = task
+                    .algorithm
+                    .plan_reach(&p1, task.grid.clone(), task.planner, task.ik, term, seed)
                     .map_err(|e| tagged("grasp", e))?;
                 let q1 = p1.space.to_world(r1.path.last().map_or(&p1.start, |v| v));
                 let path: Vec<Vec<f64>> = r1.path.iter().map(|q| p1.space.to_world(q)).collect();
                 plan.waypoints.clear();
-                plan.append("grasp", "ik_rrt", path, r1.stats, &p1.world);
+                plan.append(
+                    "grasp",
+                    task.algorithm.reach_name(),
+                    path,
+                    r1.stats,
+                    &p1.world,
+                );
                 let name = p1.grasp_names[r1.goal_index].clone();
                 plan.event(
                     EventKind::Grasp,
@@ -456,17 +556,28 @@ pub fn regrasp_task(
         held,
     )
     .map_err(|e| tagged("regrasp", e))?;
-    let mut planner =
-        IkRrt::new(p2.space.clone(), &p2.world, task.planner).map_err(|e| tagged("regrasp", e))?;
-    let mut goals = p2.goals(task.grid.clone(), task.ik);
-    let r2 = planner
-        .plan(&p2.start, &mut goals, term, seed.wrapping_add(1))
+    let r2 = task
+        .algorithm
+        .plan_regrasp(
+            &p2,
+            task.grid.clone(),
+            task.planner,
+            task.ik,
+            term,
+            seed.wrapping_add(1),
+        )
         .map_err(|e| tagged("regrasp", e))?;
     let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
     if plan.phases.is_empty() {
         plan.waypoints.clear();
     }
-    plan.append("regrasp", "dual_arm_ik_rrt", path, r2.stats, &p2.world);
+    plan.append(
+        "regrasp",
+        task.algorithm.regrasp_name(),
+        path,
+        r2.stats,
+        &p2.world,
+    );
     plan.event(
         EventKind::Grasp,
         &task.receiver.0,
@@ -480,6 +591,128 @@ pub fn regrasp_task(
         &p2.giver.end_effector,
         &task.object,
         &held_name,
+    );
+    plan.time = t0.elapsed();
+    Ok(plan)
+}
+
+/// Names of a world's configuration variables (`robot/joint`), in world order.
+pub fn world_variables(world: &CollisionWorld) -> Vec<String> {
+    world
+        .robots
+        .iter()
+        .flat_map(|p| {
+            (0..p.robot.dof()).map(move |v| format!("{}/{}", p.name, p.robot.var_name(v)))
+        })
+        .collect()
+}
+
+impl TaskPlan {
+    /// JSON of the plan: variable names, waypoints (world configurations), phases with their
+    /// statistics (ms), events and the total time.
+    pub fn to_json(&self, variables: &[String]) -> serde_json::Value {
+        serde_json::json!({
+            "variables": variables,
+            "waypoints": self.waypoints,
+            "phases": self.phases.iter().map(|p| serde_json::json!({
+                "name": p.name,
+                "planner": p.planner,
+                "first": p.first,
+                "last": p.last,
+                "stats": p.stats.to_json(),
+            })).collect::<Vec<_>>(),
+            "events": self.events,
+            "time_ms": self.time.as_secs_f64() * 1e3,
+        })
+    }
+
+    /// Sum of the phases' statistics' times (search + simplification), IK time included.
+    pub fn planning_time(&self) -> Duration {
+        self.phases
+            .iter()
+            .map(|p| p.stats.time + p.stats.simplify_time)
+            .sum()
+    }
+
+    /// Sum of the phases' IK times (000 Table 5's "IK solving").
+    pub fn ik_time(&self) -> Duration {
+        self.phases.iter().map(|p| p.stats.ik_time).sum()
+    }
+}
+
+/// A single grasp (000 §IV: IK-RRT or J+-RRT) from `scene`'s start as a one-phase plan ending
+/// in a grasp event.
+#[allow(clippy::too_many_arguments)]
+pub fn reach_task(
+    scene: &Scene,
+    robot: &str,
+    group: &str,
+    object: &str,
+    grid: Option<Arc<ReachabilityGrid>>,
+    algorithm: GraspAlgorithm,
+    planner: IkRrtSettings,
+    ik: RandomizedIkSettings,
+    term: &mut Termination,
+    seed: u64,
+) -> Result<TaskPlan, PlanError> {
+    let t0 = Instant::now();
+    let world = CollisionWorld::from_scene(scene);
+    let q0 = CollisionWorld::start_config(scene);
+    let p = ReachProblem::grasp(scene, &world, &q0, robot, group, object)?;
+    let r = algorithm.plan_reach(&p, grid, planner, ik, term, seed)?;
+    let mut plan = TaskPlan {
+        waypoints: Vec::new(),
+        phases: Vec::new(),
+        events: Vec::new(),
+        time: Duration::ZERO,
+    };
+    let path: Vec<Vec<f64>> = r.path.iter().map(|q| p.space.to_world(q)).collect();
+    plan.append("grasp", algorithm.reach_name(), path, r.stats, &p.world);
+    plan.event(
+        EventKind::Grasp,
+        robot,
+        &p.hand.end_effector,
+        object,
+        &p.grasp_names[r.goal_index],
+    );
+    plan.time = t0.elapsed();
+    Ok(plan)
+}
+
+/// Bimanual IK-RRT (002 Alg. 2) on a prepared problem as a one-phase plan ending in the two
+/// grasp events.
+pub fn bimanual_task(
+    p: &super::bimanual_ik_rrt::BimanualProblem,
+    planner: IkRrtSettings,
+    ik: RandomizedIkSettings,
+    term: &mut Termination,
+    seed: u64,
+) -> Result<TaskPlan, PlanError> {
+    let t0 = Instant::now();
+    let r = p.plan(planner, ik, term, seed)?;
+    let mut plan = TaskPlan {
+        waypoints: Vec::new(),
+        phases: Vec::new(),
+        events: Vec::new(),
+        time: Duration::ZERO,
+    };
+    let path: Vec<Vec<f64>> = r.path.iter().map(|q| p.space.to_world(q)).collect();
+    plan.append("grasp", "bimanual_ik_rrt", path, r.stats, &p.world);
+    let (l, rr) = p.decode(r.goal_index);
+    let robot = p.world.robots[p.left.robot].name.clone();
+    plan.event(
+        EventKind::Grasp,
+        &robot,
+        &p.left.end_effector,
+        &p.object,
+        &p.left_names[l],
+    );
+    plan.event(
+        EventKind::Grasp,
+        &robot,
+        &p.right.end_effector,
+        &p.object,
+        &p.right_names[rr],
     );
     plan.time = t0.elapsed();
     Ok(plan)

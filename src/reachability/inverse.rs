@@ -13,12 +13,15 @@
 use std::f64::consts::PI;
 
 use rand::Rng;
+use rayon::prelude::*;
 
 use super::grid::ReachabilityGrid;
 use crate::geometry::Pose;
 use crate::kinematics::dual_arm::DualArmIk;
 use crate::kinematics::link_pose;
-use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
+use crate::kinematics::randomized::{
+    solve_psi, IkCounters, RandomizedIkError, RandomizedIkSettings,
+};
 use crate::model::Robot;
 
 /// A 2-D map over base positions (x, y) and base yaw: per (cell, yaw bin) the best probability and
@@ -37,6 +40,18 @@ pub struct InverseMap {
 }
 
 impl InverseMap {
+    /// The layout (origin, cell, dims, yaw bins) without the data, for [`InverseMap::cell_pose`].
+    fn clone_layout(&self) -> InverseMap {
+        InverseMap {
+            origin: self.origin,
+            cell: self.cell,
+            dims: self.dims,
+            yaw_bins: self.yaw_bins,
+            value: Vec::new(),
+            grasps: Vec::new(),
+        }
+    }
+
     /// World (x, y) of a cell centre and the yaw of a bin.
     pub fn cell_pose(&self, ix: usize, iy: usize, iw: usize) -> (f64, f64, f64) {
         (
@@ -100,7 +115,6 @@ pub fn inverse_map(
     let n = ((2.0 * radius / cell).ceil() as usize).max(1);
     let yaw_bins = yaw_bins.max(1);
     let origin = [centre[0] - radius, centre[1] - radius];
-    let mut q = start.to_vec();
     let mut map = InverseMap {
         origin,
         cell,
@@ -109,23 +123,32 @@ pub fn inverse_map(
         value: vec![0.0; n * n * yaw_bins],
         grasps: vec![Vec::new(); n * n * yaw_bins],
     };
-    for ix in 0..n {
-        for iy in 0..n {
-            for iw in 0..yaw_bins {
-                let xyw = map.cell_pose(ix, iy, iw);
-                let inv =
-                    platform_pose(robot, robot_base, &mut q, base_vars, platform, xyw).inverse();
-                let k = (ix * n + iy) * yaw_bins + iw;
-                for (g, t) in targets.iter().enumerate() {
-                    let p = grid.probability(&(inv * t));
-                    if p > threshold {
-                        map.value[k] = map.value[k].max(p as f32);
-                        map.grasps[k].push(g as u16);
+    // Rows of cells in parallel (rayon); each row writes only its own slice, so the result does
+    // not depend on the thread count.
+    let row = n * yaw_bins;
+    let layout = map.clone_layout();
+    map.value
+        .par_chunks_mut(row)
+        .zip(map.grasps.par_chunks_mut(row))
+        .enumerate()
+        .for_each(|(ix, (values, lists))| {
+            let mut q = start.to_vec();
+            for iy in 0..n {
+                for iw in 0..yaw_bins {
+                    let xyw = layout.cell_pose(ix, iy, iw);
+                    let inv = platform_pose(robot, robot_base, &mut q, base_vars, platform, xyw)
+                        .inverse();
+                    let k = iy * yaw_bins + iw;
+                    for (g, t) in targets.iter().enumerate() {
+                        let p = grid.probability(&(inv * t));
+                        if p > threshold {
+                            values[k] = values[k].max(p as f32);
+                            lists[k].push(g as u16);
+                        }
                     }
                 }
             }
-        }
-    }
+        });
     Some(map)
 }
 
@@ -165,7 +188,7 @@ pub struct BasePlacement {
 
 /// IkDualArm (002 Alg. 1): sample a base pose (x, y within the cell, yaw within the bin) from the
 /// bimanual map with probability ∝ R_bi, sample the free (hip) joints, solve both arms
-/// analytically only for the grasps that cell lists (left `targets_left[g]`, right
+/// analytically (up to `settings.psi_samples` swivel angles each) only for the grasps that cell lists (left `targets_left[g]`, right
 /// `targets_right[g]`, world poses), and return the first collision-free combination.
 #[allow(clippy::too_many_arguments)]
 pub fn ik_dual_arm<R: Rng + ?Sized>(
@@ -223,10 +246,14 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
             let Some(tl) = targets_left.get(gl as usize) else {
                 continue;
             };
-            let psi = rng.random_range(-PI..PI);
-            c.ik_calls += 1;
-            c.psi_solves += 1;
-            let nl = ik.left().arm.solve(&(linv * tl), psi, &mut sols_l);
+            let nl = solve_psi(
+                &ik.left().arm,
+                &(linv * tl),
+                settings.psi_samples,
+                &mut sols_l,
+                &mut c,
+                rng,
+            );
             if nl == 0 {
                 continue;
             }
@@ -237,11 +264,14 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
                 let Some(tr) = targets_right.get(gr as usize) else {
                     continue;
                 };
-                let psi = rng.random_range(-PI..PI);
-                c.ik_calls += 1;
-                c.psi_solves += 1;
-                let nr = ik.right().arm.solve(&(rinv * tr), psi, &mut sols_r);
-                c.ik_solutions += nr as u64;
+                let nr = solve_psi(
+                    &ik.right().arm,
+                    &(rinv * tr),
+                    settings.psi_samples,
+                    &mut sols_r,
+                    &mut c,
+                    rng,
+                );
                 for s in &sols_r[..nr] {
                     ik.right().arm.to_config(s, &mut q);
                     c.collision_checks += 1;

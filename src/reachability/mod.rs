@@ -15,12 +15,14 @@
 //! Depends on `model`, `kinematics`, `collision` and `geometry`; it must not depend on planning or
 //! the server.
 
+pub mod cache;
 mod grid;
 pub mod inverse;
 pub mod queries;
 mod svg;
 mod validity;
 
+pub use cache::{GridCache, GridRecipe};
 pub use grid::{chain_hash, BuildStats, GridParams, ReachError, ReachabilityGrid, FORMAT_VERSION};
 pub use svg::{slice_svg, SliceAxes};
 pub use validity::{hand_links, GraspCheckers, ObjectPlacement};

@@ -9,6 +9,9 @@ use serde_json::Value;
 use utoipa::ToSchema;
 
 use super::error::ErrorDetail;
+pub use super::grasp_quality::{
+    GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,
+};
 
 /// `joint name → value` (radians or metres), applied on top of a base configuration.
 pub type ConfigMap = BTreeMap<String, f64>;
@@ -323,22 +326,212 @@ pub struct CollisionSweep {
     pub time_limit: Option<f64>,
 }
 
-/// `POST /v1/plans`: a problem, selected by `kind`. More kinds (IK-RRT, J+-RRT, regrasp,
-/// hand-off, bimanual, multi-robot) are added as the planners land.
+/// Settings shared by the grasp planners (IK-RRT family), as given in a request.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GraspPlanSettings {
+    pub time_limit: Option<f64>,
+    pub seed: Option<u64>,
+    pub p_ik: Option<f64>,
+    pub ik_tries: Option<u64>,
+    pub simplify: Option<bool>,
+}
+
+macro_rules! grasp_settings {
+    ($($t:ty),*) => {$(
+        impl $t {
+            pub fn settings(&self) -> GraspPlanSettings {
+                GraspPlanSettings {
+                    time_limit: self.time_limit,
+                    seed: self.seed,
+                    p_ik: self.p_ik,
+                    ik_tries: self.ik_tries,
+                    simplify: self.simplify,
+                }
+            }
+        }
+    )*};
+}
+grasp_settings!(ReachPlan, RegraspPlan, KitchenTaskPlan, BimanualPlan);
+
+/// `kind: reach` — grasp an object of the scene with one hand (IK-RRT, 000 Alg. 3, or J+-RRT,
+/// Alg. 1–2).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReachPlan {
+    pub scene: String,
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// Chain group from the free joints to the hand (e.g. `torso_right_arm`).
+    pub group: String,
+    pub object: String,
+    /// `ik_rrt` (default) or `j_plus_rrt`.
+    #[serde(default)]
+    pub planner: Option<GraspPlannerName>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// Grasp planner of a `reach` or `regrasp` job (paper 000).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum GraspPlannerName {
+    /// IK-RRT (Alg. 3) / dual-arm IK-RRT (§V-B).
+    #[default]
+    IkRrt,
+    /// J+-RRT (Alg. 1–2) / dual-arm J+-RRT (Alg. 4–5); `p_ik` and `ik_tries` do not apply.
+    JPlusRrt,
+}
+
+impl GraspPlannerName {
+    pub fn algorithm(self) -> crate::planning::task::GraspAlgorithm {
+        match self {
+            GraspPlannerName::IkRrt => crate::planning::task::GraspAlgorithm::IkRrt,
+            GraspPlannerName::JPlusRrt => crate::planning::task::GraspAlgorithm::JPlusRrt,
+        }
+    }
+}
+
+/// A hand: robot instance and chain group.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct HandRef {
+    pub robot: String,
+    pub group: String,
+}
+
+/// `kind: regrasp` — dual-arm re-grasping (000 §V) or a hand-off between two robots
+/// (000 §VI-D): the object goes from the giver's hand to the receiver's (grasped first when it
+/// rests on something).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RegraspPlan {
+    pub scene: String,
+    pub giver: HandRef,
+    pub receiver: HandRef,
+    pub object: String,
+    /// Giver grasp holding the object at the start (it is put into the hand there).
+    #[serde(default)]
+    pub held: Option<String>,
+    /// `ik_rrt` (default: IK-RRT grasp, dual-arm IK-RRT re-grasp) or `j_plus_rrt` (J+-RRT,
+    /// dual-arm J+-RRT).
+    #[serde(default)]
+    pub planner: Option<GraspPlannerName>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// `kind: kitchen_task` — paper 000's kitchen experiment (§VI-C) on a kitchen-like scene:
+/// `armar` grasps the wok with the right hand, re-grasps it to the left, moves the right arm
+/// away and places the wok on a shelf of the cabinet.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct KitchenTaskPlan {
+    pub scene: String,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// `kind: bimanual` — Bimanual IK-RRT (002 Alg. 2): platform + hip + both arms to a two-hand
+/// grasp of an object, goals from IkDualArm with base placement. The platform-frame
+/// reachability grids are built on first use and cached under the data folder.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BimanualPlan {
+    pub scene: String,
+    pub robot: String,
+    /// Left and right chain groups from the platform (default `torso_left_arm`,
+    /// `torso_right_arm`).
+    #[serde(default)]
+    pub left: Option<String>,
+    #[serde(default)]
+    pub right: Option<String>,
+    pub object: String,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// `POST /v1/plans`: a problem, selected by `kind`.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum PlanRequest {
     JointSpace(JointSpacePlan),
     CollisionSweep(CollisionSweep),
+    Reach(ReachPlan),
+    Regrasp(RegraspPlan),
+    KitchenTask(KitchenTaskPlan),
+    Bimanual(BimanualPlan),
 }
 
 impl PlanRequest {
-    pub const KINDS: [&'static str; 2] = ["joint_space", "collision_sweep"];
+    pub const KINDS: [&'static str; 6] = [
+        "joint_space",
+        "collision_sweep",
+        "reach",
+        "regrasp",
+        "kitchen_task",
+        "bimanual",
+    ];
 
     pub fn kind(&self) -> &'static str {
         match self {
             PlanRequest::JointSpace(_) => "joint_space",
             PlanRequest::CollisionSweep(_) => "collision_sweep",
+            PlanRequest::Reach(_) => "reach",
+            PlanRequest::Regrasp(_) => "regrasp",
+            PlanRequest::KitchenTask(_) => "kitchen_task",
+            PlanRequest::Bimanual(_) => "bimanual",
         }
     }
 }

@@ -2,6 +2,7 @@
 //! uploaded ones, validated on upload and persisted under `DATA_DIR/robots` and
 //! `DATA_DIR/scenes`.
 
+use crate::reachability::GridCache;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock, RwLock};
@@ -49,6 +50,7 @@ pub struct Catalog {
     scenes_dir: PathBuf,
     /// Serialises uploads and deletions (validation + files + maps).
     write: std::sync::Mutex<()>,
+    grids: Arc<GridCache>,
 }
 
 /// A name usable as a file stem: 1..=64 of `[A-Za-z0-9_.-]`, not starting with a dot.
@@ -210,7 +212,13 @@ impl Catalog {
             robots_dir: up_robots,
             scenes_dir: up_scenes,
             write: std::sync::Mutex::new(()),
+            grids: Arc::new(GridCache::new(Some(data_dir.join("reach")))),
         })
+    }
+
+    /// Reachability grids built on demand (Bimanual IK-RRT), kept under `<data-dir>/reach`.
+    pub fn grids(&self) -> Arc<GridCache> {
+        self.grids.clone()
     }
 
     pub fn robots(&self) -> Vec<(String, Arc<RobotEntry>)> {

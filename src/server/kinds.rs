@@ -18,10 +18,19 @@ use crate::planning::{
     JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, ShortcutSettings, Termination,
 };
 
-use super::api::{CollisionSweep, JointSpacePlan, PlanRequest};
+use super::api::{CollisionSweep, GraspPlanSettings, JointSpacePlan, PlanRequest};
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
 use super::queries::{apply_config, placement_base};
+use crate::kinematics::randomized::RandomizedIkSettings;
+use crate::model::Scene;
+use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use crate::planning::task::{
+    bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
+    KitchenTask, RegraspTask,
+};
+use crate::planning::IkRrtSettings;
+use crate::reachability::{GridCache, GridRecipe};
 
 /// Why a job did not succeed.
 #[derive(Debug, Clone)]
@@ -102,23 +111,15 @@ pub fn prepare(req: &PlanRequest, catalog: &Catalog, max_seconds: f64) -> ApiRes
     match req {
         PlanRequest::JointSpace(r) => prepare_joint_space(r, catalog, max_seconds),
         PlanRequest::CollisionSweep(r) => prepare_sweep(r, catalog, max_seconds),
+        PlanRequest::Reach(_)
+        | PlanRequest::Regrasp(_)
+        | PlanRequest::KitchenTask(_)
+        | PlanRequest::Bimanual(_) => prepare_grasp(req, catalog, max_seconds),
     }
 }
 
 fn stats_json(s: &PlanStats) -> Value {
-    json!({
-        "time_ms": s.time.as_secs_f64() * 1e3,
-        "simplify_time_ms": s.simplify_time.as_secs_f64() * 1e3,
-        "iterations": s.iterations,
-        "start_tree_size": s.start_tree_size,
-        "goal_tree_size": s.goal_tree_size,
-        "collision_checks": s.collision_checks,
-        "segments_checked": s.segments_checked,
-        "length_raw": s.length_raw,
-        "length_simplified": s.length_simplified,
-        "vertices_raw": s.vertices_raw,
-        "vertices_simplified": s.vertices_simplified,
-    })
+    s.to_json()
 }
 
 // ---------------------------------------------------------------- joint_space (RRT-Connect)
@@ -398,5 +399,254 @@ impl JobWork for SweepWork {
             }
         }
         Ok(summary(free, colliding, &pairs, truncated))
+    }
+}
+
+// ---------------------------------------------------------------- grasp planners (000, 002)
+
+/// Planner settings of a grasp request, validated.
+fn grasp_settings(
+    s: &GraspPlanSettings,
+    default_p_ik: f64,
+    max: f64,
+) -> ApiResult<(f64, u64, IkRrtSettings, RandomizedIkSettings)> {
+    let limit = time_limit(s.time_limit, max)?;
+    let p_ik = s.p_ik.unwrap_or(default_p_ik);
+    if !(0.0..=1.0).contains(&p_ik) {
+        return Err(ApiError::invalid(
+            "p_ik",
+            format!("{p_ik} is not a probability in [0, 1]"),
+        ));
+    }
+    let tries = s.ik_tries.unwrap_or(50);
+    if !(1..=100_000).contains(&tries) {
+        return Err(ApiError::invalid(
+            "ik_tries",
+            format!("{tries} is not within [1, 100000]"),
+        ));
+    }
+    let mut planner = IkRrtSettings {
+        p_ik,
+        ..IkRrtSettings::default()
+    };
+    if !s.simplify.unwrap_or(true) {
+        planner.rrt.shortcut = None;
+    }
+    let ik = RandomizedIkSettings {
+        max_tries: tries,
+        ..RandomizedIkSettings::default()
+    };
+    Ok((limit, s.seed.unwrap_or(1), planner, ik))
+}
+
+/// Checks that `robot` is an instance of `scene` whose model has chain group `group`.
+fn check_hand(scene: &Scene, robot: &str, group: &str, field: &str) -> ApiResult<()> {
+    let p = scene
+        .robots
+        .iter()
+        .find(|p| p.name == robot)
+        .ok_or_else(|| {
+            ApiError::invalid(
+                format!("{field}robot"),
+                format!("scene '{}' has no robot '{robot}'", scene.name),
+            )
+        })?;
+    if p.robot.group(group).and_then(|g| g.chain).is_none() {
+        return Err(ApiError::invalid(
+            format!("{field}group"),
+            format!(
+                "robot model '{}' has no chain group '{group}'",
+                p.robot.name
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn check_object(scene: &Scene, object: &str) -> ApiResult<()> {
+    if scene.object(object).is_none() {
+        return Err(ApiError::invalid(
+            "object",
+            format!("scene '{}' has no object '{object}'", scene.name),
+        ));
+    }
+    Ok(())
+}
+
+/// What a grasp job runs: a chained task of the planning library.
+enum GraspJob {
+    Reach {
+        robot: String,
+        group: String,
+        object: String,
+        algorithm: GraspAlgorithm,
+    },
+    Regrasp(RegraspTask),
+    Kitchen(KitchenTask),
+    Bimanual {
+        robot: String,
+        left: String,
+        right: String,
+        object: String,
+        grids: Arc<GridCache>,
+    },
+}
+
+struct GraspWork {
+    scene: Arc<Scene>,
+    job: GraspJob,
+    planner: IkRrtSettings,
+    ik: RandomizedIkSettings,
+    seed: u64,
+}
+
+fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
+    let (scene_name, settings, default_p_ik) = match req {
+        PlanRequest::Reach(r) => (&r.scene, r.settings(), 0.1),
+        PlanRequest::Regrasp(r) => (&r.scene, r.settings(), 0.1),
+        PlanRequest::KitchenTask(r) => (&r.scene, r.settings(), 0.1),
+        PlanRequest::Bimanual(r) => (&r.scene, r.settings(), 0.03),
+        _ => return Err(ApiError::invalid("kind", "not a grasp planner")),
+    };
+    let (limit, seed, planner, ik) = grasp_settings(&settings, default_p_ik, max)?;
+    let entry = catalog.scene(scene_name, "scene")?;
+    let scene = entry.scene.clone();
+    let job = match req {
+        PlanRequest::Reach(r) => {
+            check_hand(&scene, &r.robot, &r.group, "")?;
+            check_object(&scene, &r.object)?;
+            GraspJob::Reach {
+                robot: r.robot.clone(),
+                group: r.group.clone(),
+                object: r.object.clone(),
+                algorithm: r.planner.unwrap_or_default().algorithm(),
+            }
+        }
+        PlanRequest::Regrasp(r) => {
+            check_hand(&scene, &r.giver.robot, &r.giver.group, "giver.")?;
+            check_hand(&scene, &r.receiver.robot, &r.receiver.group, "receiver.")?;
+            check_object(&scene, &r.object)?;
+            GraspJob::Regrasp(RegraspTask {
+                giver: (r.giver.robot.clone(), r.giver.group.clone()),
+                receiver: (r.receiver.robot.clone(), r.receiver.group.clone()),
+                object: r.object.clone(),
+                held: r.held.clone(),
+                grid: None,
+                algorithm: r.planner.unwrap_or_default().algorithm(),
+                planner,
+                ik,
+            })
+        }
+        PlanRequest::KitchenTask(_) => {
+            let t = KitchenTask {
+                planner,
+                ik,
+                ..KitchenTask::armar_wok()
+            };
+            check_hand(&scene, &t.robot, &t.first, "")?;
+            check_hand(&scene, &t.robot, &t.second, "")?;
+            check_object(&scene, &t.object)?;
+            GraspJob::Kitchen(t)
+        }
+        PlanRequest::Bimanual(r) => {
+            let left = r.left.clone().unwrap_or_else(|| "torso_left_arm".into());
+            let right = r.right.clone().unwrap_or_else(|| "torso_right_arm".into());
+            check_hand(&scene, &r.robot, &left, "left.")?;
+            check_hand(&scene, &r.robot, &right, "right.")?;
+            check_object(&scene, &r.object)?;
+            GraspJob::Bimanual {
+                robot: r.robot.clone(),
+                left,
+                right,
+                object: r.object.clone(),
+                grids: catalog.grids(),
+            }
+        }
+        _ => return Err(ApiError::invalid("kind", "not a grasp planner")),
+    };
+    Ok(Prepared {
+        work: Box::new(GraspWork {
+            scene,
+            job,
+            planner,
+            ik,
+            seed,
+        }),
+        time_limit: limit,
+    })
+}
+
+impl JobWork for GraspWork {
+    fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
+        let w = *self;
+        let s = &*w.scene;
+        let mut term = ctx.termination();
+        let plan = match &w.job {
+            GraspJob::Reach {
+                robot,
+                group,
+                object,
+                algorithm,
+            } => {
+                ctx.progress(json!({"phase": "planning", "planner": algorithm}));
+                reach_task(
+                    s, robot, group, object, None, *algorithm, w.planner, w.ik, &mut term, w.seed,
+                )
+            }
+            GraspJob::Regrasp(t) => {
+                ctx.progress(json!({"phase": "planning", "planner": t.algorithm}));
+                regrasp_task(s, t, &mut term, w.seed)
+            }
+            GraspJob::Kitchen(t) => {
+                ctx.progress(json!({"phase": "planning", "planner": "kitchen_task"}));
+                kitchen_task(s, t, &mut term, w.seed)
+            }
+            GraspJob::Bimanual {
+                robot,
+                left,
+                right,
+                object,
+                grids,
+            } => {
+                ctx.progress(json!({"phase": "reachability grids"}));
+                let model = s
+                    .robots
+                    .iter()
+                    .find(|p| &p.name == robot)
+                    .map(|p| p.robot.clone())
+                    .ok_or_else(|| {
+                        plan_failure(PlanError::InvalidInput(format!("no robot '{robot}'")))
+                    })?;
+                let grid = |g: &str| {
+                    grids
+                        .get(&model, g, GridRecipe::default())
+                        .map_err(|e| plan_failure(PlanError::InvalidInput(e.to_string())))
+                };
+                let (gl, gr) = (grid(left)?, grid(right)?);
+                if ctx.stopped() {
+                    return Err(plan_failure(PlanError::stopped(
+                        crate::planning::StopReason::Requested,
+                        PlanStats::default(),
+                    )));
+                }
+                ctx.progress(json!({"phase": "planning", "planner": "bimanual_ik_rrt"}));
+                let world = CollisionWorld::from_scene(s);
+                let q0 = CollisionWorld::start_config(s);
+                BimanualProblem::new(
+                    s,
+                    &world,
+                    &q0,
+                    robot,
+                    (left, right),
+                    object,
+                    (&gl, &gr),
+                    BimanualSettings::default(),
+                )
+                .and_then(|p| bimanual_task(&p, w.planner, w.ik, &mut term, w.seed))
+            }
+        }
+        .map_err(plan_failure)?;
+        let vars = world_variables(&CollisionWorld::from_scene(s));
+        Ok(plan.to_json(&vars))
     }
 }

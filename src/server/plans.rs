@@ -84,6 +84,10 @@ pub fn parse_plan_request(v: Value) -> ApiResult<PlanRequest> {
     match kind.as_str() {
         "joint_space" => Ok(PlanRequest::JointSpace(de_kind(v)?)),
         "collision_sweep" => Ok(PlanRequest::CollisionSweep(de_kind(v)?)),
+        "reach" => Ok(PlanRequest::Reach(de_kind(v)?)),
+        "regrasp" => Ok(PlanRequest::Regrasp(de_kind(v)?)),
+        "kitchen_task" => Ok(PlanRequest::KitchenTask(de_kind(v)?)),
+        "bimanual" => Ok(PlanRequest::Bimanual(de_kind(v)?)),
         k => Err(ApiError::invalid(
             "kind",
             format!("unknown kind '{k}'; one of {:?}", PlanRequest::KINDS),

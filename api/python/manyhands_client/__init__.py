@@ -124,6 +124,13 @@ class Client:
     def check(self, scene: str, robots: Optional[List[Json]] = None) -> Json:
         return self._post("/v1/check", {"scene": scene, "robots": robots or []})
 
+    def grasp_quality(self, contacts: Optional[List[Json]] = None, **kw: Any) -> Json:
+        """POST /v1/grasp-quality: force closure, rank and Ferrari–Canny ε of ``contacts``
+        (``[{"point": [x, y, z], "normal": [x, y, z]}]``, inward normals; give ``centre=[x, y, z]``)
+        and/or of a scene object's grasps (``scene=..., object=..., grasps=[names]``); also
+        ``mu``, ``cone_edges``, ``lambda``, ``soft_finger``."""
+        return self._post("/v1/grasp-quality", {"contacts": contacts or [], **kw})
+
     # -- jobs -------------------------------------------------------------------------------
     def submit(self, request: Json, wait: Optional[float] = None) -> Json:
         """POST /v1/plans; returns the job (final when ``wait`` seconds sufficed)."""

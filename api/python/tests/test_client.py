@@ -34,6 +34,19 @@ class ClientTest(unittest.TestCase):
         self.assertGreater(ik["solutions_found"], 0)
         self.assertIn("collision", self.c.check("kitchen"))
 
+    def test_grasp_quality(self) -> None:
+        cube = [{"point": [0.5, 0, 0], "normal": [-1, 0, 0]}, {"point": [-0.5, 0, 0], "normal": [1, 0, 0]},
+                {"point": [0, 0.5, 0], "normal": [0, -1, 0]}, {"point": [0, -0.5, 0], "normal": [0, 1, 0]}]
+        q = self.c.grasp_quality(cube, centre=[0, 0, 0], **{"lambda": 1.0})
+        self.assertTrue(q["force_closure"])
+        self.assertAlmostEqual(q["epsilon"], 0.169650, places=5)
+        wok = self.c.grasp_quality(scene="kitchen", object="wok")
+        self.assertEqual(len(wok["grasps"]), 25)
+        with self.assertRaises(ApiError) as e:
+            self.c.grasp_quality(cube, centre=[0, 0, 0], cone_edges=2)
+        self.assertEqual(e.exception.status, 422)
+        self.assertEqual(e.exception.field, "cone_edges")
+
     def test_errors_name_the_field(self) -> None:
         with self.assertRaises(ApiError) as e:
             self.c.fk("armar", {"right_elbow": 4.2})

@@ -1,0 +1,412 @@
+//! `manyhands bench planners`: the shape of paper 000's Tables 3–5 (single-arm, dual-arm
+//! re-grasping, kitchen task) and 002's Bimanual IK-RRT on the shipped scenes — N seeded runs per
+//! row, without and with the obstacle; median, mean, p95 time, success rate, path length before
+//! and after pruning, collision checks; the paper's average beside ours. Times are wall time of
+//! the whole query (IK, search, pruning and re-validation); one thread.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Result};
+use clap::Args;
+use serde_json::json;
+
+use super::commands::Ctx;
+use manyhands::collision::CollisionWorld;
+use manyhands::geometry::Pose;
+use manyhands::kinematics::randomized::RandomizedIkSettings;
+use manyhands::model::Scene;
+use manyhands::planning::bimanual_ik_rrt::{paper_settings, BimanualProblem, BimanualSettings};
+use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::task::{kitchen_task, GraspAlgorithm, KitchenTask};
+use manyhands::planning::{IkRrt, IkRrtSettings, PlanError, PlanStats, Termination};
+use manyhands::reachability::{GridCache, GridRecipe};
+
+#[derive(Args, Debug)]
+pub struct PlannersBenchArgs {
+    /// Seeded runs per row.
+    #[arg(long, default_value_t = 100)]
+    pub runs: u64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Time limit of one run (s); a run that hits it counts as a failure.
+    #[arg(long, default_value_t = 10.0)]
+    pub time_limit: f64,
+    /// Only rows whose name contains this.
+    #[arg(long)]
+    pub only: Option<String>,
+    /// Folder caching the platform-frame reachability grids of the bimanual row.
+    #[arg(long, default_value = "data/reach")]
+    pub grid_dir: std::path::PathBuf,
+}
+
+/// One run's figures.
+struct Run {
+    ok: bool,
+    ms: f64,
+    ik_ms: f64,
+    len_raw: f64,
+    len: f64,
+    checks: u64,
+}
+
+impl Run {
+    fn from(t: Duration, r: Result<&[PlanStats], PlanError>) -> Run {
+        let ms = t.as_secs_f64() * 1e3;
+        match r {
+            Ok(stats) => Run {
+                ok: true,
+                ms,
+                ik_ms: stats.iter().map(|s| s.ik_time.as_secs_f64() * 1e3).sum(),
+                len_raw: stats.iter().map(|s| s.length_raw).sum(),
+                len: stats.iter().map(|s| s.length_simplified).sum(),
+                checks: stats.iter().map(|s| s.collision_checks).sum(),
+            },
+            Err(_) => Run {
+                ok: false,
+                ms,
+                ik_ms: 0.0,
+                len_raw: 0.0,
+                len: 0.0,
+                checks: 0,
+            },
+        }
+    }
+}
+
+struct Row {
+    name: String,
+    paper: &'static str,
+    target: &'static str,
+    runs: Vec<Run>,
+}
+
+fn pct(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[k.min(sorted.len() - 1)]
+}
+
+impl Row {
+    fn summary(&self) -> serde_json::Value {
+        let ok: Vec<&Run> = self.runs.iter().filter(|r| r.ok).collect();
+        let mut t: Vec<f64> = ok.iter().map(|r| r.ms).collect();
+        t.sort_by(f64::total_cmp);
+        let mut ik: Vec<f64> = ok.iter().map(|r| r.ik_ms).collect();
+        ik.sort_by(f64::total_cmp);
+        let mut checks: Vec<f64> = ok.iter().map(|r| r.checks as f64).collect();
+        checks.sort_by(f64::total_cmp);
+        let n = ok.len().max(1) as f64;
+        json!({
+            "row": self.name,
+            "runs": self.runs.len(),
+            "solved": ok.len(),
+            "median_ms": pct(&t, 0.5),
+            "mean_ms": t.iter().sum::<f64>() / n,
+            "p95_ms": pct(&t, 0.95),
+            "max_ms": t.last().copied().unwrap_or(f64::NAN),
+            "median_ik_ms": pct(&ik, 0.5),
+            "mean_length_raw": ok.iter().map(|r| r.len_raw).sum::<f64>() / n,
+            "mean_length_pruned": ok.iter().map(|r| r.len).sum::<f64>() / n,
+            "median_collision_checks": pct(&checks, 0.5),
+            "paper_avg": self.paper,
+            "target": self.target,
+        })
+    }
+}
+
+fn ik_settings() -> RandomizedIkSettings {
+    RandomizedIkSettings {
+        max_tries: 50,
+        ..RandomizedIkSettings::default()
+    }
+}
+
+fn term(limit: f64) -> Termination {
+    Termination::new().with_time_limit(Duration::from_secs_f64(limit))
+}
+
+fn reach_row(
+    s: &Scene,
+    algorithm: GraspAlgorithm,
+    name: &str,
+    paper: &'static str,
+    target: &'static str,
+    a: &PlannersBenchArgs,
+) -> Result<Row> {
+    let world = CollisionWorld::from_scene(s);
+    let q0 = CollisionWorld::start_config(s);
+    let mut runs = Vec::new();
+    for i in 0..a.runs {
+        let t = Instant::now();
+        let r =
+            ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok").and_then(|p| {
+                algorithm.plan_reach(
+                    &p,
+                    None,
+                    IkRrtSettings::default(),
+                    ik_settings(),
+                    &mut term(a.time_limit),
+                    a.seed + i,
+                )
+            });
+        runs.push(Run::from(
+            t.elapsed(),
+            r.as_ref()
+                .map(|r| std::slice::from_ref(&r.stats))
+                .map_err(Clone::clone),
+        ));
+    }
+    Ok(Row {
+        name: name.into(),
+        paper,
+        target,
+        runs,
+    })
+}
+
+/// The wok in the right hand (the grasp IK-RRT finds with seed 0), re-grasped to the left.
+fn regrasp_row(
+    s: &Scene,
+    algorithm: GraspAlgorithm,
+    name: &str,
+    paper: &'static str,
+    target: &'static str,
+    a: &PlannersBenchArgs,
+) -> Result<Row> {
+    let world = CollisionWorld::from_scene(s);
+    let q0 = CollisionWorld::start_config(s);
+    let p = ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok")?;
+    let mut rrt = IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default())?;
+    let mut goals = p.goals(None, ik_settings());
+    let r = rrt.plan(&p.start, &mut goals, &mut term(a.time_limit), 0)?;
+    let q1 = p
+        .space
+        .to_world(r.path.last().ok_or_else(|| anyhow!("empty grasp path"))?);
+    let held: Pose = p.grasps[r.goal_index];
+    let mut runs = Vec::new();
+    for i in 0..a.runs {
+        let t = Instant::now();
+        let r = HandOffProblem::new(
+            s,
+            &world,
+            &q1,
+            ("armar", "torso_right_arm"),
+            ("armar", "torso_left_arm"),
+            "wok",
+            held,
+        )
+        .and_then(|h| {
+            algorithm.plan_regrasp(
+                &h,
+                None,
+                IkRrtSettings::default(),
+                ik_settings(),
+                &mut term(a.time_limit),
+                a.seed + i,
+            )
+        });
+        runs.push(Run::from(
+            t.elapsed(),
+            r.as_ref()
+                .map(|r| std::slice::from_ref(&r.stats))
+                .map_err(Clone::clone),
+        ));
+    }
+    Ok(Row {
+        name: name.into(),
+        paper,
+        target,
+        runs,
+    })
+}
+
+fn kitchen_row(s: &Scene, a: &PlannersBenchArgs) -> Result<Row> {
+    let task = KitchenTask::armar_wok();
+    let mut runs = Vec::new();
+    for i in 0..a.runs {
+        let t = Instant::now();
+        let r = kitchen_task(s, &task, &mut term(a.time_limit), a.seed + i);
+        let stats: Result<Vec<PlanStats>, PlanError> =
+            r.map(|p| p.phases.iter().map(|ph| ph.stats.clone()).collect());
+        runs.push(Run::from(
+            t.elapsed(),
+            stats.as_deref().map_err(Clone::clone),
+        ));
+    }
+    Ok(Row {
+        name: "kitchen task complete (grasp, regrasp, retreat, place)".into(),
+        paper: "803 ms IK + 6 310 ms planning",
+        target: "≤ 50 ms",
+        runs,
+    })
+}
+
+fn bimanual_row(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<Row> {
+    let s = ctx.scene("kitchen")?;
+    let model = s
+        .robots
+        .first()
+        .ok_or_else(|| anyhow!("kitchen has no robot"))?
+        .robot
+        .clone();
+    let cache = GridCache::new(Some(a.grid_dir.clone()));
+    let gl: Arc<_> = cache.get(&model, "torso_left_arm", GridRecipe::default())?;
+    let gr: Arc<_> = cache.get(&model, "torso_right_arm", GridRecipe::default())?;
+    let world = CollisionWorld::from_scene(&s);
+    let q0 = CollisionWorld::start_config(&s);
+    let mut runs = Vec::new();
+    for i in 0..a.runs {
+        let t = Instant::now();
+        let r = BimanualProblem::new(
+            &s,
+            &world,
+            &q0,
+            "armar",
+            ("torso_left_arm", "torso_right_arm"),
+            "table",
+            (&gl, &gr),
+            BimanualSettings::default(),
+        )
+        .and_then(|p| {
+            p.plan(
+                paper_settings(),
+                ik_settings(),
+                &mut term(a.time_limit),
+                a.seed + i,
+            )
+        });
+        runs.push(Run::from(
+            t.elapsed(),
+            r.as_ref()
+                .map(|r| std::slice::from_ref(&r.stats))
+                .map_err(Clone::clone),
+        ));
+    }
+    Ok(Row {
+        name: "Bimanual IK-RRT, armar grasps the kitchen table (20 DoF, maps included)".into(),
+        paper: "002: no single-robot figure",
+        target: "≤ 20 ms",
+        runs,
+    })
+}
+
+pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
+    if !(1..=100_000).contains(&a.runs) {
+        return Err(anyhow!("runs: {} must be within [1, 100000]", a.runs));
+    }
+    if !(a.time_limit.is_finite() && a.time_limit > 0.0 && a.time_limit <= 600.0) {
+        return Err(anyhow!(
+            "time_limit: {} s must be within (0, 600]",
+            a.time_limit
+        ));
+    }
+    let want = |n: &str| a.only.as_deref().is_none_or(|o| n.contains(o));
+    let kitchen = ctx.scene("kitchen")?;
+    let obstacle = ctx.scene("obstacle")?;
+    let mut rows = Vec::new();
+    let mut add = |r: Result<Row>| -> Result<()> {
+        let r = r?;
+        if !ctx.json {
+            print_row(&r.summary());
+        }
+        rows.push(r);
+        Ok(())
+    };
+    if !ctx.json {
+        println!(
+            "{:<66} {:>7} {:>9} {:>9} {:>9} {:>8} {:>13} {:>8}  paper avg / target",
+            "planner (runs)",
+            "solved",
+            "median",
+            "mean",
+            "p95",
+            "IK med",
+            "length→pruned",
+            "checks"
+        );
+    }
+    use GraspAlgorithm::{IkRrt as Ik, JPlusRrt as JPlus};
+    let single = [
+        (
+            Ik,
+            "IK-RRT reach wok",
+            ["140 ms", "480 ms"],
+            ["≤ 1 ms", "≤ 5 ms"],
+        ),
+        (
+            JPlus,
+            "J+-RRT reach wok",
+            ["2 032 ms", "18 390 ms"],
+            ["≤ 20 ms", "≤ 200 ms"],
+        ),
+    ];
+    for (alg, label, paper, target) in single {
+        if want(label) {
+            for (k, (scene, what)) in [(&kitchen, "no obstacle"), (&obstacle, "obstacle")]
+                .into_iter()
+                .enumerate()
+            {
+                let name = format!("{label}, {what}");
+                add(reach_row(scene, alg, &name, paper[k], target[k], a))?;
+            }
+        }
+    }
+    let dual = [
+        (
+            Ik,
+            "dual-arm IK-RRT regrasp",
+            ["278 ms", "469 ms"],
+            ["≤ 5 ms", "≤ 5 ms"],
+        ),
+        (
+            JPlus,
+            "dual-arm J+-RRT regrasp",
+            ["1 662 ms", "5 192 ms"],
+            ["≤ 60 ms", "≤ 60 ms"],
+        ),
+    ];
+    for (alg, label, paper, target) in dual {
+        if want(label) {
+            for (k, (scene, what)) in [(&kitchen, "no obstacle"), (&obstacle, "obstacle")]
+                .into_iter()
+                .enumerate()
+            {
+                let name = format!("{label}, {what}");
+                add(regrasp_row(scene, alg, &name, paper[k], target[k], a))?;
+            }
+        }
+    }
+    if want("kitchen task") {
+        add(kitchen_row(&kitchen, a))?;
+    }
+    if want("Bimanual") {
+        add(bimanual_row(ctx, a))?;
+    }
+    if ctx.json {
+        let v: Vec<serde_json::Value> = rows.iter().map(Row::summary).collect();
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    }
+    Ok(())
+}
+
+fn print_row(v: &serde_json::Value) {
+    let f = |k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    println!(
+        "{:<66} {:>3}/{:<3} {:>6.2} ms {:>6.2} ms {:>6.2} ms {:>5.2} ms {:>6.2}→{:<6.2} {:>8.0}  {} / {}",
+        format!("{} ({})", v["row"].as_str().unwrap_or(""), v["runs"]),
+        v["solved"],
+        v["runs"],
+        f("median_ms"),
+        f("mean_ms"),
+        f("p95_ms"),
+        f("median_ik_ms"),
+        f("mean_length_raw"),
+        f("mean_length_pruned"),
+        f("median_collision_checks"),
+        v["paper_avg"].as_str().unwrap_or(""),
+        v["target"].as_str().unwrap_or(""),
+    );
+}

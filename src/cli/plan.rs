@@ -1,0 +1,309 @@
+//! `manyhands plan …`: the grasp planners of papers 000 and 002 on a scene, from its start
+//! configuration. Prints a summary (or, with `--json`, the whole plan: variables, waypoints,
+//! phases with statistics, grasp/release events).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Result};
+use clap::{Args, Subcommand};
+
+use super::commands::Ctx;
+use manyhands::collision::CollisionWorld;
+use manyhands::kinematics::randomized::RandomizedIkSettings;
+use manyhands::model::Scene;
+use manyhands::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use manyhands::planning::task::{
+    bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
+    KitchenTask, RegraspTask, TaskPlan,
+};
+use manyhands::planning::{IkRrtSettings, Termination};
+use manyhands::reachability::{GridCache, GridRecipe};
+
+/// Settings every planning command shares.
+#[derive(Args, Debug, Clone)]
+pub struct Common {
+    /// Random seed (same seed → same plan).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Time limit of the whole query (s).
+    #[arg(long, default_value_t = 10.0)]
+    pub time_limit: f64,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2 p_IK). Default: 0.1,
+    /// bimanual 0.03 (002 §VI).
+    #[arg(long)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query.
+    #[arg(long, default_value_t = 50)]
+    pub ik_tries: u64,
+    /// Skip path pruning (shortcutting).
+    #[arg(long)]
+    pub no_prune: bool,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum PlanCmd {
+    /// Grasp an object with one hand (IK-RRT, 000 Alg. 3, or J+-RRT, Alg. 1–2).
+    Reach {
+        #[arg(long, default_value = "kitchen")]
+        scene: String,
+        #[arg(long, default_value = "armar")]
+        robot: String,
+        /// Chain group from the free joints to the hand.
+        #[arg(long, default_value = "torso_right_arm")]
+        group: String,
+        #[arg(long, default_value = "wok")]
+        object: String,
+        /// ik-rrt or j-plus-rrt.
+        #[arg(long, default_value = "ik-rrt", value_parser = parse_algorithm)]
+        planner: GraspAlgorithm,
+        #[command(flatten)]
+        common: Common,
+    },
+    /// Dual-arm re-grasp (000 §V) or hand-off between two robots (000 §VI-D): the object goes
+    /// from the giver's hand to the receiver's (grasped first when it rests).
+    Regrasp {
+        #[arg(long, default_value = "kitchen")]
+        scene: String,
+        /// Giver as ROBOT:GROUP.
+        #[arg(long, default_value = "armar:torso_right_arm")]
+        giver: String,
+        /// Receiver as ROBOT:GROUP.
+        #[arg(long, default_value = "armar:torso_left_arm")]
+        receiver: String,
+        #[arg(long, default_value = "wok")]
+        object: String,
+        /// Giver grasp that holds the object at the start (it is put into the hand).
+        #[arg(long)]
+        held: Option<String>,
+        /// ik-rrt (dual-arm IK-RRT) or j-plus-rrt (dual-arm J+-RRT).
+        #[arg(long, default_value = "ik-rrt", value_parser = parse_algorithm)]
+        planner: GraspAlgorithm,
+        #[command(flatten)]
+        common: Common,
+    },
+    /// The kitchen task (000 §VI-C): grasp the wok with the right hand, re-grasp to the left,
+    /// move the right arm away, place the wok in the cabinet.
+    Kitchen {
+        #[arg(long, default_value = "kitchen")]
+        scene: String,
+        #[command(flatten)]
+        common: Common,
+    },
+    /// Bimanual IK-RRT (002 Alg. 2): platform + hip + both arms (20 DoF for ARMAR) to a two-hand
+    /// grasp, goals from IkDualArm with base placement.
+    Bimanual {
+        #[arg(long, default_value = "kitchen")]
+        scene: String,
+        #[arg(long, default_value = "armar")]
+        robot: String,
+        #[arg(long, default_value = "torso_left_arm")]
+        left: String,
+        #[arg(long, default_value = "torso_right_arm")]
+        right: String,
+        #[arg(long, default_value = "table")]
+        object: String,
+        /// Folder caching the platform-frame reachability grids (built on first use).
+        #[arg(long, default_value = "data/reach")]
+        grid_dir: PathBuf,
+        /// FK samples per grid when one is built.
+        #[arg(long, default_value_t = 400_000)]
+        grid_samples: u64,
+        #[command(flatten)]
+        common: Common,
+    },
+}
+
+fn parse_algorithm(s: &str) -> Result<GraspAlgorithm, String> {
+    GraspAlgorithm::parse(s).ok_or_else(|| format!("'{s}': expected ik-rrt or j-plus-rrt"))
+}
+
+fn split_hand(s: &str, what: &str) -> Result<(String, String)> {
+    let (r, g) = s
+        .split_once(':')
+        .ok_or_else(|| anyhow!("{what}: expected ROBOT:GROUP, got '{s}'"))?;
+    Ok((r.to_string(), g.to_string()))
+}
+
+fn settings(c: &Common, default_p_ik: f64) -> Result<(IkRrtSettings, RandomizedIkSettings)> {
+    let p_ik = c.p_ik.unwrap_or(default_p_ik);
+    if !(0.0..=1.0).contains(&p_ik) {
+        bail!("p_ik: {p_ik} must be within [0, 1]");
+    }
+    if !(1..=1_000_000).contains(&c.ik_tries) {
+        bail!("ik_tries: {} must be within [1, 1000000]", c.ik_tries);
+    }
+    let mut planner = IkRrtSettings {
+        p_ik,
+        ..IkRrtSettings::default()
+    };
+    if c.no_prune {
+        planner.rrt.shortcut = None;
+    }
+    let ik = RandomizedIkSettings {
+        max_tries: c.ik_tries,
+        ..RandomizedIkSettings::default()
+    };
+    Ok((planner, ik))
+}
+
+fn termination(c: &Common) -> Result<Termination> {
+    if !(c.time_limit.is_finite() && c.time_limit > 0.0 && c.time_limit <= 3600.0) {
+        bail!("time_limit: {} s must be within (0, 3600]", c.time_limit);
+    }
+    Ok(Termination::new().with_time_limit(Duration::from_secs_f64(c.time_limit)))
+}
+
+pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
+    let (scene, plan, extra): (Scene, TaskPlan, String) = match cmd {
+        PlanCmd::Reach {
+            scene,
+            robot,
+            group,
+            object,
+            planner: algorithm,
+            common,
+        } => {
+            let s = ctx.scene(scene)?;
+            let (planner, ik) = settings(common, 0.1)?;
+            let mut term = termination(common)?;
+            let plan = reach_task(
+                &s,
+                robot,
+                group,
+                object,
+                None,
+                *algorithm,
+                planner,
+                ik,
+                &mut term,
+                common.seed,
+            )?;
+            (s, plan, String::new())
+        }
+        PlanCmd::Regrasp {
+            scene,
+            giver,
+            receiver,
+            object,
+            held,
+            planner: algorithm,
+            common,
+        } => {
+            let s = ctx.scene(scene)?;
+            let (planner, ik) = settings(common, 0.1)?;
+            let task = RegraspTask {
+                giver: split_hand(giver, "giver")?,
+                receiver: split_hand(receiver, "receiver")?,
+                object: object.clone(),
+                held: held.clone(),
+                grid: None,
+                algorithm: *algorithm,
+                planner,
+                ik,
+            };
+            let mut term = termination(common)?;
+            let plan = regrasp_task(&s, &task, &mut term, common.seed)?;
+            (s, plan, String::new())
+        }
+        PlanCmd::Kitchen { scene, common } => {
+            let s = ctx.scene(scene)?;
+            let (planner, ik) = settings(common, 0.1)?;
+            let task = KitchenTask {
+                planner,
+                ik,
+                ..KitchenTask::armar_wok()
+            };
+            let mut term = termination(common)?;
+            let plan = kitchen_task(&s, &task, &mut term, common.seed)?;
+            (s, plan, String::new())
+        }
+        PlanCmd::Bimanual {
+            scene,
+            robot,
+            left,
+            right,
+            object,
+            grid_dir,
+            grid_samples,
+            common,
+        } => {
+            let s = ctx.scene(scene)?;
+            let (planner, ik) = settings(common, 0.03)?;
+            let model = s
+                .robots
+                .iter()
+                .find(|r| &r.name == robot)
+                .ok_or_else(|| anyhow!("robot: the scene has no robot '{robot}'"))?
+                .robot
+                .clone();
+            let cache = GridCache::new(Some(grid_dir.clone()));
+            let recipe = GridRecipe {
+                samples: *grid_samples,
+                ..GridRecipe::default()
+            };
+            let t = std::time::Instant::now();
+            let gl: Arc<_> = cache.get(&model, left, recipe)?;
+            let gr: Arc<_> = cache.get(&model, right, recipe)?;
+            let grids_s = t.elapsed().as_secs_f64();
+            let world = CollisionWorld::from_scene(&s);
+            let q0 = CollisionWorld::start_config(&s);
+            let p = BimanualProblem::new(
+                &s,
+                &world,
+                &q0,
+                robot,
+                (left, right),
+                object,
+                (&gl, &gr),
+                BimanualSettings::default(),
+            )?;
+            let mut term = termination(common)?;
+            let plan = bimanual_task(&p, planner, ik, &mut term, common.seed)?;
+            let extra = format!(
+                "grids {:.2} s (cached in {}), inverse maps + R_bi {:.1} ms\n",
+                grids_s,
+                grid_dir.display(),
+                p.map_time.as_secs_f64() * 1e3
+            );
+            (s, plan, extra)
+        }
+    };
+    let vars = world_variables(&CollisionWorld::from_scene(&scene));
+    ctx.print(&plan.to_json(&vars), || summary(&plan, &extra));
+    Ok(())
+}
+
+fn summary(plan: &TaskPlan, extra: &str) -> String {
+    let mut s = String::from(extra);
+    s += &format!(
+        "plan: {} waypoints, {:.2} ms in all ({:.2} ms IK)\n",
+        plan.waypoints.len(),
+        plan.time.as_secs_f64() * 1e3,
+        plan.ik_time().as_secs_f64() * 1e3
+    );
+    for p in &plan.phases {
+        s += &format!(
+            "  {:<8} {:<16} {:>8.2} ms + {:>6.2} ms pruning, {:>6} iterations, {:>3} IK solutions, {:>7} collision checks, length {:.3} → {:.3}, waypoints {}..{}\n",
+            p.name,
+            p.planner,
+            p.stats.time.as_secs_f64() * 1e3,
+            p.stats.simplify_time.as_secs_f64() * 1e3,
+            p.stats.iterations,
+            p.stats.ik_solutions,
+            p.stats.collision_checks,
+            p.stats.length_raw,
+            p.stats.length_simplified,
+            p.first,
+            p.last
+        );
+    }
+    for e in &plan.events {
+        s += &format!(
+            "  at {:>3}: {:?} {} {} {} ({})\n",
+            e.waypoint, e.kind, e.robot, e.end_effector, e.object, e.grasp
+        );
+    }
+    s.trim_end().to_string()
+}

@@ -1,0 +1,239 @@
+//! J+-RRT (paper 000 §IV-B, Alg. 1–2) and dual-arm J+-RRT (000 §V-A, Alg. 4–5) on the shipped
+//! kitchen scenes. Every returned path is checked independently of the planner, as in
+//! tests/grasp_planners.rs: it starts at the start, its last state reaches a grasp (FK within
+//! 1e-6), it stays within joint limits, and the exact (parry) checker finds it collision-free at
+//! 5 mm / 0.5° — held object included.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};
+use manyhands::geometry::Pose;
+use manyhands::kinematics::randomized::RandomizedIkSettings;
+use manyhands::model::{load_robot_dir, Scene};
+use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::{
+    DualArmJPlusRrt, IkRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError,
+    PlanResult, Termination,
+};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scene(name: &str) -> Scene {
+    let lib = load_robot_dir(&root().join("robots")).expect("robots");
+    Scene::from_file(&root().join("scenes").join(format!("{name}.json")), &lib).expect("scene")
+}
+
+/// Exact re-check of a path (space coordinates) in `world` at 5 mm / 0.5°, and joint limits.
+fn assert_exactly_free(world: &CollisionWorld, space: &JointSpace, path: &[Vec<f64>]) {
+    for (k, q) in path.iter().enumerate() {
+        assert!(
+            space.bounds_violation(q).is_none(),
+            "state {k}: {:?}",
+            space.bounds_violation(q)
+        );
+    }
+    let wpath: Vec<Vec<f64>> = path.iter().map(|q| space.to_world(q)).collect();
+    let mut mv = MotionValidator::new(world, ExactChecker::new(world), 0.5f64.to_radians(), 0.005);
+    assert!(
+        mv.is_path_valid(&wpath),
+        "path not collision-free under the exact checker"
+    );
+}
+
+fn pose_close(a: &Pose, b: &Pose, tol: f64) -> bool {
+    (a.translation.vector - b.translation.vector).norm() < tol
+        && a.rotation.angle_to(&b.rotation) < tol
+}
+
+fn check_reach(p: &ReachProblem, r: &PlanResult) {
+    assert_eq!(r.path[0], p.start, "path must start at the start");
+    let last = r.path.last().expect("non-empty path");
+    let wq = p.space.to_world(last);
+    let tcp = p.hand.tcp_pose(&p.world, &wq);
+    let target = p.object_pose * p.grasps[r.goal_index];
+    assert!(
+        pose_close(&tcp, &target, 1e-6),
+        "last state does not reach grasp {}: {tcp:?} vs {target:?}",
+        r.goal_index
+    );
+    assert_exactly_free(&p.world, &p.space, &r.path);
+}
+
+fn reach_problem(scene_name: &str) -> ReachProblem {
+    let s = scene(scene_name);
+    let world = CollisionWorld::from_scene(&s);
+    let wq = CollisionWorld::start_config(&s);
+    ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("problem")
+}
+
+fn report(what: &str, ms: f64, r: &PlanResult) {
+    eprintln!(
+        "{what}: {ms:.1} ms, {} iterations, tree {}, {} Jacobian steps, {} checks, grasp {}, \
+         {} → {} vertices",
+        r.stats.iterations,
+        r.stats.start_tree_size,
+        r.stats.jacobian_steps,
+        r.stats.collision_checks,
+        r.goal_index,
+        r.stats.vertices_raw,
+        r.stats.vertices_simplified
+    );
+}
+
+#[test]
+fn j_plus_rrt_reaches_the_wok_with_and_without_obstacle() {
+    for scene_name in ["kitchen", "obstacle"] {
+        let p = reach_problem(scene_name);
+        let mut planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
+        for seed in 0..3 {
+            let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+            let t = Instant::now();
+            let r = planner
+                .plan(&p.start, &mut term, seed)
+                .unwrap_or_else(|e| panic!("{scene_name} seed {seed}: {e}"));
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            report(&format!("J+ {scene_name} seed {seed}"), ms, &r);
+            assert!(r.stats.jacobian_steps > 0);
+            assert_eq!(r.stats.start_tree_size, r.stats.start_tree_size.max(1));
+            check_reach(&p, &r);
+        }
+    }
+}
+
+#[test]
+fn j_plus_rrt_is_deterministic_per_seed() {
+    let p = reach_problem("kitchen");
+    let mut planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
+    let mut run = |seed| {
+        planner
+            .plan(&p.start, &mut Termination::new(), seed)
+            .expect("solved")
+    };
+    let (a, b) = (run(7), run(7));
+    assert_eq!(a.path, b.path);
+    assert_eq!(a.goal_index, b.goal_index);
+    assert_eq!(a.stats.iterations, b.stats.iterations);
+    assert_eq!(a.stats.jacobian_steps, b.stats.jacobian_steps);
+    assert_eq!(a.stats.start_tree_size, b.stats.start_tree_size);
+}
+
+#[test]
+fn j_plus_rrt_fails_cleanly_for_an_unreachable_object() {
+    let s = scene("kitchen");
+    let mut world = CollisionWorld::from_scene(&s);
+    // Move the wok 3 m away from the robot: no grasp is reachable.
+    let wi = world
+        .statics
+        .iter()
+        .position(|b| b.name == "wok")
+        .expect("wok");
+    world.statics[wi].pose.translation.vector.y += 3.0;
+    let wq = CollisionWorld::start_config(&s);
+    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
+    let mut planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
+    let limit = Duration::from_millis(200);
+    let mut term = Termination::new().with_time_limit(limit);
+    let t = Instant::now();
+    let r = planner.plan(&p.start, &mut term, 1);
+    let el = t.elapsed();
+    assert!(matches!(r, Err(PlanError::Timeout { .. })), "{r:?}");
+    assert!(el < limit + Duration::from_millis(10), "{el:?}");
+    let stats = r.err().and_then(|e| e.stats().cloned()).expect("stats");
+    assert!(
+        stats.iterations > 0 && stats.jacobian_steps > 0,
+        "{stats:?}"
+    );
+}
+
+#[test]
+fn j_plus_rrt_rejects_bad_input() {
+    let p = reach_problem("kitchen");
+    let bad = JPlusRrtSettings {
+        p_extend_to_goal: 0.0,
+        ..JPlusRrtSettings::default()
+    };
+    assert!(matches!(
+        JPlusRrt::for_problem(&p, bad),
+        Err(PlanError::InvalidInput(_))
+    ));
+    let mut planner = JPlusRrt::new(
+        p.space.clone(),
+        &p.world,
+        &p.hand,
+        Vec::new(),
+        JPlusRrtSettings::default(),
+    )
+    .expect("planner");
+    let r = planner.plan(&p.start, &mut Termination::new(), 0);
+    assert!(
+        matches!(r, Err(PlanError::InvalidGoal { count: 0, .. })),
+        "{r:?}"
+    );
+    let mut planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
+    let short = &p.start[..3];
+    let r = planner.plan(short, &mut Termination::new(), 0);
+    assert!(matches!(r, Err(PlanError::InvalidStart { .. })), "{r:?}");
+}
+
+#[test]
+fn dual_arm_j_plus_rrt_regrasps_the_wok() {
+    let s = scene("kitchen");
+    let world = CollisionWorld::from_scene(&s);
+    let wq = CollisionWorld::start_config(&s);
+    // First grasp the wok with the right hand (IK-RRT), then re-grasp it with the left (J+).
+    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
+    let mut planner =
+        IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default()).expect("planner");
+    let ik = RandomizedIkSettings {
+        max_tries: 50,
+        ..RandomizedIkSettings::default()
+    };
+    let mut goals = p.goals(None, ik);
+    let r = planner
+        .plan(&p.start, &mut goals, &mut Termination::new(), 3)
+        .expect("grasp");
+    let wq2 = p.space.to_world(r.path.last().expect("path"));
+    let h = HandOffProblem::new(
+        &s,
+        &world,
+        &wq2,
+        ("armar", "torso_right_arm"),
+        ("armar", "torso_left_arm"),
+        "wok",
+        p.grasps[r.goal_index],
+    )
+    .expect("hand-off problem");
+    let mut planner =
+        DualArmJPlusRrt::for_problem(&h, JPlusRrtSettings::default()).expect("planner");
+    let mut first = None;
+    for seed in 0..2 {
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        let t = Instant::now();
+        let r = planner
+            .plan(&h.start, &mut term, seed)
+            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        report(&format!("dual-arm J+ seed {seed}"), ms, &r);
+        assert_eq!(r.path[0], h.start);
+        let last = h.space.to_world(r.path.last().expect("path"));
+        let obj = h.giver.tcp_pose(&h.world, &last) * h.held.inverse();
+        let tcp = h.receiver.tcp_pose(&h.world, &last);
+        assert!(
+            pose_close(&tcp, &(obj * h.grasps[r.goal_index]), 1e-6),
+            "seed {seed}: the receiver does not reach grasp {}",
+            r.goal_index
+        );
+        assert_exactly_free(&h.world, &h.space, &r.path);
+        first.get_or_insert(r);
+    }
+    // Same seed, same path.
+    let a = first.expect("seed 0");
+    let b = planner
+        .plan(&h.start, &mut Termination::new(), 0)
+        .expect("b");
+    assert_eq!(a.path, b.path);
+    assert_eq!(a.goal_index, b.goal_index);
+}
