@@ -120,6 +120,24 @@ async fn grasp_planners_over_http() {
         .sqrt();
     assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
 
+    // The same query with J+-RRT (000 Alg. 1–2): no IK solutions, Jacobian steps instead.
+    let mut jreq = req.clone();
+    jreq["planner"] = json!("j_plus_rrt");
+    jreq["seed"] = json!(2);
+    let (s, v) = h.post("/v1/plans?wait=60", &jreq).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    let r = &v["result"];
+    assert_eq!(r["phases"][0]["planner"], "j_plus_rrt", "{r}");
+    assert_eq!(r["events"][0]["kind"], "grasp");
+    assert!(
+        r["phases"][0]["stats"]["jacobian_steps"]
+            .as_u64()
+            .unwrap_or(0)
+            >= 1,
+        "{r}"
+    );
+
     // regrasp (hand-off between two robots), kitchen task, bimanual.
     let req = json!({"kind": "regrasp", "scene": "handoff",
         "giver": {"robot": "armar_a", "group": "torso_right_arm"},
@@ -171,6 +189,7 @@ async fn grasp_plan_requests_name_their_bad_field() {
         ("p_ik", json!(1.5), "p_ik"),
         ("ik_tries", json!(0), "ik_tries"),
         ("time_limit", json!(-2), "time_limit"),
+        ("planner", json!("prm"), "planner"),
     ] {
         let mut b = base.clone();
         b[key] = val;
