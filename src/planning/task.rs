@@ -369,8 +369,7 @@ pub fn kitchen_task(
 
     // 3. The first hand lets go and its arm returns to its joint values of the start
     //    configuration (RRT-Connect over the hip and both arms, the object held by the second
-    //    hand, so the object can move out of the opening hand's way; hip and second arm end
-    //    where they were).
+    //    hand, so the object can move out of the opening hand's way).
     let hand1 = Hand::new(&world, &task.robot, &task.first).map_err(|e| tagged("retreat", e))?;
     let hand2 = Hand::new(&world, &task.robot, &task.second).map_err(|e| tagged("retreat", e))?;
     let mut w3 = world.clone();
@@ -383,20 +382,30 @@ pub fn kitchen_task(
             vars.push(v);
         }
     }
-    let mut goal3 = q2.clone();
-    for v in hand1.arm.arm.vars() {
-        goal3[v + off] = q0[v + off];
-    }
+    // Goal candidates (RRT-Connect takes the valid ones as a goal set): the first arm at its
+    // start joint values with the hip where it is; the same with the hip back at its start values
+    // (when the turned hip puts the returned arm into the counter); and also the second arm back
+    // at its start values.
+    let arm1: Vec<usize> = hand1.arm.arm.vars().iter().map(|v| v + off).collect();
+    let arm2: Vec<usize> = hand2.arm.arm.vars().iter().map(|v| v + off).collect();
+    let hip: Vec<usize> = vars
+        .iter()
+        .copied()
+        .filter(|v| !arm1.contains(v) && !arm2.contains(v))
+        .collect();
     let space3 = JointSpace::new(&w3, &vars, q2.clone()).map_err(|e| tagged("retreat", e))?;
+    let mut goals3: Vec<Vec<f64>> = Vec::new();
+    let mut g = q2.clone();
+    for reset in [&arm1[..], &hip[..], &arm2[..]] {
+        for &v in reset {
+            g[v] = q0[v];
+        }
+        goals3.push(space3.from_world(&g));
+    }
     let mut planner =
         RrtConnect::new(space3.clone(), &w3, task.retreat).map_err(|e| tagged("retreat", e))?;
     let r3 = planner
-        .plan(
-            &space3.from_world(&q2),
-            &[space3.from_world(&goal3)],
-            term,
-            seed.wrapping_add(2),
-        )
+        .plan(&space3.from_world(&q2), &goals3, term, seed.wrapping_add(2))
         .map_err(|e| tagged("retreat", e))?;
     let q3 = space3.to_world(r3.path.last().map_or(&q2, |v| v));
     let path: Vec<Vec<f64>> = r3.path.iter().map(|q| space3.to_world(q)).collect();
