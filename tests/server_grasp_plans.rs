@@ -223,3 +223,58 @@ async fn grasp_plan_requests_name_their_bad_field() {
         "{v}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn randomized_grasp_ik_over_http() {
+    let h = start("ik").await;
+    let req = json!({"scene": "kitchen", "robot": "armar", "group": "torso_right_arm",
+        "object": "wok", "seed": 5});
+    let (s, v) = h.post("/v1/ik/grasp", &req).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["found"], true, "{v}");
+    assert!(
+        v["grasp"].as_str().unwrap_or("").starts_with("wok_r"),
+        "{v}"
+    );
+    assert_eq!(v["joints"].as_array().map(|j| j.len()), Some(10), "{v}");
+    assert_eq!(v["solution"].as_array().map(|j| j.len()), Some(10), "{v}");
+    assert!(v["tries"].as_u64().unwrap_or(0) >= 1 && v["ik_calls"].as_u64().unwrap_or(0) >= 1);
+    // Same request and seed, same answer.
+    let (_, v2) = h.post("/v1/ik/grasp", &req).await;
+    assert_eq!(v2["solution"], v["solution"]);
+    assert_eq!(v2["grasp"], v["grasp"]);
+    // The hand is at the wok.
+    let (s, fk) = h
+        .post(
+            "/v1/fk",
+            &json!({"robot": "armar", "config": v["config"], "links": ["right_tcp"]}),
+        )
+        .await;
+    assert_eq!(s, StatusCode::OK, "{fk}");
+    let p = &fk["links"][0]["pose"]["position"];
+    let d = [0.65, -0.2, 0.9]
+        .iter()
+        .enumerate()
+        .map(|(k, w)| (p[k].as_f64().unwrap_or(f64::NAN) - w).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
+    // Bad fields are named.
+    for (key, val, want) in [
+        ("robot", json!("robbie"), "robot"),
+        ("group", json!("right_hand"), "group"),
+        ("object", json!("spoon"), "object"),
+        ("max_tries", json!(0), "max_tries"),
+        ("psi_samples", json!(100000), "psi_samples"),
+    ] {
+        let mut b = req.clone();
+        b[key] = val;
+        let (s, v) = h.post("/v1/ik/grasp", &b).await;
+        assert!(s.is_client_error(), "{key}: {s} {v}");
+        assert_eq!(field(&v), want, "{v}");
+    }
+    let mut b = req.clone();
+    b["scene"] = json!("attic");
+    let (s, _) = h.post("/v1/ik/grasp", &b).await;
+    assert_eq!(s, StatusCode::NOT_FOUND);
+}

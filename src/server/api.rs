@@ -9,6 +9,7 @@ use serde_json::Value;
 use utoipa::ToSchema;
 
 use super::error::ErrorDetail;
+pub use super::grasp_ik::{GraspIkRequest, GraspIkResponse};
 pub use super::grasp_quality::{
     GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,
 };

@@ -15,6 +15,7 @@ pub mod api;
 pub mod catalog;
 pub mod error;
 pub mod extract;
+pub mod grasp_ik;
 pub mod grasp_quality;
 pub mod jobs;
 pub mod kinds;
@@ -296,6 +297,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/v1/fk", post(queries::fk))
         .route("/v1/ik", post(queries::ik))
         .route("/v1/check", post(queries::check))
+        .route("/v1/ik/grasp", post(grasp_ik::grasp_ik))
         .route("/v1/grasp-quality", post(grasp_quality::grasp_quality))
         .route("/v1/plans", post(plans::submit).get(plans::list))
         .route("/v1/plans/{id}", get(plans::get).delete(plans::cancel))

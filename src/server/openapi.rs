@@ -36,7 +36,7 @@ impl Modify for BearerAuth {
         super::resources::delete_robot, super::resources::list_scenes, super::resources::get_scene,
         super::resources::put_scene, super::resources::delete_scene,
         super::queries::fk, super::queries::ik, super::queries::check,
-        super::grasp_quality::grasp_quality,
+        super::grasp_ik::grasp_ik, super::grasp_quality::grasp_quality,
         super::plans::submit, super::plans::list, super::plans::get, super::plans::cancel, super::plans::events,
     ),
     components(schemas(
@@ -45,7 +45,7 @@ impl Modify for BearerAuth {
         IkRequest, IkResponse, IkFrame, IkSolver, IkOrder, CheckRequest, CheckResponse, CheckFast,
         SceneRobotConfig, PlanRequest, JointSpacePlan, PlanRobot, CollisionSweep, ReachPlan, GraspPlannerName, HandRef, RegraspPlan, KitchenTaskPlan, BimanualPlan, Job, JobState, JobList,
         JobSummary, Health,
-        GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,
+        GraspIkRequest, GraspIkResponse, GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,
     )),
     modifiers(&BearerAuth),
     security(("bearer" = [])),

@@ -121,6 +121,12 @@ class Client:
     def ik(self, robot: str, group: str, pose: Json, **kw: Any) -> Json:
         return self._post("/v1/ik", {"robot": robot, "group": group, "pose": pose, **kw})
 
+    def grasp_ik(self, scene: str, robot: str, group: str, obj: str, **kw: Any) -> Json:
+        """POST /v1/ik/grasp: randomized IK (hip sampled, arm analytic) for one of ``obj``'s grasps
+        where it lies in ``scene``; also ``max_tries``, ``psi_samples``, ``seed``."""
+        body = {"scene": scene, "robot": robot, "group": group, "object": obj, **kw}
+        return self._post("/v1/ik/grasp", body)
+
     def check(self, scene: str, robots: Optional[List[Json]] = None) -> Json:
         return self._post("/v1/check", {"scene": scene, "robots": robots or []})
 

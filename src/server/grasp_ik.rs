@@ -1,0 +1,182 @@
+//! `POST /v1/ik/grasp`: randomized whole-body IK over a grasp set (paper 000 §II-A/§II-D,
+//! [`crate::reachability::queries::SingleArmProblem`]): sample the chain's free joints (hip), solve
+//! the S-R-S arm analytically for the object's grasps, check self- and environment collision
+//! with the object in the hand, stop after `max_tries`. The answer is a configuration plus the
+//! grasp it reaches. A synchronous query: lookups on the async side, the search on the CPU pool.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::extract::State;
+use axum::Json;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
+use crate::model::Scene;
+use crate::reachability::queries::{QueryError, SingleArmProblem};
+
+use super::error::{ApiError, ApiResult, ErrorBody};
+use super::extract::ApiJson;
+use super::AppState;
+
+/// Largest `max_tries` of one request (a try is a hip sample plus up to one arm IK per grasp;
+/// 10⁶ tries of the kitchen wok take ~2 s).
+pub const MAX_TRIES: u64 = 1_000_000;
+
+/// `POST /v1/ik/grasp`: a configuration of `robot`'s chain `group` whose hand holds one of
+/// `object`'s grasps where the object lies in `scene`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GraspIkRequest {
+    pub scene: String,
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// Chain group "free joints + 7-DoF S-R-S arm" (e.g. `torso_right_arm`, 10 DoF).
+    pub group: String,
+    /// Object of the scene; its grasp set for the end effector at the chain's tip is used.
+    pub object: String,
+    /// Samples of the free joints before "no solution" (1..=1000000, default 20000).
+    #[serde(default)]
+    pub max_tries: Option<u64>,
+    /// Swivel angles per arm-IK call (1..=360, default 8).
+    #[serde(default)]
+    pub psi_samples: Option<u32>,
+    /// Random seed (default 1): same request and seed, same answer.
+    #[serde(default)]
+    pub seed: Option<u64>,
+}
+
+/// The answer: `found` with the configuration and grasp, or not found after `counters.tries`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct GraspIkResponse {
+    pub found: bool,
+    /// Why nothing was found (`found: false`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// Name of the grasp reached.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<String>,
+    /// Names of the chain's joints, the order of `solution`.
+    pub joints: Vec<String>,
+    /// Values of the chain's joints.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solution: Option<Vec<f64>>,
+    /// Every variable of the robot (`joint: value`), the chain's from the solution, the rest
+    /// from the scene's start configuration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub config: Option<serde_json::Map<String, serde_json::Value>>,
+    /// Free-joint samples, analytic IK calls, collision checks.
+    pub tries: u64,
+    pub ik_calls: u64,
+    pub collision_checks: u64,
+    pub time_us: f64,
+}
+
+#[utoipa::path(post, path = "/v1/ik/grasp", tag = "queries", request_body = GraspIkRequest,
+    responses((status = 200, body = GraspIkResponse, description = "a solution, or `found: false` after `max_tries`"),
+              (status = 400, body = ErrorBody, description = "malformed JSON"),
+              (status = 404, body = ErrorBody, description = "unknown scene"),
+              (status = 422, body = ErrorBody, description = "bad value; `field` names it (`robot`, `group`, `object`, `max_tries`, `psi_samples`)")))]
+pub async fn grasp_ik(
+    State(st): State<Arc<AppState>>,
+    ApiJson(req): ApiJson<GraspIkRequest>,
+) -> ApiResult<Json<GraspIkResponse>> {
+    let entry = st.catalog.scene(&req.scene, "scene")?;
+    st.pool
+        .run(move || compute(&entry.scene, &req))
+        .await
+        .map(Json)
+}
+
+/// The field a set-up error is about.
+fn query_error(e: QueryError) -> ApiError {
+    let field = match &e {
+        QueryError::NoRobot { .. } => "robot",
+        QueryError::NoObject { .. } | QueryError::NoGrasps { .. } => "object",
+        _ => "group",
+    };
+    ApiError::invalid(field, e.to_string())
+}
+
+/// Validates and solves a request on `scene`.
+pub fn compute(scene: &Scene, req: &GraspIkRequest) -> ApiResult<GraspIkResponse> {
+    let max_tries = req.max_tries.unwrap_or(20_000);
+    if !(1..=MAX_TRIES).contains(&max_tries) {
+        return Err(ApiError::invalid(
+            "max_tries",
+            format!("{max_tries} is not in 1..={MAX_TRIES}"),
+        ));
+    }
+    let psi = req.psi_samples.unwrap_or(8);
+    if !(1..=360).contains(&psi) {
+        return Err(ApiError::invalid(
+            "psi_samples",
+            format!("{psi} is not in 1..=360"),
+        ));
+    }
+    if scene.object(&req.object).is_none() {
+        return Err(ApiError::invalid(
+            "object",
+            format!("scene '{}' has no object '{}'", scene.name, req.object),
+        ));
+    }
+    let mut problem =
+        SingleArmProblem::new(scene, &req.robot, &req.group, &req.object).map_err(query_error)?;
+    let settings = RandomizedIkSettings {
+        max_tries,
+        psi_samples: psi,
+        ..RandomizedIkSettings::default()
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(req.seed.unwrap_or(1));
+    let started = Instant::now();
+    let object_pose = problem.object_pose;
+    let answer = problem.solve(&object_pose, false, &settings, &mut rng);
+    let time_us = started.elapsed().as_secs_f64() * 1e6;
+    let robot = problem.ik.robot().clone();
+    let vars = problem.ik.split().chain.vars.clone();
+    let joints: Vec<String> = vars
+        .iter()
+        .map(|&v| robot.var_name(v).to_string())
+        .collect();
+    let counters = |c: &IkCounters| (c.tries, c.ik_calls, c.collision_checks);
+    match answer {
+        Ok(sol) => {
+            let (tries, ik_calls, collision_checks) = counters(&sol.counters);
+            let config = (0..robot.dof())
+                .map(|v| (robot.var_name(v).to_string(), sol.config[v].into()))
+                .collect();
+            Ok(GraspIkResponse {
+                found: true,
+                reason: None,
+                grasp: problem.grasps.names.get(sol.grasp).cloned(),
+                solution: Some(vars.iter().map(|&v| sol.config[v]).collect()),
+                config: Some(config),
+                joints,
+                tries,
+                ik_calls,
+                collision_checks,
+                time_us,
+            })
+        }
+        Err(RandomizedIkError::NoSolution { tries, counters: c }) => {
+            let (_, ik_calls, collision_checks) = counters(&c);
+            let reason = RandomizedIkError::NoSolution { tries, counters: c }.to_string();
+            Ok(GraspIkResponse {
+                found: false,
+                reason: Some(reason),
+                grasp: None,
+                solution: None,
+                config: None,
+                joints,
+                tries,
+                ik_calls,
+                collision_checks,
+                time_us,
+            })
+        }
+        Err(e) => Err(ApiError::invalid("group", e.to_string())),
+    }
+}
