@@ -3,27 +3,19 @@
 //! at the start, both TCPs reach the label's grasps (FK within 1e-6), it stays within the space's
 //! bounds, and the exact (parry) checker finds it collision-free at 5 mm / 0.5°.
 
-use std::path::PathBuf;
+mod common;
+use common::{pose_close, scene};
+
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};
-use manyhands::geometry::Pose;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::kinematics::Chain;
-use manyhands::model::{load_robot_dir, Scene};
+use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{paper_settings, BimanualProblem, BimanualSettings};
 use manyhands::planning::{PlanError, PlanResult, Termination};
 use manyhands::reachability::{GridParams, ReachabilityGrid};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scene(name: &str) -> Scene {
-    let lib = load_robot_dir(&root().join("robots")).expect("robots");
-    Scene::from_file(&root().join("scenes").join(format!("{name}.json")), &lib).expect("scene")
-}
 
 /// Platform-frame grids of both 10-DoF chains, built once for the file.
 fn grids() -> &'static (ReachabilityGrid, ReachabilityGrid) {
@@ -61,11 +53,6 @@ fn ik() -> RandomizedIkSettings {
         max_tries: 30,
         ..RandomizedIkSettings::default()
     }
-}
-
-fn pose_close(a: &Pose, b: &Pose, tol: f64) -> bool {
-    (a.translation.vector - b.translation.vector).norm() < tol
-        && a.rotation.angle_to(&b.rotation) < tol
 }
 
 fn check(p: &BimanualProblem, r: &PlanResult) {

@@ -4,63 +4,18 @@
 //! 1e-6), it stays within joint limits, and the exact (parry) checker finds it collision-free at
 //! 5 mm / 0.5° — held object included.
 
-use std::path::PathBuf;
+mod common;
+use common::{assert_exactly_free, check_reach, pose_close, scene};
+
 use std::time::{Duration, Instant};
 
-use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};
-use manyhands::geometry::Pose;
+use manyhands::collision::CollisionWorld;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
-use manyhands::model::{load_robot_dir, Scene};
 use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{
-    DualArmJPlusRrt, IkRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError,
-    PlanResult, Termination,
+    DualArmJPlusRrt, IkRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, PlanError, PlanResult,
+    Termination,
 };
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scene(name: &str) -> Scene {
-    let lib = load_robot_dir(&root().join("robots")).expect("robots");
-    Scene::from_file(&root().join("scenes").join(format!("{name}.json")), &lib).expect("scene")
-}
-
-/// Exact re-check of a path (space coordinates) in `world` at 5 mm / 0.5°, and joint limits.
-fn assert_exactly_free(world: &CollisionWorld, space: &JointSpace, path: &[Vec<f64>]) {
-    for (k, q) in path.iter().enumerate() {
-        assert!(
-            space.bounds_violation(q).is_none(),
-            "state {k}: {:?}",
-            space.bounds_violation(q)
-        );
-    }
-    let wpath: Vec<Vec<f64>> = path.iter().map(|q| space.to_world(q)).collect();
-    let mut mv = MotionValidator::new(world, ExactChecker::new(world), 0.5f64.to_radians(), 0.005);
-    assert!(
-        mv.is_path_valid(&wpath),
-        "path not collision-free under the exact checker"
-    );
-}
-
-fn pose_close(a: &Pose, b: &Pose, tol: f64) -> bool {
-    (a.translation.vector - b.translation.vector).norm() < tol
-        && a.rotation.angle_to(&b.rotation) < tol
-}
-
-fn check_reach(p: &ReachProblem, r: &PlanResult) {
-    assert_eq!(r.path[0], p.start, "path must start at the start");
-    let last = r.path.last().expect("non-empty path");
-    let wq = p.space.to_world(last);
-    let tcp = p.hand.tcp_pose(&p.world, &wq);
-    let target = p.object_pose * p.grasps[r.goal_index];
-    assert!(
-        pose_close(&tcp, &target, 1e-6),
-        "last state does not reach grasp {}: {tcp:?} vs {target:?}",
-        r.goal_index
-    );
-    assert_exactly_free(&p.world, &p.space, &r.path);
-}
 
 fn reach_problem(scene_name: &str) -> ReachProblem {
     let s = scene(scene_name);

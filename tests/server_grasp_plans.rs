@@ -44,6 +44,26 @@ async fn start(name: &str) -> Harness {
 }
 
 impl Harness {
+    /// `POST /v1/fk` of armar's `config`: its right TCP is near the kitchen wok (which lies
+    /// still at (0.65, -0.2, 0.9)).
+    async fn assert_right_tcp_at_wok(&self, config: &Value) {
+        let (s, fk) = self
+            .post(
+                "/v1/fk",
+                &json!({"robot": "armar", "config": config, "links": ["right_tcp"]}),
+            )
+            .await;
+        assert_eq!(s, StatusCode::OK, "{fk}");
+        let p = &fk["links"][0]["pose"]["position"];
+        let d = [0.65, -0.2, 0.9]
+            .iter()
+            .enumerate()
+            .map(|(k, w)| (p[k].as_f64().unwrap_or(f64::NAN) - w).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
+    }
+
     async fn post(&self, path: &str, body: &Value) -> (StatusCode, Value) {
         let r = self
             .http
@@ -103,22 +123,7 @@ async fn grasp_planners_over_http() {
     let (_, v2) = h.post("/v1/plans?wait=60", &req).await;
     assert_eq!(v2["result"]["waypoints"], r["waypoints"]);
     // FK of the last waypoint: the right TCP is where a wok grasp puts it (the wok lies still).
-    let cfg = last_config(r, "armar");
-    let (s, fk) = h
-        .post(
-            "/v1/fk",
-            &json!({"robot": "armar", "config": cfg, "links": ["right_tcp"]}),
-        )
-        .await;
-    assert_eq!(s, StatusCode::OK, "{fk}");
-    let p = &fk["links"][0]["pose"]["position"];
-    let d = [0.65, -0.2, 0.9]
-        .iter()
-        .enumerate()
-        .map(|(k, w)| (p[k].as_f64().unwrap_or(f64::NAN) - w).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
+    h.assert_right_tcp_at_wok(&last_config(r, "armar")).await;
 
     // The same query with J+-RRT (000 Alg. 1–2): no IK solutions, Jacobian steps instead.
     let mut jreq = req.clone();
@@ -244,21 +249,7 @@ async fn randomized_grasp_ik_over_http() {
     assert_eq!(v2["solution"], v["solution"]);
     assert_eq!(v2["grasp"], v["grasp"]);
     // The hand is at the wok.
-    let (s, fk) = h
-        .post(
-            "/v1/fk",
-            &json!({"robot": "armar", "config": v["config"], "links": ["right_tcp"]}),
-        )
-        .await;
-    assert_eq!(s, StatusCode::OK, "{fk}");
-    let p = &fk["links"][0]["pose"]["position"];
-    let d = [0.65, -0.2, 0.9]
-        .iter()
-        .enumerate()
-        .map(|(k, w)| (p[k].as_f64().unwrap_or(f64::NAN) - w).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
+    h.assert_right_tcp_at_wok(&v["config"]).await;
     // Bad fields are named.
     for (key, val, want) in [
         ("robot", json!("robbie"), "robot"),

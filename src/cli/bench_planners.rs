@@ -19,7 +19,7 @@ use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{paper_settings, BimanualProblem, BimanualSettings};
 use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::task::{kitchen_task, GraspAlgorithm, KitchenTask};
-use manyhands::planning::{IkRrt, IkRrtSettings, PlanError, PlanStats, Termination};
+use manyhands::planning::{IkRrtSettings, PlanError, PlanStats, Termination};
 use manyhands::reachability::{GridCache, GridRecipe};
 
 #[derive(Args, Debug)]
@@ -128,6 +128,21 @@ fn term(limit: f64) -> Termination {
     Termination::new().with_time_limit(Duration::from_secs_f64(limit))
 }
 
+/// `a.runs` timed calls of `plan(seed)` with seeds `a.seed`, `a.seed + 1`, …; a plan answers
+/// the statistics of its phases.
+fn timed_runs(
+    a: &PlannersBenchArgs,
+    mut plan: impl FnMut(u64) -> Result<Vec<PlanStats>, PlanError>,
+) -> Vec<Run> {
+    (0..a.runs)
+        .map(|i| {
+            let t = Instant::now();
+            let r = plan(a.seed + i);
+            Run::from(t.elapsed(), r.as_deref().map_err(Clone::clone))
+        })
+        .collect()
+}
+
 fn reach_row(
     s: &Scene,
     algorithm: GraspAlgorithm,
@@ -138,27 +153,18 @@ fn reach_row(
 ) -> Result<Row> {
     let world = CollisionWorld::from_scene(s);
     let q0 = CollisionWorld::start_config(s);
-    let mut runs = Vec::new();
-    for i in 0..a.runs {
-        let t = Instant::now();
-        let r =
-            ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok").and_then(|p| {
-                algorithm.plan_reach(
-                    &p,
-                    None,
-                    IkRrtSettings::default(),
-                    ik_settings(),
-                    &mut term(a.time_limit),
-                    a.seed + i,
-                )
-            });
-        runs.push(Run::from(
-            t.elapsed(),
-            r.as_ref()
-                .map(|r| std::slice::from_ref(&r.stats))
-                .map_err(Clone::clone),
-        ));
-    }
+    let runs = timed_runs(a, |seed| {
+        let p = ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok")?;
+        let r = algorithm.plan_reach(
+            &p,
+            None,
+            IkRrtSettings::default(),
+            ik_settings(),
+            &mut term(a.time_limit),
+            seed,
+        )?;
+        Ok(vec![r.stats])
+    });
     Ok(Row {
         name: name.into(),
         paper,
@@ -179,17 +185,20 @@ fn regrasp_row(
     let world = CollisionWorld::from_scene(s);
     let q0 = CollisionWorld::start_config(s);
     let p = ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok")?;
-    let mut rrt = IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default())?;
-    let mut goals = p.goals(None, ik_settings());
-    let r = rrt.plan(&p.start, &mut goals, &mut term(a.time_limit), 0)?;
+    let r = GraspAlgorithm::IkRrt.plan_reach(
+        &p,
+        None,
+        IkRrtSettings::default(),
+        ik_settings(),
+        &mut term(a.time_limit),
+        0,
+    )?;
     let q1 = p
         .space
         .to_world(r.path.last().ok_or_else(|| anyhow!("empty grasp path"))?);
     let held: Pose = p.grasps[r.goal_index];
-    let mut runs = Vec::new();
-    for i in 0..a.runs {
-        let t = Instant::now();
-        let r = HandOffProblem::new(
+    let runs = timed_runs(a, |seed| {
+        let h = HandOffProblem::new(
             s,
             &world,
             &q1,
@@ -197,24 +206,17 @@ fn regrasp_row(
             ("armar", "torso_left_arm"),
             "wok",
             held,
-        )
-        .and_then(|h| {
-            algorithm.plan_regrasp(
-                &h,
-                None,
-                IkRrtSettings::default(),
-                ik_settings(),
-                &mut term(a.time_limit),
-                a.seed + i,
-            )
-        });
-        runs.push(Run::from(
-            t.elapsed(),
-            r.as_ref()
-                .map(|r| std::slice::from_ref(&r.stats))
-                .map_err(Clone::clone),
-        ));
-    }
+        )?;
+        let r = algorithm.plan_regrasp(
+            &h,
+            None,
+            IkRrtSettings::default(),
+            ik_settings(),
+            &mut term(a.time_limit),
+            seed,
+        )?;
+        Ok(vec![r.stats])
+    });
     Ok(Row {
         name: name.into(),
         paper,
@@ -225,17 +227,10 @@ fn regrasp_row(
 
 fn kitchen_row(s: &Scene, a: &PlannersBenchArgs) -> Result<Row> {
     let task = KitchenTask::armar_wok();
-    let mut runs = Vec::new();
-    for i in 0..a.runs {
-        let t = Instant::now();
-        let r = kitchen_task(s, &task, &mut term(a.time_limit), a.seed + i);
-        let stats: Result<Vec<PlanStats>, PlanError> =
-            r.map(|p| p.phases.iter().map(|ph| ph.stats.clone()).collect());
-        runs.push(Run::from(
-            t.elapsed(),
-            stats.as_deref().map_err(Clone::clone),
-        ));
-    }
+    let runs = timed_runs(a, |seed| {
+        let plan = kitchen_task(s, &task, &mut term(a.time_limit), seed)?;
+        Ok(plan.phases.into_iter().map(|ph| ph.stats).collect())
+    });
     Ok(Row {
         name: "kitchen task complete (grasp, regrasp, retreat, place)".into(),
         paper: "803 ms IK + 6 310 ms planning",
@@ -257,10 +252,8 @@ fn bimanual_row(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<Row> {
     let gr: Arc<_> = cache.get(&model, "torso_right_arm", GridRecipe::default())?;
     let world = CollisionWorld::from_scene(&s);
     let q0 = CollisionWorld::start_config(&s);
-    let mut runs = Vec::new();
-    for i in 0..a.runs {
-        let t = Instant::now();
-        let r = BimanualProblem::new(
+    let runs = timed_runs(a, |seed| {
+        let p = BimanualProblem::new(
             &s,
             &world,
             &q0,
@@ -269,22 +262,15 @@ fn bimanual_row(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<Row> {
             "table",
             (&gl, &gr),
             BimanualSettings::default(),
-        )
-        .and_then(|p| {
-            p.plan(
-                paper_settings(),
-                ik_settings(),
-                &mut term(a.time_limit),
-                a.seed + i,
-            )
-        });
-        runs.push(Run::from(
-            t.elapsed(),
-            r.as_ref()
-                .map(|r| std::slice::from_ref(&r.stats))
-                .map_err(Clone::clone),
-        ));
-    }
+        )?;
+        let r = p.plan(
+            paper_settings(),
+            ik_settings(),
+            &mut term(a.time_limit),
+            seed,
+        )?;
+        Ok(vec![r.stats])
+    });
     Ok(Row {
         name: "Bimanual IK-RRT, armar grasps the kitchen table (20 DoF, maps included)".into(),
         paper: "002: no single-robot figure",
