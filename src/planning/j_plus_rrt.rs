@@ -22,11 +22,7 @@
 //! so again a linear scan), then alternately moves the receiver's TCP toward the grasp pose on the
 //! object (Alg. 5, `MoveLeftArm`) and the giver's TCP toward the pose that brings the object's
 //! grasp to the receiver's TCP (`MoveRightArm`), one limited J+ step each, every new
-//! configuration checked and added to the tree, until the hand-off pose is reached. When one
-//! arm's step is invalid the other arm still takes its step; the extension ends when neither can
-//! move (or there is no progress). Over 30 seeds this changed the success within 5 s from 13 to
-//! 14 of 30 without the obstacle and from 8 to 10 of 30 with it (`manyhands bench planners
-//! --runs 30 --time-limit 5 --only "dual-arm J+"`).
+//! configuration checked and added to the tree, until the hand-off pose is reached.
 //!
 //! **The Jacobian** is the geometric Jacobian of the robot root → TCP chain, restricted to the
 //! space's variables that move the TCP (hip joints included); in the dual-arm planner each arm's
@@ -1071,7 +1067,6 @@ impl<C: SegmentChecker> DualArmJPlusRrt<C> {
             }
             steps += 1;
             // Alg. 4 lines 4 and 7: one limited J+ step of each arm toward the other (Alg. 5).
-            let mut moved = false;
             for receiver_moves in [true, false] {
                 let (kin, from, to) = if receiver_moves {
                     (&mut *receiver, rt, gt * held_inv * grasp)
@@ -1085,10 +1080,8 @@ impl<C: SegmentChecker> DualArmJPlusRrt<C> {
                 core.load_cur();
                 stats.jacobian_steps += 1;
                 if !core.j_plus_step(kin, &lin, &ang) {
-                    // This arm is blocked; the other one may still close the gap.
-                    continue;
+                    break 'ext;
                 }
-                moved = true;
                 core.load_new();
                 if receiver_moves {
                     rt = receiver.tcp(&core.wq);
@@ -1098,9 +1091,6 @@ impl<C: SegmentChecker> DualArmJPlusRrt<C> {
                 let p = held * gt.inverse() * rt;
                 cur = core.nodes.add(&core.q_new, cur, p);
                 std::mem::swap(&mut core.q_cur, &mut core.q_new);
-            }
-            if !moved {
-                break 'ext; // both arms blocked
             }
             let (np, na) = pose_error(&rt, &(gt * held_inv * grasp));
             if np.hypot(w * na) >= ep.hypot(w * ea) {
