@@ -1,7 +1,10 @@
 //! Motion planning, in OMPL's vocabulary (Şucan, Moll & Kavraki, "The Open Motion Planning
 //! Library", IEEE RAM 2012): a [`JointSpace`] (state space of some world variables), a
 //! [`Termination`] condition, RRT [`Tree`]s, the [`RrtConnect`] planner, path [`shortcut`]ting and a
-//! [`PlanResult`] carrying the path and its [`PlanStats`].
+//! [`PlanResult`] carrying the path and its [`PlanStats`]. The grasp planners of the papers build
+//! on them: [`IkRrt`] (000 Alg. 3), [`JPlusRrt`] and [`DualArmJPlusRrt`] (000 Alg. 1–2, 4–5),
+//! the problems they solve in [`grasping`] (grasp, place, dual-arm re-grasp, two-robot hand-off),
+//! [`bimanual_ik_rrt`] (002 Alg. 2) and the chained tasks in [`task`] (000 §VI-C kitchen task).
 //!
 //! This module owns planning. It uses `collision`, `kinematics` and `model`, and must not depend on
 //! the server (no tokio, no axum, no HTTP types): a planner is a function of (problem, settings,
