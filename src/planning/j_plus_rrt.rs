@@ -13,7 +13,7 @@
 //! (Alg. 2 line 9); valid steps are added to the tree (line 11). When the TCP is within
 //! `ThresholdCartesian` ([`JPlusRrtSettings::goal_position`], [`JPlusRrtSettings::goal_angle`])
 //! of the target, the solution path root → node is built (line 13), pruned and re-validated by
-//! the shared tree-planner finish (000 §IV-B: "standard path pruning techniques [14]").
+//! the shared tree-planner finish (000 §IV-B: "standard path pruning techniques \[14\]").
 //!
 //! **Dual-arm J+-RRT** ([`DualArmJPlusRrt`], Alg. 4–5): the object is held by the giver hand
 //! ([`super::grasping::HandOffProblem`]); the goal is the receiver's TCP at one of its grasps on
@@ -48,9 +48,9 @@
 //! grasp) and also covers the nodes the failed extension added — their extension toward the
 //! same grasp is deterministic and would fail the same way — in both planners. Two departures
 //! measured on the kitchen wok (30 seeds): a step that would push a variable past its joint
-//! limit locks that variable and is recomputed with the others ([`Core::j_plus_step`]; the
+//! limit locks that variable and is recomputed with the others (`Core::j_plus_step`; the
 //! paper rejects it, and with rejection the tree stalled for seconds at nodes with a joint at a
-//! limit), and translation and rotation of a step are limited separately ([`limited_twist`]).
+//! limit), and translation and rotation of a step are limited separately (`limited_twist`).
 //! Defaults p_ExtendToGoal 0.6, 2 cm / 8° per step, 0.3 m/rad: median ~15 ms there, against
 //! ~220 ms with 0.1, 2 cm / 3°, 0.1 m/rad and a scaled twist.
 

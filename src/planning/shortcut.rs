@@ -1,5 +1,5 @@
 //! Path pruning and shortcutting: the "standard path pruning techniques" cited by Vahrenkamp et
-//! al. 2009 (ref. [14], Geraerts & Overmars), as described in Geraerts & Overmars, "Creating
+//! al. 2009 (ref. \[14\], Geraerts & Overmars), as described in Geraerts & Overmars, "Creating
 //! high-quality paths for motion planning", IJRR 26(8), 2007:
 //!
 //! 1. greedy vertex removal — from each vertex, connect straight to the farthest later vertex
