@@ -5,7 +5,7 @@
 //! object included.
 
 mod common;
-use common::{assert_exactly_free, check_reach, pose_close, scene};
+use common::{assert_exactly_free, check_reach, far_wok_problem, pose_close, scene};
 
 use std::time::{Duration, Instant};
 
@@ -73,17 +73,7 @@ fn ik_rrt_is_deterministic_per_seed() {
 
 #[test]
 fn ik_rrt_fails_cleanly_for_an_unreachable_object() {
-    let s = scene("kitchen");
-    let mut world = CollisionWorld::from_scene(&s);
-    // Move the wok 3 m away from the robot: no grasp is reachable.
-    let wi = world
-        .statics
-        .iter()
-        .position(|b| b.name == "wok")
-        .expect("wok");
-    world.statics[wi].pose.translation.vector.y += 3.0;
-    let wq = CollisionWorld::start_config(&s);
-    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
+    let p = far_wok_problem();
     let mut planner =
         IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default()).expect("planner");
     let mut goals = p.goals(None, ik_settings());

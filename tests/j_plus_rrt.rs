@@ -5,7 +5,7 @@
 //! 5 mm / 0.5° — held object included.
 
 mod common;
-use common::{assert_exactly_free, check_reach, pose_close, scene};
+use common::{assert_exactly_free, check_reach, far_wok_problem, pose_close, scene};
 
 use std::time::{Duration, Instant};
 
@@ -77,17 +77,7 @@ fn j_plus_rrt_is_deterministic_per_seed() {
 
 #[test]
 fn j_plus_rrt_fails_cleanly_for_an_unreachable_object() {
-    let s = scene("kitchen");
-    let mut world = CollisionWorld::from_scene(&s);
-    // Move the wok 3 m away from the robot: no grasp is reachable.
-    let wi = world
-        .statics
-        .iter()
-        .position(|b| b.name == "wok")
-        .expect("wok");
-    world.statics[wi].pose.translation.vector.y += 3.0;
-    let wq = CollisionWorld::start_config(&s);
-    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
+    let p = far_wok_problem();
     let mut planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
     let limit = Duration::from_millis(200);
     let mut term = Termination::new().with_time_limit(limit);

@@ -215,6 +215,40 @@ impl ArmChain {
     }
 }
 
+/// The swivel-angle sweep both arm-IK queries share: the analytic arm IK for `target` (arm-base
+/// frame) at up to `psi_samples` angles ψ evenly spaced from a random offset; every ψ with
+/// solutions hands them to `on`, and the sweep stops when `on` returns true (the result).
+#[inline]
+fn psi_sweep<R: Rng + ?Sized>(
+    arm: &SrsArm,
+    target: &Pose,
+    psi_samples: u32,
+    sols: &mut [[f64; 7]; 8],
+    counters: &mut IkCounters,
+    rng: &mut R,
+    mut on: impl FnMut(&[[f64; 7]], &mut IkCounters, &mut R) -> bool,
+) -> bool {
+    let k = psi_samples.max(1);
+    let psi0 = rng.random_range(-PI..PI);
+    counters.ik_calls += 1;
+    for i in 0..k {
+        let mut psi = psi0 + 2.0 * PI * i as f64 / k as f64;
+        if psi >= PI {
+            psi -= 2.0 * PI;
+        }
+        counters.psi_solves += 1;
+        let n = arm.solve(target, psi, sols);
+        if n == 0 {
+            continue;
+        }
+        counters.ik_solutions += n as u64;
+        if on(&sols[..n], counters, rng) {
+            return true;
+        }
+    }
+    false
+}
+
 /// The analytic arm IK for `target` (arm-base frame) at up to `psi_samples` swivel angles evenly
 /// spaced from a random offset: the solutions (into `sols`) of the first ψ that has any; 0 when
 /// none has.
@@ -227,27 +261,18 @@ pub(crate) fn solve_psi<R: Rng + ?Sized>(
     counters: &mut IkCounters,
     rng: &mut R,
 ) -> usize {
-    let k = psi_samples.max(1);
-    let psi0 = rng.random_range(-PI..PI);
-    counters.ik_calls += 1;
-    for i in 0..k {
-        let mut psi = psi0 + 2.0 * PI * i as f64 / k as f64;
-        if psi >= PI {
-            psi -= 2.0 * PI;
-        }
-        counters.psi_solves += 1;
-        let n = arm.solve(target, psi, sols);
-        if n > 0 {
-            counters.ik_solutions += n as u64;
-            return n;
-        }
-    }
-    0
+    let mut found = 0;
+    psi_sweep(arm, target, psi_samples, sols, counters, rng, |s, _, _| {
+        found = s.len();
+        true
+    });
+    found
 }
 
 /// One analytic arm-IK query: solves the arm for `target` (arm-base frame) at `psi_samples` swivel
-/// angles evenly spaced from a random offset, stopping at the first ψ with solutions, and hands
-/// each solution (random order) to `valid`; true when one was accepted (left in `q`).
+/// angles evenly spaced from a random offset and hands each solution of every ψ that has any
+/// (random order within a ψ) to `valid`, up to the first accepted one; true when one was
+/// accepted (left in `q`).
 #[inline]
 pub(crate) fn try_arm<R: Rng + ?Sized>(
     arm: &SrsArm,
@@ -259,30 +284,23 @@ pub(crate) fn try_arm<R: Rng + ?Sized>(
     mut valid: impl FnMut(&[f64]) -> bool,
 ) -> bool {
     let mut sols = [[0.0; 7]; 8];
-    let k = psi_samples.max(1);
-    let psi0 = rng.random_range(-PI..PI);
-    counters.ik_calls += 1;
-    for i in 0..k {
-        let mut psi = psi0 + 2.0 * PI * i as f64 / k as f64;
-        if psi >= PI {
-            psi -= 2.0 * PI;
-        }
-        counters.psi_solves += 1;
-        let n = arm.solve(target, psi, &mut sols);
-        if n == 0 {
-            continue;
-        }
-        counters.ik_solutions += n as u64;
-        let off = rng.random_range(0..n);
-        for k in 0..n {
-            arm.to_config(&sols[(off + k) % n], q);
-            counters.collision_checks += 1;
-            if valid(q) {
-                return true;
-            }
-        }
-    }
-    false
+    psi_sweep(
+        arm,
+        target,
+        psi_samples,
+        &mut sols,
+        counters,
+        rng,
+        |s, counters, rng| {
+            let n = s.len();
+            let off = rng.random_range(0..n);
+            (0..n).any(|k| {
+                arm.to_config(&s[(off + k) % n], q);
+                counters.collision_checks += 1;
+                valid(q)
+            })
+        },
+    )
 }
 
 /// Randomized IK of one "free joints + S-R-S arm" chain (000 §II-A, §II-D).

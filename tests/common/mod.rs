@@ -58,3 +58,17 @@ pub fn check_reach(p: &ReachProblem, r: &PlanResult) {
     );
     assert_exactly_free(&p.world, &p.space, &r.path);
 }
+
+/// The kitchen wok moved 3 m away from armar: no grasp of `torso_right_arm` is reachable.
+pub fn far_wok_problem() -> ReachProblem {
+    let s = scene("kitchen");
+    let mut world = CollisionWorld::from_scene(&s);
+    let wi = world
+        .statics
+        .iter()
+        .position(|b| b.name == "wok")
+        .expect("wok");
+    world.statics[wi].pose.translation.vector.y += 3.0;
+    let wq = CollisionWorld::start_config(&s);
+    ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("problem")
+}
