@@ -52,7 +52,7 @@ fn j_plus_rrt_reaches_the_wok_with_and_without_obstacle() {
             let ms = t.elapsed().as_secs_f64() * 1e3;
             report(&format!("J+ {scene_name} seed {seed}"), ms, &r);
             assert!(r.stats.jacobian_steps > 0);
-            assert_eq!(r.stats.start_tree_size, r.stats.start_tree_size.max(1));
+            assert!(r.stats.start_tree_size >= 1);
             check_reach(&p, &r);
         }
     }
