@@ -60,6 +60,12 @@ pub struct MbmArgs {
     /// margin; 0 = the benchmark's own model, which is what the exact re-check uses).
     #[arg(long, default_value_t = 0.0)]
     pub padding: f64,
+    /// Certified motion checks (sphere model): every tree edge and shortcut is proven free as a
+    /// continuous motion, spheres inflated by at most this many metres per checked state (0 =
+    /// off: states at --resolution instead). Independent of it, returned paths are re-checked
+    /// exactly at --check-resolution.
+    #[arg(long, default_value_t = 0.01)]
+    pub certify: f64,
     /// Plan with the general primitive checker (FastChecker) even when the robot is made of
     /// spheres (default: the f32 8-lane sphere checker whenever it applies).
     #[arg(long)]
@@ -292,6 +298,9 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if !(a.padding.is_finite() && a.padding >= 0.0) {
         bail!("--padding must be ≥ 0");
     }
+    if !(a.certify.is_finite() && a.certify >= 0.0) {
+        bail!("--certify must be ≥ 0 metres");
+    }
     if a.trials == 0 {
         bail!("--trials must be ≥ 1");
     }
@@ -326,6 +335,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         direct_connect: true,
         shortcut: (!a.no_simplify).then(ShortcutSettings::default),
         revalidate: a.revalidate,
+        certify: (a.certify > 0.0).then_some(a.certify),
     };
     let is_panda = file.robot == "panda";
     let mut runs: Vec<Run> = Vec::new();

@@ -67,6 +67,8 @@ struct Step {
     var: u32,
     mul: f32,
     off: f32,
+    /// Largest |translation| of a prismatic joint over its limits (0 for revolute joints).
+    travel: f64,
     /// Range of the bodies riding on this node.
     bodies: (u32, u32),
 }
@@ -140,6 +142,27 @@ pub struct SphereChecker {
     checks: u64,
     avx2: bool,
     inflate: f64,
+    // Certified motion checks (see [`SphereChecker::segment_certified`]).
+    /// Per body and world variable: bound of the speed of the body's sphere centres per unit
+    /// change of the variable (m/rad or m/m); row-major `bodies × dof`.
+    body_w: Vec<f64>,
+    /// Every prismatic joint has bounded travel, so `body_w` is finite.
+    certifiable: bool,
+    /// Per body: displacement bound of its spheres over the segment being certified.
+    seg_len: Vec<f64>,
+    /// Per body: extra radius of its spheres in the current check (0 outside certification).
+    infl: Vec<f32>,
+    /// Per self pair: bound of the speed of its spheres relative to each other per unit change
+    /// of each world variable (joints above the pair's common ancestor move both rigidly and do
+    /// not count); row-major `pairs × dof`.
+    pair_w: Vec<f64>,
+    seg_pair_len: Vec<f64>,
+    /// Per self pair: extra distance required between its spheres in the current check.
+    infl_pair: Vec<f32>,
+    /// Lanes of the last check that are free with the plain spheres but not with `infl`.
+    tight: u32,
+    tight_ks: Vec<usize>,
+    refine: Vec<(f64, f64, u32)>,
 }
 
 #[inline(always)]
@@ -192,6 +215,7 @@ impl SphereChecker {
                 var: 0,
                 mul: 0.0,
                 off: 0.0,
+                travel: 0.0,
                 bodies: (0, 0),
             });
             reach.push(0.0);
@@ -236,6 +260,17 @@ impl SphereChecker {
                     Some(kind) => {
                         let node = steps.len() as u32;
                         let parent = rep[pl];
+                        let travel = match (kind, var) {
+                            (StepKind::Prismatic, Some(v)) => {
+                                let lim = robot.var_limits(v);
+                                if lim.bounded {
+                                    (mul * lim.lower + o).abs().max((mul * lim.upper + o).abs())
+                                } else {
+                                    f64::INFINITY
+                                }
+                            }
+                            _ => 0.0,
+                        };
                         steps.push(Step {
                             kind,
                             parent,
@@ -246,6 +281,7 @@ impl SphereChecker {
                             var: (p.offset + var.unwrap_or(0)) as u32,
                             mul: mul as f32,
                             off: o as f32,
+                            travel,
                             bodies: (0, 0),
                         });
                         let r = if kind == StepKind::Prismatic {
@@ -449,6 +485,70 @@ impl SphereChecker {
         }
         let nb = bodies.len();
         let ns = spheres.len();
+        let dof = world.dof();
+        // Speed bounds: a sphere centre c riding on node k moves, per unit of a revolute
+        // variable of an ancestor node i, at most |c − o_i| ≤ D_i (o_i on i's axis), where
+        // D_k = max |c| in node k's frame and D_parent = D_i + |t_i| (+ prismatic travel).
+        // `stop`: the walk ends at the first node for which it is true (that node's joint and
+        // those above it are not counted).
+        let speed_bounds = |body: &Body, w: &mut [f64], stop: &dyn Fn(usize) -> bool| -> bool {
+            let mut d = spheres[body.spheres.0 as usize..body.spheres.1 as usize]
+                .iter()
+                .map(|s| {
+                    f64::from(s[0])
+                        .hypot(f64::from(s[1]))
+                        .hypot(f64::from(s[2]))
+                })
+                .fold(0.0, f64::max);
+            let mut k = body.node as usize;
+            let mut finite = true;
+            while !stop(k) {
+                let st = &steps[k];
+                let mul = f64::from(st.mul).abs();
+                match st.kind {
+                    StepKind::Root => break,
+                    StepKind::Revolute(_) => w[st.var as usize] += mul * d,
+                    StepKind::Prismatic => w[st.var as usize] += mul,
+                }
+                let t =
+                    st.t.iter()
+                        .map(|&v| f64::from(v) * f64::from(v))
+                        .sum::<f64>();
+                d += t.sqrt() + st.travel;
+                finite &= d.is_finite();
+                k = st.parent as usize;
+            }
+            finite
+        };
+        let mut body_w = vec![0.0f64; nb * dof];
+        let mut certifiable = true;
+        for (bi, body) in bodies.iter().enumerate() {
+            certifiable &= speed_bounds(body, &mut body_w[bi * dof..(bi + 1) * dof], &|_| false);
+        }
+        let ancestors = |node: usize| -> Vec<bool> {
+            let mut is = vec![false; steps.len()];
+            let mut k = node;
+            loop {
+                is[k] = true;
+                if steps[k].kind == StepKind::Root {
+                    break;
+                }
+                k = steps[k].parent as usize;
+            }
+            is
+        };
+        let npairs = self_pairs.len();
+        let mut pair_w = vec![0.0f64; npairs * dof];
+        for (pi, &(a, b)) in self_pairs.iter().enumerate() {
+            let (ba, bb) = (&bodies[a as usize], &bodies[b as usize]);
+            let (up_a, up_b) = (ancestors(ba.node as usize), ancestors(bb.node as usize));
+            let w = &mut pair_w[pi * dof..(pi + 1) * dof];
+            certifiable &= speed_bounds(ba, w, &|k| up_b[k]);
+            certifiable &= speed_bounds(bb, w, &|k| up_a[k]);
+        }
+        for v in body_w.iter_mut().chain(pair_w.iter_mut()) {
+            *v *= 1.0 + 1e-5;
+        }
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
@@ -471,6 +571,16 @@ impl SphereChecker {
             checks: 0,
             avx2,
             inflate,
+            body_w,
+            certifiable,
+            seg_len: vec![0.0; nb],
+            infl: vec![0.0; nb],
+            seg_pair_len: vec![0.0; npairs],
+            infl_pair: vec![0.0; npairs],
+            pair_w,
+            tight: 0,
+            tight_ks: Vec::new(),
+            refine: Vec::new(),
         })
     }
 
@@ -541,6 +651,166 @@ impl SphereChecker {
         true
     }
 
+    /// Largest number of states of the first, uniform pass of [`Self::segment_certified`] (a
+    /// longer segment is checked with larger inflations, which stays sound).
+    pub const CERTIFY_MAX_STATES: usize = 1 << 16;
+    /// Most bisection levels below the uniform pass before a segment is declared uncertifiable.
+    pub const CERTIFY_MAX_DEPTH: u32 = 10;
+    /// Most refinement checks per segment before it is declared uncertifiable.
+    pub const CERTIFY_MAX_REFINEMENTS: usize = 4096;
+
+    /// Whether [`Self::segment_certified`] applies (every prismatic joint's travel is bounded).
+    pub fn certifiable(&self) -> bool {
+        self.certifiable
+    }
+
+    /// Writes the states `a + (b − a)·t` of the lanes' parameters into the lane buffer.
+    #[inline]
+    fn load_lanes(&mut self, a: &[f64], b: &[f64], ts: &[f64; LANES]) {
+        for (i, v) in self.qv.iter_mut().enumerate() {
+            let (ai, di) = (a[i], b[i] - a[i]);
+            for l in 0..LANES {
+                v[l] = (ai + di * ts[l]) as f32;
+            }
+        }
+    }
+
+    /// Inflation of every body for sub-intervals of length `h` (segment parameter): half the
+    /// distance its spheres can travel along such a sub-interval.
+    #[inline]
+    fn set_inflation(&mut self, h: f64) {
+        for (i, l) in self.infl.iter_mut().zip(&self.seg_len) {
+            *i = (0.5 * l * h) as f32;
+        }
+        for (i, l) in self.infl_pair.iter_mut().zip(&self.seg_pair_len) {
+            *i = (0.5 * l * h) as f32;
+        }
+    }
+
+    /// Certified motion check: true only when the whole continuous straight segment `a → b`
+    /// (world configurations, `a` included) is collision-free — not just states sampled on it.
+    ///
+    /// Along the segment a sphere centre moves at most `L = Σ_v |b_v − a_v|·w_v` (w_v bounds its
+    /// distance to the axis of every joint driven by variable v), uniformly in the segment
+    /// parameter. A sub-interval of length h is therefore free when both its end states are
+    /// free with every sphere inflated by `L·h/2` (each point of the sub-interval lies within
+    /// that distance of one end). The segment is split into the fewest equal sub-intervals whose
+    /// inflation stays at most `max_inflation` metres, their end states are checked 8 per call
+    /// in raked order, and sub-intervals next to a state that is free only with plain spheres
+    /// are split in 7 (one 8-lane call, a 7× smaller inflation) until certified; a state colliding with plain
+    /// spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
+    /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
+    pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
+        debug_assert!(self.certifiable && max_inflation > 0.0);
+        let dof = self.qv.len();
+        let mut lmax = 0.0f64;
+        for (bi, len) in self.seg_len.iter_mut().enumerate() {
+            let w = &self.body_w[bi * dof..(bi + 1) * dof];
+            let mut l = 0.0;
+            for v in 0..dof {
+                l += (b[v] - a[v]).abs() * w[v];
+            }
+            *len = l;
+            lmax = lmax.max(l);
+        }
+        for (pi, len) in self.seg_pair_len.iter_mut().enumerate() {
+            let w = &self.pair_w[pi * dof..(pi + 1) * dof];
+            let mut l = 0.0;
+            for v in 0..dof {
+                l += (b[v] - a[v]).abs() * w[v];
+            }
+            *len = l;
+        }
+        let n = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, Self::CERTIFY_MAX_STATES);
+        let ok = self.certify(a, b, n);
+        self.infl.iter_mut().for_each(|i| *i = 0.0);
+        self.infl_pair.iter_mut().for_each(|i| *i = 0.0);
+        ok
+    }
+
+    fn certify(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
+        let h = 1.0 / n as f64;
+        self.set_inflation(h);
+        // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches).
+        let total = n + 1;
+        let batches = total.div_ceil(LANES);
+        self.tight_ks.clear();
+        for j in 0..batches {
+            let mut ts = [0.0; LANES];
+            let mut ks = [usize::MAX; LANES];
+            let mut used = 0u64;
+            for l in 0..LANES {
+                let k = total as isize - 1 - j as isize - (l * batches) as isize;
+                if k >= 0 {
+                    ks[l] = k as usize;
+                    used += 1;
+                }
+                ts[l] = if k >= 0 { k as f64 * h } else { 1.0 };
+            }
+            self.load_lanes(a, b, &ts);
+            self.checks += used;
+            if self.collides8() {
+                return false;
+            }
+            let mut m = self.tight;
+            while m != 0 {
+                let l = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if ks[l] != usize::MAX {
+                    self.tight_ks.push(ks[l]);
+                }
+            }
+        }
+        if self.tight_ks.is_empty() {
+            return true;
+        }
+        // Sub-intervals [k, k+1] with a tight end, each once.
+        self.refine.clear();
+        self.tight_ks.sort_unstable();
+        self.tight_ks.dedup();
+        let mut last = usize::MAX;
+        for idx in 0..self.tight_ks.len() {
+            let k = self.tight_ks[idx];
+            for i in [k.wrapping_sub(1), k] {
+                if i < n && i != last && (last == usize::MAX || i > last) {
+                    self.refine.push((i as f64 * h, (i + 1) as f64 * h, 0));
+                    last = i;
+                }
+            }
+        }
+        let mut budget = Self::CERTIFY_MAX_REFINEMENTS;
+        while let Some((t0, t1, depth)) = self.refine.pop() {
+            if depth >= Self::CERTIFY_MAX_DEPTH || budget == 0 {
+                return false;
+            }
+            budget -= 1;
+            // One call: the 8 states splitting [t0, t1] into 7 sub-intervals.
+            let parts = (LANES - 1) as f64;
+            let hs = (t1 - t0) / parts;
+            self.set_inflation(hs);
+            let mut ts = [0.0; LANES];
+            for (l, t) in ts.iter_mut().enumerate() {
+                *t = if l == LANES - 1 {
+                    t1
+                } else {
+                    t0 + hs * l as f64
+                };
+            }
+            self.load_lanes(a, b, &ts);
+            self.checks += LANES as u64;
+            if self.collides8() {
+                return false;
+            }
+            let m = self.tight;
+            for l in 0..LANES - 1 {
+                if m & (0b11 << l) != 0 {
+                    self.refine.push((ts[l], ts[l + 1], depth + 1));
+                }
+            }
+        }
+        true
+    }
+
     /// Checks `qs.len()` ≤ [`LANES`] configurations at once: true when any collides.
     pub fn any_collides(&mut self, qs: &[&[f64]]) -> bool {
         assert!(!qs.is_empty() && qs.len() <= LANES);
@@ -580,6 +850,7 @@ impl SphereChecker {
     /// Fused FK and checking of the first `N` lanes of `qv`.
     #[inline(always)]
     fn run<const N: usize>(&mut self) -> Option<Hit> {
+        self.tight = 0;
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
             self.sw_epoch.iter_mut().for_each(|e| *e = 0);
@@ -596,7 +867,7 @@ impl SphereChecker {
         }
         for pi in 0..self.self_pairs.len() {
             let (a, b) = self.self_pairs[pi];
-            if self.pair_hits::<N>(a as usize, b as usize) {
+            if self.pair_hits::<N>(pi, a as usize, b as usize) {
                 return Some(Hit::SelfPair(a, b));
             }
         }
@@ -736,6 +1007,8 @@ impl SphereChecker {
         }
     }
 
+    /// The body's spheres against its obstacles. With an inflation, a lane whose inflated
+    /// spheres touch but whose plain spheres do not is marked in `tight`; a plain touch is a hit.
     #[inline(always)]
     fn body_env<const N: usize>(&mut self, b: usize) -> Option<Hit> {
         let body = &self.bodies[b];
@@ -743,13 +1016,14 @@ impl SphereChecker {
         for r in 0..3 {
             self.bcw[b][r][..N].copy_from_slice(&c[r]);
         }
-        let br = body.br;
+        let infl = self.infl[b];
+        let br = body.br + infl;
         let (o0, o1) = body.obstacles;
         let mut spheres_ready = false;
         for k in o0 as usize..o1 as usize {
             let oi = self.body_obstacles[k] as usize;
             let o = self.obstacles[oi];
-            if !obs_hit::<N>(&o, &c[0], &c[1], &c[2], br) {
+            if obs_mask::<N>(&o, &c[0], &c[1], &c[2], br) == 0 {
                 continue;
             }
             if !spheres_ready {
@@ -765,8 +1039,13 @@ impl SphereChecker {
                 x.copy_from_slice(&w[0][..N]);
                 y.copy_from_slice(&w[1][..N]);
                 z.copy_from_slice(&w[2][..N]);
-                if obs_hit::<N>(&o, &x, &y, &z, self.spheres[si][3]) {
-                    return Some(Hit::Obstacle(b as u32, oi as u32));
+                let r = self.spheres[si][3];
+                let m = obs_mask::<N>(&o, &x, &y, &z, r + infl);
+                if m != 0 {
+                    if infl == 0.0 || obs_mask::<N>(&o, &x, &y, &z, r) != 0 {
+                        return Some(Hit::Obstacle(b as u32, oi as u32));
+                    }
+                    self.tight |= m;
                 }
             }
         }
@@ -774,9 +1053,10 @@ impl SphereChecker {
     }
 
     #[inline(always)]
-    fn pair_hits<const N: usize>(&mut self, a: usize, b: usize) -> bool {
-        let rr = self.bodies[a].br + self.bodies[b].br;
-        if !near::<N>(&self.bcw[a], &self.bcw[b], rr) {
+    fn pair_hits<const N: usize>(&mut self, pi: usize, a: usize, b: usize) -> bool {
+        let ex = self.infl_pair[pi];
+        let rr = self.bodies[a].br + self.bodies[b].br + ex;
+        if near_mask::<N>(&self.bcw[a], &self.bcw[b], rr) == 0 {
             return false;
         }
         self.ensure_spheres::<N>(a);
@@ -786,12 +1066,17 @@ impl SphereChecker {
         for i in sa.0 as usize..sa.1 as usize {
             let (wi, ri) = (&self.sw[i], self.spheres[i][3]);
             // The sphere against b's bounding sphere first.
-            if !near::<N>(wi, bb, ri + rb) {
+            if near_mask::<N>(wi, bb, ri + rb + ex) == 0 {
                 continue;
             }
             for j in sb.0 as usize..sb.1 as usize {
-                if near::<N>(wi, &self.sw[j], ri + self.spheres[j][3]) {
-                    return true;
+                let rij = ri + self.spheres[j][3];
+                let m = near_mask::<N>(wi, &self.sw[j], rij + ex);
+                if m != 0 {
+                    if ex == 0.0 || near_mask::<N>(wi, &self.sw[j], rij) != 0 {
+                        return true;
+                    }
+                    self.tight |= m;
                 }
             }
         }
@@ -833,24 +1118,24 @@ fn lin4<const N: usize>(a: &Lane, b: &Lane, c: &Lane, d: &Lane, s: [f32; 3]) -> 
     o
 }
 
-/// Is any lane's distance between the two points at most `r`?
+/// Lanes (bit l) whose distance between the two points is at most `r`.
 #[inline(always)]
-fn near<const N: usize>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> bool {
+fn near_mask<const N: usize>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> u32 {
     let r2 = r * r;
-    let mut any = false;
+    let mut m = 0u32;
     for l in 0..N {
         let dx = a[0][l] - b[0][l];
         let dy = a[1][l] - b[1][l];
         let dz = a[2][l] - b[2][l];
-        any |= dx * dx + dy * dy + dz * dz <= r2;
+        m |= u32::from(dx * dx + dy * dy + dz * dz <= r2) << l;
     }
-    any
+    m
 }
 
-/// Does the sphere (x, y, z, r) of any lane touch the obstacle?
+/// Lanes (bit l) whose sphere (x, y, z, r) touches the obstacle.
 #[inline(always)]
-fn obs_hit<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r: f32) -> bool {
-    let mut any = false;
+fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r: f32) -> u32 {
+    let mut m = 0u32;
     match *o {
         Obs::Sphere { c, r: ro } => {
             let rr = (r + ro) * (r + ro);
@@ -858,7 +1143,7 @@ fn obs_hit<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r:
                 let dx = x[l] - c[0];
                 let dy = y[l] - c[1];
                 let dz = z[l] - c[2];
-                any |= dx * dx + dy * dy + dz * dz <= rr;
+                m |= u32::from(dx * dx + dy * dy + dz * dz <= rr) << l;
             }
         }
         Obs::Box { c, rt, half } => {
@@ -872,7 +1157,7 @@ fn obs_hit<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r:
                     let e = (p.abs() - half[k]).max(0.0);
                     d2 += e * e;
                 }
-                any |= d2 <= r * r;
+                m |= u32::from(d2 <= r * r) << l;
             }
         }
         Obs::Cylinder { c, axis, r: rc, h } => {
@@ -884,7 +1169,7 @@ fn obs_hit<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r:
                 let rad2 = (dx * dx + dy * dy + dz * dz - pz * pz).max(0.0);
                 let dr = (rad2.sqrt() - rc).max(0.0);
                 let ez = (pz.abs() - h).max(0.0);
-                any |= dr * dr + ez * ez <= r * r;
+                m |= u32::from(dr * dr + ez * ez <= r * r) << l;
             }
         }
         Obs::Capsule { c, axis, r: rc, h } => {
@@ -898,11 +1183,11 @@ fn obs_hit<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r:
                 let ex = dx - t * axis[0];
                 let ey = dy - t * axis[1];
                 let ez = dz - t * axis[2];
-                any |= ex * ex + ey * ey + ez * ez <= rr;
+                m |= u32::from(ex * ex + ey * ey + ez * ez <= rr) << l;
             }
         }
     }
-    any
+    m
 }
 
 /// `(sin x, cos x)` of every lane in f32 (Cephes' sinf/cosf kernels after a three-constant

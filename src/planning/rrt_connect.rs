@@ -31,6 +31,11 @@ pub struct RrtConnectSettings {
     /// Re-validate the raw path before returning it. Its segments are exactly the tree edges
     /// already validated with the same checker and resolution, so this is a safety net only.
     pub revalidate: bool,
+    /// Certified motion checks: every segment is proven collision-free as a continuous motion
+    /// (swept-volume bounds, spheres inflated by at most this many metres in the first pass;
+    /// see [`crate::collision::SphereChecker::segment_certified`]) when the checker can;
+    /// otherwise, or with `None`, states are checked at the resolutions.
+    pub certify: Option<f64>,
 }
 
 impl Default for RrtConnectSettings {
@@ -42,6 +47,7 @@ impl Default for RrtConnectSettings {
             direct_connect: true,
             shortcut: Some(ShortcutSettings::default()),
             revalidate: true,
+            certify: None,
         }
     }
 }
@@ -55,6 +61,13 @@ impl RrtConnectSettings {
             return Err(PlanError::InvalidInput(
                 "resolutions must be finite and > 0".into(),
             ));
+        }
+        if let Some(d) = self.certify {
+            if !pos(d) {
+                return Err(PlanError::InvalidInput(format!(
+                    "certify (largest inflation) must be finite and > 0 metres, got {d}"
+                )));
+            }
         }
         let range = match self.range {
             Some(r) if pos(r) => r,
@@ -126,7 +139,8 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 checker,
                 settings.angular_resolution,
                 settings.linear_resolution,
-            ),
+            )
+            .with_certification(settings.certify),
             settings,
             range,
             trees: [Tree::new(&weights), Tree::new(&weights)],

@@ -18,6 +18,14 @@ pub trait SegmentChecker: CollisionChecker {
     fn segment_free(&mut self, _a: &[f64], _b: &[f64], _n: usize) -> Option<bool> {
         None
     }
+
+    /// `Some(true)` when the whole continuous segment `a → b` is certified collision-free with
+    /// swept-volume bounds (inflations of at most `max_inflation` metres, see
+    /// [`SphereChecker::segment_certified`]); `None` when this checker cannot certify.
+    #[inline]
+    fn segment_certified(&mut self, _a: &[f64], _b: &[f64], _max_inflation: f64) -> Option<bool> {
+        None
+    }
 }
 
 impl SegmentChecker for FastChecker {}
@@ -28,12 +36,26 @@ impl SegmentChecker for SphereChecker {
     fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
         Some(SphereChecker::segment_free(self, a, b, n))
     }
+
+    #[inline]
+    fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> Option<bool> {
+        self.certifiable()
+            .then(|| SphereChecker::segment_certified(self, a, b, max_inflation))
+    }
 }
 
 impl SegmentChecker for AutoChecker {
     #[inline]
     fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
         AutoChecker::segment_free(self, a, b, n)
+    }
+
+    #[inline]
+    fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> Option<bool> {
+        match self {
+            AutoChecker::Spheres(s) => SegmentChecker::segment_certified(s, a, b, max_inflation),
+            AutoChecker::Fast(_) => None,
+        }
     }
 }
 
@@ -48,6 +70,8 @@ pub struct SpaceValidator<C: SegmentChecker> {
     linear: f64,
     /// Segments checked by the checker's own segment check.
     own_segments: u64,
+    /// Certify segments continuously (largest inflation, metres) when the checker can.
+    certify: Option<f64>,
 }
 
 impl<C: SegmentChecker> SpaceValidator<C> {
@@ -70,7 +94,21 @@ impl<C: SegmentChecker> SpaceValidator<C> {
             angular,
             linear,
             own_segments: 0,
+            certify: None,
         }
+    }
+
+    /// Segments are certified collision-free as continuous motions (swept-volume bounds with
+    /// inflations of at most `max_inflation` metres) when the checker can; other checkers keep
+    /// checking states at the resolution. `None` switches back to states at the resolution.
+    pub fn with_certification(mut self, max_inflation: Option<f64>) -> Self {
+        self.certify = max_inflation.filter(|d| d.is_finite() && *d > 0.0);
+        self
+    }
+
+    /// The largest inflation of certified segment checks, when they are on.
+    pub fn certification(&self) -> Option<f64> {
+        self.certify
     }
 
     pub fn space(&self) -> &JointSpace {
@@ -124,6 +162,12 @@ impl<C: SegmentChecker> SpaceValidator<C> {
     pub fn is_motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.space.write_world(a, &mut self.wa);
         self.space.write_world(b, &mut self.wb);
+        if let Some(d) = self.certify {
+            if let Some(ok) = self.motion.checker.segment_certified(&self.wa, &self.wb, d) {
+                self.own_segments += 1;
+                return ok;
+            }
+        }
         let n = self.motion.steps(&self.wa, &self.wb);
         match self.motion.checker.segment_free(&self.wa, &self.wb, n) {
             Some(ok) => {
