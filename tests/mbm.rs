@@ -281,3 +281,65 @@ fn sphere_checker_solves_two_panda_problems_per_set_exactly_valid() {
         }
     }
 }
+
+/// `bench mbm`'s default configuration: certified motion checks (4 cm), dynamic domain (radius
+/// 4), balanced trees, VAMP's ranges. Every path must pass the exact check at `check_deg`.
+fn certified_bench_settings_solve(name: &str, range: f64, per_set: usize, check_deg: f64) {
+    use manyhands::collision::AutoChecker;
+    let file = MbmFile::load(&mbm(&format!("{name}/problems.json"))).expect("problems");
+    let robot = Arc::new(
+        Robot::from_files(
+            &mbm(&format!("{name}/{name}_spherized.urdf")),
+            Some(&mbm(&format!("{name}/{name}.srdf"))),
+        )
+        .expect("robot"),
+    );
+    let vars = file.joint_vars(&robot).expect("joints");
+    let settings = RrtConnectSettings {
+        range: Some(range),
+        certify: Some(0.04),
+        dynamic_domain: Some(4.0),
+        balance: true,
+        revalidate: false,
+        ..RrtConnectSettings::default()
+    };
+    for set in &file.sets {
+        for p in set.problems.iter().filter(|p| p.valid).take(per_set) {
+            let world = p.world(robot.clone());
+            let space = p.space(&world, &vars).expect("space");
+            let checker = AutoChecker::new(&world, 0.0);
+            let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, settings)
+                .expect("planner");
+            let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+            let r = planner
+                .plan(&p.start, &p.goals, &mut term, 5)
+                .unwrap_or_else(|e| panic!("{}[{}]: {e}", set.name, p.index));
+            assert_eq!(r.path.first(), Some(&p.start));
+            assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
+            let mut exact = SpaceValidator::new(
+                space,
+                &world,
+                ExactChecker::new(&world),
+                check_deg.to_radians(),
+                0.005,
+            );
+            assert_eq!(
+                exact.validate_path(&r.path),
+                Ok(()),
+                "{}[{}]",
+                set.name,
+                p.index
+            );
+        }
+    }
+}
+
+#[test]
+fn certified_planning_solves_panda_problems_exactly_valid_at_fine_resolution() {
+    certified_bench_settings_solve("panda", 1.0, 2, 0.05);
+}
+
+#[test]
+fn certified_planning_solves_baxter_problems_exactly_valid() {
+    certified_bench_settings_solve("baxter", 0.5, 1, 0.25);
+}

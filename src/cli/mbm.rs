@@ -53,7 +53,8 @@ pub struct MbmArgs {
     /// Resolution of the exact re-check of returned paths, degrees.
     #[arg(long, default_value_t = 0.25)]
     pub check_resolution: f64,
-    /// RRT-Connect range (joint-space distance); default 0.2 × the space's extent (OMPL).
+    /// RRT-Connect range (joint-space distance); default VAMP's per-robot setting for the
+    /// benchmark's robots (panda 1.0, baxter 0.5), else 0.2 × the space's extent (OMPL).
     #[arg(long)]
     pub range: Option<f64>,
     /// Padding added to every robot sphere of the planner's collision model, metres (a safety
@@ -64,8 +65,14 @@ pub struct MbmArgs {
     /// continuous motion, spheres inflated by at most this many metres per checked state (0 =
     /// off: states at --resolution instead). Independent of it, returned paths are re-checked
     /// exactly at --check-resolution.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.04)]
     pub certify: f64,
+    /// Dynamic-domain radius (joint-space distance) of RRT-Connect; 0 = off. VAMP's default: 4.
+    #[arg(long, default_value_t = 4.0)]
+    pub dynamic_domain: f64,
+    /// Alternate the trees instead of growing the smaller one (VAMP and this bench balance).
+    #[arg(long)]
+    pub no_balance: bool,
     /// Plan with the general primitive checker (FastChecker) even when the robot is made of
     /// spheres (default: the f32 8-lane sphere checker whenever it applies).
     #[arg(long)]
@@ -301,6 +308,9 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if !(a.certify.is_finite() && a.certify >= 0.0) {
         bail!("--certify must be ≥ 0 metres");
     }
+    if !(a.dynamic_domain.is_finite() && a.dynamic_domain >= 0.0) {
+        bail!("--dynamic-domain must be ≥ 0");
+    }
     if a.trials == 0 {
         bail!("--trials must be ≥ 1");
     }
@@ -329,13 +339,19 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         }
     }
     let settings = RrtConnectSettings {
-        range: a.range,
+        range: a.range.or(match file.robot.as_str() {
+            "panda" => Some(1.0),
+            "baxter" => Some(0.5),
+            _ => None,
+        }),
         angular_resolution: a.resolution.to_radians(),
         linear_resolution: 0.005,
         direct_connect: true,
         shortcut: (!a.no_simplify).then(ShortcutSettings::default),
         revalidate: a.revalidate,
         certify: (a.certify > 0.0).then_some(a.certify),
+        dynamic_domain: (a.dynamic_domain > 0.0).then_some(a.dynamic_domain),
+        balance: !a.no_balance,
     };
     let is_panda = file.robot == "panda";
     let mut runs: Vec<Run> = Vec::new();

@@ -36,6 +36,13 @@ pub struct RrtConnectSettings {
     /// see [`crate::collision::SphereChecker::segment_certified`]) when the checker can;
     /// otherwise, or with `None`, states are checked at the resolutions.
     pub certify: Option<f64>,
+    /// Dynamic-domain sampling (Yershova, Jaillet, Siméon & LaValle, ICRA 2005): a state whose
+    /// EXTEND hit an obstacle gets this radius (shrinking by 0.01 % per further failure, never
+    /// below the range; growing by 0.01 % per success), and samples farther than that from
+    /// their nearest state are skipped without any collision check. `None`: plain RRT-Connect.
+    pub dynamic_domain: Option<f64>,
+    /// Extend the tree with fewer states each iteration (instead of alternating trees).
+    pub balance: bool,
 }
 
 impl Default for RrtConnectSettings {
@@ -48,6 +55,8 @@ impl Default for RrtConnectSettings {
             shortcut: Some(ShortcutSettings::default()),
             revalidate: true,
             certify: None,
+            dynamic_domain: None,
+            balance: false,
         }
     }
 }
@@ -61,6 +70,13 @@ impl RrtConnectSettings {
             return Err(PlanError::InvalidInput(
                 "resolutions must be finite and > 0".into(),
             ));
+        }
+        if let Some(r) = self.dynamic_domain {
+            if !pos(r) {
+                return Err(PlanError::InvalidInput(format!(
+                    "dynamic_domain radius must be finite and > 0, got {r}"
+                )));
+            }
         }
         if let Some(d) = self.certify {
             if !pos(d) {
@@ -251,12 +267,19 @@ impl<C: SegmentChecker> RrtConnect<C> {
             }
             iterations += 1;
             validator.space().sample_uniform(&mut rng, q_rand);
+            if settings.balance {
+                start_side = ts.len() <= tg.len();
+            }
             let (ta, tb) = if start_side {
                 (&mut *ts, &mut *tg)
             } else {
                 (&mut *tg, &mut *ts)
             };
-            match extend(ta, validator, range, q_rand, q_new) {
+            let grown = match settings.dynamic_domain {
+                Some(r0) => extend_dynamic_domain(ta, validator, range, r0, q_rand, q_new),
+                None => extend(ta, validator, range, q_rand, q_new),
+            };
+            match grown {
                 Extend::Trapped => {}
                 Extend::Advanced(i) | Extend::Reached(i) => {
                     q_target.copy_from_slice(ta.state(i));
@@ -391,6 +414,59 @@ pub(super) fn connect<C: SegmentChecker>(
             Extend::Reached(j) => return Some(j),
             Extend::Trapped => return None,
         }
+    }
+}
+
+/// Share by which a dynamic-domain radius shrinks after a failed EXTEND and grows after a
+/// successful one (VAMP's and Yershova et al.'s α).
+const DYNAMIC_DOMAIN_ALPHA: f64 = 1e-4;
+
+/// EXTEND with dynamic-domain sampling (see [`RrtConnectSettings::dynamic_domain`]): a sample
+/// outside its nearest state's radius is skipped (`Trapped`, nothing checked).
+#[inline]
+fn extend_dynamic_domain<C: SegmentChecker>(
+    tree: &mut Tree,
+    v: &mut SpaceValidator<C>,
+    range: f64,
+    radius: f64,
+    target: &[f64],
+    q_new: &mut [f64],
+) -> Extend {
+    let Some((near, d2)) = tree.nearest(target) else {
+        return Extend::Trapped;
+    };
+    let r = tree.radius(near);
+    if d2 > r * r {
+        return Extend::Trapped;
+    }
+    if d2 == 0.0 {
+        return Extend::Reached(near);
+    }
+    let d = d2.sqrt();
+    let reached = d <= range;
+    if reached {
+        q_new.copy_from_slice(target);
+    } else {
+        v.space()
+            .interpolate(tree.state(near), target, range / d, q_new);
+    }
+    if !v.is_motion_valid(tree.state(near), q_new) {
+        let shrunk = if r.is_finite() {
+            (r * (1.0 - DYNAMIC_DOMAIN_ALPHA)).max(range)
+        } else {
+            radius
+        };
+        tree.set_radius(near, shrunk);
+        return Extend::Trapped;
+    }
+    if r.is_finite() {
+        tree.set_radius(near, r * (1.0 + DYNAMIC_DOMAIN_ALPHA));
+    }
+    let i = tree.add(q_new, near);
+    if reached {
+        Extend::Reached(i)
+    } else {
+        Extend::Advanced(i)
     }
 }
 

@@ -1,9 +1,32 @@
 //! RRT search trees (LaValle 1998): states in one flat `Vec<f64>` with parent indices, and an
-//! exact nearest-neighbour query by linear scan in the space's weighted metric. Cache-friendly
-//! and allocation-free per query; adequate for the few thousand states of a typical query.
+//! exact nearest-neighbour query in the space's weighted metric: a linear scan while the tree
+//! is small, then an incremental k-d tree (Bentley 1975; buckets of [`BUCKET`] states split at
+//! the median of their widest weighted coordinate) that answers the same exact query with
+//! pruning, for trees of 10⁴–10⁵ states (14-DoF bimanual problems). Allocation-free per query;
+//! insertion only grows flat arrays. Each state also carries a dynamic-domain radius
+//! (Yershova et al., ICRA 2005) for planners that use one.
 
 /// Parent index of a root state.
 pub const NO_PARENT: u32 = u32::MAX;
+
+/// States per k-d tree leaf before it splits.
+pub const BUCKET: usize = 16;
+/// Trees up to this size are searched by linear scan (faster than descending the k-d tree).
+const LINEAR_SCAN_MAX: usize = 192;
+
+#[derive(Debug, Clone, Copy)]
+enum KdNode {
+    Leaf {
+        len: u8,
+        items: [u32; BUCKET],
+    },
+    Split {
+        dim: u32,
+        value: f64,
+        lo: u32,
+        hi: u32,
+    },
+}
 
 /// A tree (or forest: several roots are allowed) of states of one space.
 #[derive(Debug, Clone)]
@@ -12,6 +35,10 @@ pub struct Tree {
     weights: Vec<f64>,
     states: Vec<f64>,
     parents: Vec<u32>,
+    /// Dynamic-domain radius of each state (`f64::INFINITY` until a planner sets one).
+    radii: Vec<f64>,
+    kd: Vec<KdNode>,
+    kd_overflow: Vec<u32>,
 }
 
 impl Tree {
@@ -22,6 +49,12 @@ impl Tree {
             weights: weights.to_vec(),
             states: Vec::with_capacity(weights.len() * 1024),
             parents: Vec::with_capacity(1024),
+            radii: Vec::with_capacity(1024),
+            kd: vec![KdNode::Leaf {
+                len: 0,
+                items: [0; BUCKET],
+            }],
+            kd_overflow: Vec::new(),
         }
     }
 
@@ -29,6 +62,24 @@ impl Tree {
     pub fn clear(&mut self) {
         self.states.clear();
         self.parents.clear();
+        self.radii.clear();
+        self.kd.clear();
+        self.kd_overflow.clear();
+        self.kd.push(KdNode::Leaf {
+            len: 0,
+            items: [0; BUCKET],
+        });
+    }
+
+    /// The dynamic-domain radius of state `i`.
+    #[inline]
+    pub fn radius(&self, i: u32) -> f64 {
+        self.radii[i as usize]
+    }
+
+    #[inline]
+    pub fn set_radius(&mut self, i: u32, r: f64) {
+        self.radii[i as usize] = r;
     }
 
     #[inline]
@@ -48,7 +99,97 @@ impl Tree {
         debug_assert!(parent == NO_PARENT || (parent as usize) < self.len());
         self.states.extend_from_slice(q);
         self.parents.push(parent);
-        (self.parents.len() - 1) as u32
+        self.radii.push(f64::INFINITY);
+        let i = (self.parents.len() - 1) as u32;
+        self.kd_insert(i);
+        i
+    }
+
+    fn kd_insert(&mut self, i: u32) {
+        let q = i as usize * self.dim;
+        let mut n = 0usize;
+        loop {
+            match &mut self.kd[n] {
+                KdNode::Split { dim, value, lo, hi } => {
+                    n = if self.states[q + *dim as usize] < *value {
+                        *lo as usize
+                    } else {
+                        *hi as usize
+                    };
+                }
+                KdNode::Leaf { len, items } => {
+                    if (*len as usize) == BUCKET {
+                        // A full leaf that could not split (identical states).
+                        self.kd_overflow.push(i);
+                        return;
+                    }
+                    items[*len as usize] = i;
+                    *len += 1;
+                    if (*len as usize) == BUCKET {
+                        self.kd_split(n);
+                    }
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Splits a full leaf at the median of its widest (weighted) coordinate.
+    fn kd_split(&mut self, n: usize) {
+        let KdNode::Leaf { items, .. } = self.kd[n] else {
+            return;
+        };
+        let (mut best_dim, mut best_spread) = (0usize, -1.0f64);
+        for d in 0..self.dim {
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for &it in &items {
+                let v = self.states[it as usize * self.dim + d];
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+            let spread = (hi - lo) * self.weights[d].sqrt();
+            if spread > best_spread {
+                best_spread = spread;
+                best_dim = d;
+            }
+        }
+        let mut vals = [0.0f64; BUCKET];
+        for (v, &it) in vals.iter_mut().zip(&items) {
+            *v = self.states[it as usize * self.dim + best_dim];
+        }
+        vals.sort_by(|a, b| a.total_cmp(b));
+        let value = vals[BUCKET / 2];
+        let mut lo_leaf = ([0u32; BUCKET], 0u8);
+        let mut hi_leaf = ([0u32; BUCKET], 0u8);
+        for &it in &items {
+            let side = if self.states[it as usize * self.dim + best_dim] < value {
+                &mut lo_leaf
+            } else {
+                &mut hi_leaf
+            };
+            side.0[side.1 as usize] = it;
+            side.1 += 1;
+        }
+        if lo_leaf.1 == 0 || hi_leaf.1 == 0 {
+            // Identical states: the leaf stays full; later states reaching it go to the
+            // overflow list, which every query scans.
+            return;
+        }
+        let lo = self.kd.len() as u32;
+        self.kd.push(KdNode::Leaf {
+            len: lo_leaf.1,
+            items: lo_leaf.0,
+        });
+        self.kd.push(KdNode::Leaf {
+            len: hi_leaf.1,
+            items: hi_leaf.0,
+        });
+        self.kd[n] = KdNode::Split {
+            dim: best_dim as u32,
+            value,
+            lo,
+            hi: lo + 1,
+        };
     }
 
     #[inline]
@@ -71,9 +212,59 @@ impl Tree {
         i
     }
 
-    /// Index and squared weighted distance of the state nearest to `q` (`None` when empty).
+    /// Index and squared weighted distance of the state nearest to `q` (`None` when empty);
+    /// ties go to the lowest index in a linear scan, to the first found in the k-d tree.
     #[inline]
     pub fn nearest(&self, q: &[f64]) -> Option<(u32, f64)> {
+        if self.len() <= LINEAR_SCAN_MAX {
+            return self.nearest_linear(q);
+        }
+        let mut best = (u32::MAX, f64::INFINITY);
+        self.kd_search(0, q, &mut best);
+        for &i in &self.kd_overflow {
+            let d = self.dist_sq(i, q);
+            if d < best.1 {
+                best = (i, d);
+            }
+        }
+        (best.0 != u32::MAX).then_some(best)
+    }
+
+    #[inline(always)]
+    fn dist_sq(&self, i: u32, q: &[f64]) -> f64 {
+        let s = &self.states[i as usize * self.dim..(i as usize + 1) * self.dim];
+        let mut d = 0.0;
+        for k in 0..self.dim {
+            let e = s[k] - q[k];
+            d += self.weights[k] * e * e;
+        }
+        d
+    }
+
+    fn kd_search(&self, n: usize, q: &[f64], best: &mut (u32, f64)) {
+        match &self.kd[n] {
+            KdNode::Leaf { len, items } => {
+                for &i in &items[..*len as usize] {
+                    let d = self.dist_sq(i, q);
+                    if d < best.1 {
+                        *best = (i, d);
+                    }
+                }
+            }
+            KdNode::Split { dim, value, lo, hi } => {
+                let diff = q[*dim as usize] - value;
+                let (near, far) = if diff < 0.0 { (*lo, *hi) } else { (*hi, *lo) };
+                self.kd_search(near as usize, q, best);
+                if self.weights[*dim as usize] * diff * diff < best.1 {
+                    self.kd_search(far as usize, q, best);
+                }
+            }
+        }
+    }
+
+    /// [`Self::nearest`] by linear scan.
+    #[inline]
+    pub fn nearest_linear(&self, q: &[f64]) -> Option<(u32, f64)> {
         let mut best = f64::INFINITY;
         let mut best_i = None;
         for (i, s) in self.states.chunks_exact(self.dim).enumerate() {
@@ -122,5 +313,46 @@ mod tests {
         assert_eq!(p, vec![r, a, b]);
         assert_eq!(t.root_of(b), r);
         assert_eq!(t.parent(r), None);
+    }
+
+    /// The k-d tree answers exactly what the linear scan answers (distances equal), with
+    /// weights, duplicated states and clustered states that force deep splits.
+    #[test]
+    fn kd_tree_nearest_equals_linear_scan() {
+        use rand::{Rng, SeedableRng};
+        let w = [1.0, 0.25, 4.0, 1.0, 0.5, 2.0, 1.0];
+        let mut t = Tree::new(&w);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut q = [0.0f64; 7];
+        for n in 0..6000u32 {
+            for v in q.iter_mut() {
+                *v = if n % 3 == 0 {
+                    rng.random_range(-0.01..0.01)
+                } else {
+                    rng.random_range(-3.0..3.0)
+                };
+            }
+            if n % 500 == 7 {
+                // Many identical states.
+                for _ in 0..40 {
+                    t.add(&[0.5; 7], NO_PARENT);
+                }
+            }
+            t.add(&q, NO_PARENT);
+            if n % 7 == 0 {
+                for v in q.iter_mut() {
+                    *v = rng.random_range(-3.5..3.5);
+                }
+                let a = t.nearest(&q).expect("non-empty");
+                let b = t.nearest_linear(&q).expect("non-empty");
+                assert_eq!(a.1, b.1, "after {n} states");
+                if n >= 7 {
+                    let p = [0.5; 7];
+                    assert_eq!(t.nearest(&p).map(|x| x.1), Some(0.0));
+                }
+            }
+        }
+        t.clear();
+        assert!(t.nearest(&q).is_none());
     }
 }
