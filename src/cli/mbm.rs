@@ -358,14 +358,27 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     let mut summaries: Vec<Summary> = Vec::new();
     if !ctx.json {
         println!(
-            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, planning resolution {}°, padding {} m, exact re-check at {}°, {}",
+            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, motion checks: {}, range {}, dynamic domain {}, {} trees, padding {} m, exact re-check at {}°, {}",
             file.robot,
             vars.len(),
             robot.dof(),
             a.trials,
             a.seed,
             a.time_limit,
-            a.resolution,
+            if a.certify > 0.0 {
+                format!("certified continuous (inflation ≤ {} m)", a.certify)
+            } else {
+                format!("states every {}°", a.resolution)
+            },
+            settings
+                .range
+                .map_or("0.2 × extent".to_string(), |r| r.to_string()),
+            if a.dynamic_domain > 0.0 {
+                a.dynamic_domain.to_string()
+            } else {
+                "off".into()
+            },
+            if a.no_balance { "alternating" } else { "balanced" },
             a.padding,
             a.check_resolution,
             if a.no_simplify { "no simplification" } else { "shortcutting on" }
