@@ -830,13 +830,13 @@ impl SphereChecker {
             // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
             return unsafe { self.run8_avx2() }.is_some();
         }
-        self.run::<LANES>().is_some()
+        self.run::<LANES, false>().is_some()
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn run8_avx2(&mut self) -> Option<Hit> {
-        self.run::<LANES>()
+        self.run::<LANES, true>()
     }
 
     fn single(&mut self, q: &[f64]) -> Option<Hit> {
@@ -844,12 +844,12 @@ impl SphereChecker {
         for (i, v) in self.qv.iter_mut().enumerate() {
             v[0] = q[i] as f32;
         }
-        self.run::<1>()
+        self.run::<1, false>()
     }
 
     /// Fused FK and checking of the first `N` lanes of `qv`.
     #[inline(always)]
-    fn run<const N: usize>(&mut self) -> Option<Hit> {
+    fn run<const N: usize, const AVX: bool>(&mut self) -> Option<Hit> {
         self.tight = 0;
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
@@ -860,14 +860,14 @@ impl SphereChecker {
             self.step::<N>(si);
             let (b0, b1) = self.steps[si].bodies;
             for b in b0..b1 {
-                if let Some(h) = self.body_env::<N>(b as usize) {
+                if let Some(h) = self.body_env::<N, AVX>(b as usize) {
                     return Some(h);
                 }
             }
         }
         for pi in 0..self.self_pairs.len() {
             let (a, b) = self.self_pairs[pi];
-            if self.pair_hits::<N>(pi, a as usize, b as usize) {
+            if self.pair_hits::<N, AVX>(pi, a as usize, b as usize) {
                 return Some(Hit::SelfPair(a, b));
             }
         }
@@ -1010,7 +1010,7 @@ impl SphereChecker {
     /// The body's spheres against its obstacles. With an inflation, a lane whose inflated
     /// spheres touch but whose plain spheres do not is marked in `tight`; a plain touch is a hit.
     #[inline(always)]
-    fn body_env<const N: usize>(&mut self, b: usize) -> Option<Hit> {
+    fn body_env<const N: usize, const AVX: bool>(&mut self, b: usize) -> Option<Hit> {
         let body = &self.bodies[b];
         let c = Self::place::<N>(&self.frames[body.node as usize], &body.bc);
         for r in 0..3 {
@@ -1023,7 +1023,7 @@ impl SphereChecker {
         for k in o0 as usize..o1 as usize {
             let oi = self.body_obstacles[k] as usize;
             let o = self.obstacles[oi];
-            if obs_mask::<N>(&o, &c[0], &c[1], &c[2], br) == 0 {
+            if obs_mask::<N, AVX>(&o, &c[0], &c[1], &c[2], br) == 0 {
                 continue;
             }
             if !spheres_ready {
@@ -1040,9 +1040,9 @@ impl SphereChecker {
                 y.copy_from_slice(&w[1][..N]);
                 z.copy_from_slice(&w[2][..N]);
                 let r = self.spheres[si][3];
-                let m = obs_mask::<N>(&o, &x, &y, &z, r + infl);
+                let m = obs_mask::<N, AVX>(&o, &x, &y, &z, r + infl);
                 if m != 0 {
-                    if infl == 0.0 || obs_mask::<N>(&o, &x, &y, &z, r) != 0 {
+                    if infl == 0.0 || obs_mask::<N, AVX>(&o, &x, &y, &z, r) != 0 {
                         return Some(Hit::Obstacle(b as u32, oi as u32));
                     }
                     self.tight |= m;
@@ -1053,10 +1053,10 @@ impl SphereChecker {
     }
 
     #[inline(always)]
-    fn pair_hits<const N: usize>(&mut self, pi: usize, a: usize, b: usize) -> bool {
+    fn pair_hits<const N: usize, const AVX: bool>(&mut self, pi: usize, a: usize, b: usize) -> bool {
         let ex = self.infl_pair[pi];
         let rr = self.bodies[a].br + self.bodies[b].br + ex;
-        if near_mask::<N>(&self.bcw[a], &self.bcw[b], rr) == 0 {
+        if near_mask::<N, AVX>(&self.bcw[a], &self.bcw[b], rr) == 0 {
             return false;
         }
         self.ensure_spheres::<N>(a);
@@ -1066,14 +1066,14 @@ impl SphereChecker {
         for i in sa.0 as usize..sa.1 as usize {
             let (wi, ri) = (&self.sw[i], self.spheres[i][3]);
             // The sphere against b's bounding sphere first.
-            if near_mask::<N>(wi, bb, ri + rb + ex) == 0 {
+            if near_mask::<N, AVX>(wi, bb, ri + rb + ex) == 0 {
                 continue;
             }
             for j in sb.0 as usize..sb.1 as usize {
                 let rij = ri + self.spheres[j][3];
-                let m = near_mask::<N>(wi, &self.sw[j], rij + ex);
+                let m = near_mask::<N, AVX>(wi, &self.sw[j], rij + ex);
                 if m != 0 {
-                    if ex == 0.0 || near_mask::<N>(wi, &self.sw[j], rij) != 0 {
+                    if ex == 0.0 || near_mask::<N, AVX>(wi, &self.sw[j], rij) != 0 {
                         return true;
                     }
                     self.tight |= m;
@@ -1118,24 +1118,52 @@ fn lin4<const N: usize>(a: &Lane, b: &Lane, c: &Lane, d: &Lane, s: [f32; 3]) -> 
     o
 }
 
-/// Lanes (bit l) whose distance between the two points is at most `r`.
+/// Lanes (bit l) whose value is ≤ 0 (NaN: not set). `AVX`: the caller runs compiled for
+/// and on an AVX2 CPU ([`SphereChecker::run8_avx2`]), so one compare and a `movemask` do it.
 #[inline(always)]
-fn near_mask<const N: usize>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> u32 {
-    let r2 = r * r;
+fn le_zero_mask<const N: usize, const AVX: bool>(v: &[f32; N]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if AVX && N == 8 {
+        use std::arch::x86_64::{_mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps};
+        use std::arch::x86_64::{_mm256_setzero_ps, _CMP_LE_OQ};
+        // SAFETY: `AVX` is true only inside `run8_avx2`, which runs on CPUs with AVX2 (checked
+        // at construction); `v` holds 8 f32.
+        return unsafe {
+            let x = _mm256_loadu_ps(v.as_ptr());
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(x, _mm256_setzero_ps())) as u32
+        };
+    }
     let mut m = 0u32;
     for l in 0..N {
-        let dx = a[0][l] - b[0][l];
-        let dy = a[1][l] - b[1][l];
-        let dz = a[2][l] - b[2][l];
-        m |= u32::from(dx * dx + dy * dy + dz * dz <= r2) << l;
+        m |= u32::from(v[l] <= 0.0) << l;
     }
     m
 }
 
+/// Lanes (bit l) whose distance between the two points is at most `r`.
+#[inline(always)]
+fn near_mask<const N: usize, const AVX: bool>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> u32 {
+    let r2 = r * r;
+    let mut d = [0.0f32; N];
+    for l in 0..N {
+        let dx = a[0][l] - b[0][l];
+        let dy = a[1][l] - b[1][l];
+        let dz = a[2][l] - b[2][l];
+        d[l] = dx * dx + dy * dy + dz * dz - r2;
+    }
+    le_zero_mask::<N, AVX>(&d)
+}
+
 /// Lanes (bit l) whose sphere (x, y, z, r) touches the obstacle.
 #[inline(always)]
-fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r: f32) -> u32 {
-    let mut m = 0u32;
+fn obs_mask<const N: usize, const AVX: bool>(
+    o: &Obs,
+    x: &[f32; N],
+    y: &[f32; N],
+    z: &[f32; N],
+    r: f32,
+) -> u32 {
+    let mut d = [0.0f32; N];
     match *o {
         Obs::Sphere { c, r: ro } => {
             let rr = (r + ro) * (r + ro);
@@ -1143,7 +1171,7 @@ fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r
                 let dx = x[l] - c[0];
                 let dy = y[l] - c[1];
                 let dz = z[l] - c[2];
-                m |= u32::from(dx * dx + dy * dy + dz * dz <= rr) << l;
+                d[l] = dx * dx + dy * dy + dz * dz - rr;
             }
         }
         Obs::Box { c, rt, half } => {
@@ -1157,7 +1185,7 @@ fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r
                     let e = (p.abs() - half[k]).max(0.0);
                     d2 += e * e;
                 }
-                m |= u32::from(d2 <= r * r) << l;
+                d[l] = d2 - r * r;
             }
         }
         Obs::Cylinder { c, axis, r: rc, h } => {
@@ -1169,7 +1197,7 @@ fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r
                 let rad2 = (dx * dx + dy * dy + dz * dz - pz * pz).max(0.0);
                 let dr = (rad2.sqrt() - rc).max(0.0);
                 let ez = (pz.abs() - h).max(0.0);
-                m |= u32::from(dr * dr + ez * ez <= r * r) << l;
+                d[l] = dr * dr + ez * ez - r * r;
             }
         }
         Obs::Capsule { c, axis, r: rc, h } => {
@@ -1183,11 +1211,11 @@ fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r
                 let ex = dx - t * axis[0];
                 let ey = dy - t * axis[1];
                 let ez = dz - t * axis[2];
-                m |= u32::from(ex * ex + ey * ey + ez * ez <= rr) << l;
+                d[l] = ex * ex + ey * ey + ez * ez - rr;
             }
         }
     }
-    m
+    le_zero_mask::<N, AVX>(&d)
 }
 
 /// `(sin x, cos x)` of every lane in f32 (Cephes' sinf/cosf kernels after a three-constant
