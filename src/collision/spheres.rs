@@ -143,19 +143,24 @@ pub struct SphereChecker {
     avx2: bool,
     inflate: f64,
     // Certified motion checks (see [`SphereChecker::segment_certified`]).
-    /// Per body and world variable: bound of the speed of the body's sphere centres per unit
-    /// change of the variable (m/rad or m/m); row-major `bodies × dof`.
-    body_w: Vec<f64>,
-    /// Every prismatic joint has bounded travel, so `body_w` is finite.
+    /// Per body, its movable ancestor joints from the body's node up to the root: the world
+    /// variable and the bound of the speed of the body's sphere centres per unit change of it
+    /// (m/rad or m/m). Ranges in `chain_range`.
+    chain: Vec<(u32, f64)>,
+    chain_range: Vec<(u32, u32)>,
+    /// Per body, prefix sums of its chain's displacement bounds over the current segment
+    /// (`chain length + 1` entries from `cum_off[body]`).
+    cum: Vec<f64>,
+    cum_off: Vec<u32>,
+    /// Per self pair, the entries of `cum` holding each body's displacement from the joints
+    /// below the pair's common ancestor (joints above it move both rigidly and do not count).
+    pair_cum: Vec<(u32, u32)>,
+    /// Every prismatic joint has bounded travel, so the speed bounds are finite.
     certifiable: bool,
     /// Per body: displacement bound of its spheres over the segment being certified.
     seg_len: Vec<f64>,
     /// Per body: extra radius of its spheres in the current check (0 outside certification).
     infl: Vec<f32>,
-    /// Per self pair: bound of the speed of its spheres relative to each other per unit change
-    /// of each world variable (joints above the pair's common ancestor move both rigidly and do
-    /// not count); row-major `pairs × dof`.
-    pair_w: Vec<f64>,
     seg_pair_len: Vec<f64>,
     /// Per self pair: extra distance required between its spheres in the current check.
     infl_pair: Vec<f32>,
@@ -485,13 +490,16 @@ impl SphereChecker {
         }
         let nb = bodies.len();
         let ns = spheres.len();
-        let dof = world.dof();
         // Speed bounds: a sphere centre c riding on node k moves, per unit of a revolute
         // variable of an ancestor node i, at most |c − o_i| ≤ D_i (o_i on i's axis), where
         // D_k = max |c| in node k's frame and D_parent = D_i + |t_i| (+ prismatic travel).
-        // `stop`: the walk ends at the first node for which it is true (that node's joint and
-        // those above it are not counted).
-        let speed_bounds = |body: &Body, w: &mut [f64], stop: &dyn Fn(usize) -> bool| -> bool {
+        let mut chain: Vec<(u32, f64)> = Vec::new();
+        let mut chain_range = Vec::with_capacity(nb);
+        let mut cum_off = Vec::with_capacity(nb);
+        let mut certifiable = true;
+        let mut cum_len = 0u32;
+        for body in &bodies {
+            let first = chain.len() as u32;
             let mut d = spheres[body.spheres.0 as usize..body.spheres.1 as usize]
                 .iter()
                 .map(|s| {
@@ -501,54 +509,54 @@ impl SphereChecker {
                 })
                 .fold(0.0, f64::max);
             let mut k = body.node as usize;
-            let mut finite = true;
-            while !stop(k) {
+            loop {
                 let st = &steps[k];
                 let mul = f64::from(st.mul).abs();
-                match st.kind {
+                let w = match st.kind {
                     StepKind::Root => break,
-                    StepKind::Revolute(_) => w[st.var as usize] += mul * d,
-                    StepKind::Prismatic => w[st.var as usize] += mul,
-                }
+                    StepKind::Revolute(_) => mul * d,
+                    StepKind::Prismatic => mul,
+                };
+                chain.push((st.var, w * (1.0 + 1e-5)));
                 let t =
                     st.t.iter()
                         .map(|&v| f64::from(v) * f64::from(v))
                         .sum::<f64>();
                 d += t.sqrt() + st.travel;
-                finite &= d.is_finite();
+                certifiable &= d.is_finite() && w.is_finite();
                 k = st.parent as usize;
             }
-            finite
-        };
-        let mut body_w = vec![0.0f64; nb * dof];
-        let mut certifiable = true;
-        for (bi, body) in bodies.iter().enumerate() {
-            certifiable &= speed_bounds(body, &mut body_w[bi * dof..(bi + 1) * dof], &|_| false);
+            chain_range.push((first, chain.len() as u32));
+            cum_off.push(cum_len);
+            cum_len += chain.len() as u32 - first + 1;
         }
-        let ancestors = |node: usize| -> Vec<bool> {
-            let mut is = vec![false; steps.len()];
-            let mut k = node;
+        // Position in a body's chain of the first ancestor shared with the other body.
+        let below_common = |a: usize, b: usize| -> u32 {
+            let mut up_b = vec![false; steps.len()];
+            let mut k = bodies[b].node as usize;
             loop {
-                is[k] = true;
+                up_b[k] = true;
                 if steps[k].kind == StepKind::Root {
                     break;
                 }
                 k = steps[k].parent as usize;
             }
-            is
+            let mut k = bodies[a].node as usize;
+            let mut n = 0;
+            while !up_b[k] && steps[k].kind != StepKind::Root {
+                n += 1;
+                k = steps[k].parent as usize;
+            }
+            cum_off[a] + n
         };
         let npairs = self_pairs.len();
-        let mut pair_w = vec![0.0f64; npairs * dof];
-        for (pi, &(a, b)) in self_pairs.iter().enumerate() {
-            let (ba, bb) = (&bodies[a as usize], &bodies[b as usize]);
-            let (up_a, up_b) = (ancestors(ba.node as usize), ancestors(bb.node as usize));
-            let w = &mut pair_w[pi * dof..(pi + 1) * dof];
-            certifiable &= speed_bounds(ba, w, &|k| up_b[k]);
-            certifiable &= speed_bounds(bb, w, &|k| up_a[k]);
-        }
-        for v in body_w.iter_mut().chain(pair_w.iter_mut()) {
-            *v *= 1.0 + 1e-5;
-        }
+        let pair_cum: Vec<(u32, u32)> = self_pairs
+            .iter()
+            .map(|&(a, b)| {
+                let (a, b) = (a as usize, b as usize);
+                (below_common(a, b), below_common(b, a))
+            })
+            .collect();
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
@@ -571,13 +579,16 @@ impl SphereChecker {
             checks: 0,
             avx2,
             inflate,
-            body_w,
+            chain,
+            chain_range,
+            cum: vec![0.0; cum_len as usize],
+            cum_off,
+            pair_cum,
             certifiable,
             seg_len: vec![0.0; nb],
             infl: vec![0.0; nb],
             seg_pair_len: vec![0.0; npairs],
             infl_pair: vec![0.0; npairs],
-            pair_w,
             tight: 0,
             tight_ks: Vec::new(),
             refine: Vec::new(),
@@ -702,26 +713,26 @@ impl SphereChecker {
     /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
         debug_assert!(self.certifiable && max_inflation > 0.0);
-        let dof = self.qv.len();
         let mut lmax = 0.0f64;
         for (bi, len) in self.seg_len.iter_mut().enumerate() {
-            let w = &self.body_w[bi * dof..(bi + 1) * dof];
+            let (c0, c1) = self.chain_range[bi];
+            let o = self.cum_off[bi] as usize;
             let mut l = 0.0;
-            for v in 0..dof {
-                l += (b[v] - a[v]).abs() * w[v];
+            self.cum[o] = 0.0;
+            for (j, &(v, w)) in self.chain[c0 as usize..c1 as usize].iter().enumerate() {
+                l += (b[v as usize] - a[v as usize]).abs() * w;
+                self.cum[o + j + 1] = l;
             }
             *len = l;
             lmax = lmax.max(l);
         }
-        for (pi, len) in self.seg_pair_len.iter_mut().enumerate() {
-            let w = &self.pair_w[pi * dof..(pi + 1) * dof];
-            let mut l = 0.0;
-            for v in 0..dof {
-                l += (b[v] - a[v]).abs() * w[v];
-            }
-            *len = l;
+        for (len, &(pa, pb)) in self.seg_pair_len.iter_mut().zip(&self.pair_cum) {
+            *len = self.cum[pa as usize] + self.cum[pb as usize];
         }
         let n = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, Self::CERTIFY_MAX_STATES);
+        // The n + 1 states fill whole 8-lane calls: the spare lanes make sub-intervals shorter
+        // (smaller inflations) at no cost.
+        let n = (n + 1).div_ceil(LANES) * LANES - 1;
         let ok = self.certify(a, b, n);
         self.infl.iter_mut().for_each(|i| *i = 0.0);
         self.infl_pair.iter_mut().for_each(|i| *i = 0.0);
@@ -1053,7 +1064,12 @@ impl SphereChecker {
     }
 
     #[inline(always)]
-    fn pair_hits<const N: usize, const AVX: bool>(&mut self, pi: usize, a: usize, b: usize) -> bool {
+    fn pair_hits<const N: usize, const AVX: bool>(
+        &mut self,
+        pi: usize,
+        a: usize,
+        b: usize,
+    ) -> bool {
         let ex = self.infl_pair[pi];
         let rr = self.bodies[a].br + self.bodies[b].br + ex;
         if near_mask::<N, AVX>(&self.bcw[a], &self.bcw[b], rr) == 0 {
