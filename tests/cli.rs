@@ -176,3 +176,65 @@ fn random_boxes_scene_is_written_and_loads() {
     assert!(text.matches("box_").count() >= 12);
     let _ = std::fs::remove_file(&path);
 }
+
+/// `bench mbm --ompl-log` writes OMPL's benchmark log: the preamble, one planner, one line per
+/// run with as many "; "-terminated fields as declared properties, solved runs marked correct.
+#[test]
+fn bench_mbm_writes_an_ompl_benchmark_log() {
+    let dir = std::env::temp_dir().join(format!("manyhands-ompl-log-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let log = dir.join("mbm.log");
+    let (code, out, err) = run(&[
+        "bench",
+        "mbm",
+        "--robot",
+        "../shared/benchmarks/mbm/panda/panda_spherized.urdf",
+        "--problems",
+        "../shared/benchmarks/mbm/panda/problems.json",
+        "--sets",
+        "table_pick,box",
+        "--limit",
+        "2",
+        "--ompl-log",
+        log.to_str().expect("utf-8 path"),
+    ]);
+    assert_eq!(code, 0, "{out}\n{err}");
+    let text = std::fs::read_to_string(&log).expect("log written");
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("manyhands version "));
+    assert_eq!(lines[1], "Experiment mbm_panda");
+    assert!(lines.contains(&"1 planners"));
+    assert!(lines.contains(&"4 runs per planner"));
+    let n_props = lines
+        .iter()
+        .find_map(|l| l.strip_suffix(" properties for each run"))
+        .and_then(|n| n.parse::<usize>().ok())
+        .expect("property count");
+    let runs_at = lines
+        .iter()
+        .position(|l| *l == "4 runs")
+        .expect("run count line");
+    let props = &lines[runs_at - n_props..runs_at];
+    assert_eq!(props[0], "problem set ENUM");
+    let solved_col = props
+        .iter()
+        .position(|p| *p == "solved BOOLEAN")
+        .expect("solved");
+    let correct_col = props
+        .iter()
+        .position(|p| *p == "correct solution BOOLEAN")
+        .expect("correct");
+    for l in &lines[runs_at + 1..runs_at + 5] {
+        let f: Vec<&str> = l.split("; ").collect();
+        assert_eq!(f.len(), n_props + 1, "{l}");
+        assert_eq!(f[n_props], "", "{l}");
+        assert_eq!(f[solved_col], "1", "{l}");
+        assert_eq!(f[correct_col], "1", "{l}");
+        assert!(
+            f[3].parse::<f64>().is_ok_and(|t| t > 0.0 && t < 10.0),
+            "{l}"
+        );
+    }
+    assert_eq!(lines[runs_at + 5], ".");
+    let _ = std::fs::remove_dir_all(&dir);
+}

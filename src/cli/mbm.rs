@@ -87,6 +87,11 @@ pub struct MbmArgs {
     /// Write per-problem results and the summaries as JSON to this file.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Write the runs in OMPL's benchmark log format (one experiment, planner
+    /// `manyhands_RRTConnect`, the problem set as an enum), for `ompl_benchmark_statistics.py`
+    /// and Planner Arena.
+    #[arg(long)]
+    pub ompl_log: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -354,6 +359,8 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         balance: !a.no_balance,
     };
     let is_panda = file.robot == "panda";
+    let started = chrono_like_now();
+    let t_all = Instant::now();
     let mut runs: Vec<Run> = Vec::new();
     let mut summaries: Vec<Summary> = Vec::new();
     if !ctx.json {
@@ -491,7 +498,149 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         std::fs::write(out, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", out.display()))?;
     }
+    if let Some(path) = &a.ompl_log {
+        let text = ompl_log(
+            &file,
+            a,
+            &settings,
+            &runs,
+            started,
+            t_all.elapsed().as_secs_f64(),
+        );
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
     Ok(())
+}
+
+/// The runs as an OMPL benchmark log (grammar: OMPL's `doc/markdown/benchmark.md`, "The
+/// benchmark logfile format"): one experiment `mbm_<robot>`, one planner, one line per run.
+/// "correct solution" is the exact re-check's verdict; an invalid path is not "solved".
+fn ompl_log(
+    file: &MbmFile,
+    a: &MbmArgs,
+    settings: &RrtConnectSettings,
+    runs: &[Run],
+    started: String,
+    total_s: f64,
+) -> String {
+    use std::fmt::Write as _;
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_string())
+        .ok()
+        .filter(|h| !h.is_empty() && !h.contains(char::is_whitespace))
+        .unwrap_or_else(|| "unknown".into());
+    let set_names: Vec<&str> = file.sets.iter().map(|s| s.name.as_str()).collect();
+    let mut o = String::new();
+    let _ = writeln!(o, "manyhands version {}", env!("CARGO_PKG_VERSION"));
+    let _ = writeln!(o, "Experiment mbm_{}", file.robot);
+    let _ = writeln!(o, "Running on {host}");
+    let _ = writeln!(o, "Starting at {started}");
+    let _ = writeln!(o, "<<<|");
+    let _ = writeln!(
+        o,
+        "MotionBenchMaker problems {} ({} joints); exact re-check at {} deg",
+        a.problems.display(),
+        file.joints.len(),
+        a.check_resolution
+    );
+    let _ = writeln!(o, "|>>>");
+    let _ = writeln!(o, "<<<|");
+    let _ = writeln!(o, "|>>>");
+    let _ = writeln!(o, "{} is the random seed", a.seed);
+    let _ = writeln!(o, "{} seconds per run", a.time_limit);
+    let _ = writeln!(o, "0 MB per run");
+    let _ = writeln!(o, "{} runs per planner", runs.len());
+    let _ = writeln!(o, "{total_s} seconds spent to collect the data");
+    let _ = writeln!(o, "1 enum types");
+    let _ = writeln!(o, "problem set|{}", set_names.join("|"));
+    let _ = writeln!(o, "1 planners");
+    let _ = writeln!(o, "manyhands_RRTConnect");
+    let common = [
+        (
+            "range",
+            settings
+                .range
+                .map_or("0.2 x extent".into(), |r| r.to_string()),
+        ),
+        (
+            "certify inflation",
+            settings.certify.map_or("off".into(), |d| d.to_string()),
+        ),
+        (
+            "dynamic domain",
+            settings
+                .dynamic_domain
+                .map_or("off".into(), |r| r.to_string()),
+        ),
+        ("balance", settings.balance.to_string()),
+        ("simplify", settings.shortcut.is_some().to_string()),
+    ];
+    let _ = writeln!(o, "{} common properties", common.len());
+    for (k, v) in common {
+        let _ = writeln!(o, "{k} = {}", v.replace(' ', "_"));
+    }
+    let props = [
+        "problem set ENUM",
+        "problem index INTEGER",
+        "seed INTEGER",
+        "time REAL",
+        "solved BOOLEAN",
+        "correct solution BOOLEAN",
+        "simplification time REAL",
+        "solution length REAL",
+        "simplified solution length REAL",
+        "simplified solution segments INTEGER",
+        "iterations INTEGER",
+        "collision checks INTEGER",
+        "graph states INTEGER",
+        "setup time REAL",
+    ];
+    let _ = writeln!(o, "{} properties for each run", props.len());
+    for p in props {
+        let _ = writeln!(o, "{p}");
+    }
+    let _ = writeln!(o, "{} runs", runs.len());
+    let real = |v: f64| {
+        if v.is_nan() {
+            String::new()
+        } else {
+            format!("{v}")
+        }
+    };
+    for r in runs {
+        let set = set_names.iter().position(|n| *n == r.set).unwrap_or(0);
+        let planned = !r.plan_us.is_nan() && (r.solved || r.invalid);
+        let fields = [
+            set.to_string(),
+            r.index.to_string(),
+            r.seed.to_string(),
+            real(r.plan_us / 1e6),
+            u8::from(r.solved).to_string(),
+            if planned {
+                u8::from(r.solved).to_string()
+            } else {
+                String::new()
+            },
+            real(r.simplify_us / 1e6),
+            real(r.length_raw),
+            real(r.length_simplified),
+            if planned {
+                r.vertices.saturating_sub(1).to_string()
+            } else {
+                String::new()
+            },
+            r.iterations.to_string(),
+            r.collision_checks.to_string(),
+            (r.start_tree + r.goal_tree).to_string(),
+            real(r.setup_us / 1e6),
+        ];
+        for f in fields {
+            let _ = write!(o, "{f}; ");
+        }
+        o.push('\n');
+    }
+    o.push_str(".\n");
+    o
 }
 
 fn print_summary(ctx: &Ctx, s: &Summary) {
@@ -514,4 +663,28 @@ fn print_summary(ctx: &Ctx, s: &Summary) {
         s.iterations_median,
         fmt_us(s.setup_median_us),
     );
+}
+
+/// The current UTC time as `YYYY-MM-DD HH:MM:SS UTC` (civil date from days since the epoch,
+/// H. Hinnant's algorithm), for the OMPL log's "Starting at" line.
+fn chrono_like_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs()) as i64;
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1_460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02} UTC",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
 }
