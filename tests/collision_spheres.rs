@@ -215,3 +215,66 @@ fn panda_certified_segments_are_free() {
 fn baxter_certified_segments_are_free() {
     certified_segments_are_free("baxter", 0.04);
 }
+
+/// At the exact contact boundary (found by bisection with the exact f64 checker to 1e-12 of a
+/// segment), the f32 sphere checker still reports the colliding side as colliding: its rounding
+/// margin covers the f32 error where it matters most.
+fn conservative_at_the_contact_boundary(name: &str) {
+    let r = robot(name);
+    let file = MbmFile::load(&mbm(&format!("{name}/problems.json"))).expect("problems");
+    let vars = file.joint_vars(&r).expect("vars");
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let mut boundaries = 0;
+    for set in &file.sets {
+        for p in set.problems.iter().filter(|p| p.valid).take(3) {
+            let world = p.world(r.clone());
+            let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+            let mut exact = ExactChecker::new(&world);
+            let full = |q: &[f64]| {
+                let mut w = r.zero_config();
+                for (i, &v) in vars.iter().enumerate() {
+                    w[v] = q[i];
+                }
+                w
+            };
+            for _ in 0..20 {
+                let a = full(&p.start);
+                let b: Vec<f64> = a.iter().map(|v| v + rng.random_range(-1.0..1.0)).collect();
+                if exact.is_free(&b) {
+                    continue;
+                }
+                let at = |t: f64| -> Vec<f64> {
+                    a.iter().zip(&b).map(|(x, y)| x + (y - x) * t).collect()
+                };
+                let (mut lo, mut hi) = (0.0f64, 1.0f64);
+                while hi - lo > 1e-12 {
+                    let mid = 0.5 * (lo + hi);
+                    if exact.is_free(&at(mid)) {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                let q = at(hi);
+                assert!(
+                    !sc.is_free(&q),
+                    "{}[{}]: exact contact at t = {hi}, spheres free; q = {q:?}",
+                    p.set,
+                    p.index
+                );
+                boundaries += 1;
+            }
+        }
+    }
+    assert!(boundaries > 50, "only {boundaries} boundaries");
+}
+
+#[test]
+fn panda_spheres_conservative_at_the_contact_boundary() {
+    conservative_at_the_contact_boundary("panda");
+}
+
+#[test]
+fn baxter_spheres_conservative_at_the_contact_boundary() {
+    conservative_at_the_contact_boundary("baxter");
+}
