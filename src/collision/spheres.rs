@@ -14,7 +14,12 @@
 //!   reach (kinematic reach from the root) are dropped at construction;
 //! - obstacles: spheres, oriented boxes, exact cylinders and capsules, each with a closed-form
 //!   sphere test; meshes become the oriented box around their vertices (a superset);
-//! - no allocation per check.
+//! - no allocation per check;
+//! - certified motion checks ([`SphereChecker::segment_certified`]): a whole straight segment
+//!   is proven collision-free as a continuous motion from bounds on how fast each link's and
+//!   each self-collision pair's spheres can move (Schwarzer, Saha & Latombe's swept-distance
+//!   argument, "Adaptive dynamic collision checking for single and multiple articulated
+//!   robots", IEEE T-RO 2005, here with inflated spheres instead of distances).
 //!
 //! Conservative against [`super::ExactChecker`]: every robot sphere is inflated by
 //! [`SphereChecker::ROUNDING_MARGIN`] (plus the requested padding), above the f32 rounding of
@@ -130,6 +135,8 @@ pub struct SphereChecker {
     obstacles: Vec<Obs>,
     /// Static body index of each obstacle.
     obstacle_static: Vec<u32>,
+    /// Bounding sphere of each obstacle (centre, radius with a rounding allowance).
+    obstacle_sphere: Vec<[f32; 4]>,
     body_obstacles: Vec<u32>,
     self_pairs: Vec<(u32, u32)>,
     // Per-call lane buffers.
@@ -424,6 +431,18 @@ impl SphereChecker {
             }
         }
 
+        let obstacle_sphere: Vec<[f32; 4]> = obstacle_bound
+            .iter()
+            .map(|(c, r)| {
+                let scale = 1.0 + c.norm() + r;
+                [
+                    c.x as f32,
+                    c.y as f32,
+                    c.z as f32,
+                    (r + 1e-5 * scale) as f32,
+                ]
+            })
+            .collect();
         let pairs = world.pairs();
         let mut bodies = Vec::new();
         let mut spheres = Vec::new();
@@ -580,6 +599,7 @@ impl SphereChecker {
             spheres,
             obstacles,
             obstacle_static,
+            obstacle_sphere,
             body_obstacles,
             self_pairs,
             epoch: 0,
@@ -1036,10 +1056,25 @@ impl SphereChecker {
         }
         let infl = self.infl[b];
         let br = body.br + infl;
+        // One sphere around every lane's bounding sphere: obstacles whose bounding sphere it
+        // misses are skipped with one scalar test.
+        let (c0x, c0y, c0z) = (c[0][0], c[1][0], c[2][0]);
+        let mut spread2 = 0.0f32;
+        for l in 1..N {
+            let (dx, dy, dz) = (c[0][l] - c0x, c[1][l] - c0y, c[2][l] - c0z);
+            spread2 = spread2.max(dx * dx + dy * dy + dz * dz);
+        }
+        let reach = br + spread2.sqrt() * (1.0 + 1e-6) + 1e-6;
         let (o0, o1) = body.obstacles;
         let mut spheres_ready = false;
         for k in o0 as usize..o1 as usize {
             let oi = self.body_obstacles[k] as usize;
+            let ob = self.obstacle_sphere[oi];
+            let (dx, dy, dz) = (ob[0] - c0x, ob[1] - c0y, ob[2] - c0z);
+            let rr = reach + ob[3];
+            if dx * dx + dy * dy + dz * dz > rr * rr {
+                continue;
+            }
             let o = self.obstacles[oi];
             if obs_mask::<N, AVX>(&o, &c[0], &c[1], &c[2], br) == 0 {
                 continue;
