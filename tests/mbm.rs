@@ -6,10 +6,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
+use manyhands::collision::CollisionWorld;
 use manyhands::collision::{CollisionChecker, ExactChecker, FastChecker};
 use manyhands::geometry::Shape;
-use manyhands::planning::mbm::{MbmError, MbmFile};
-use manyhands::planning::{RrtConnect, RrtConnectSettings, SpaceValidator, Termination};
+use manyhands::planning::mbm::{MbmError, MbmFile, MbmProblem};
+use manyhands::planning::{
+    PlanResult, RrtConnect, RrtConnectSettings, SegmentChecker, SpaceValidator, Termination,
+};
 use manyhands::Robot;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -31,6 +34,33 @@ fn panda() -> Arc<Robot> {
 }
 
 const RES: f64 = 0.5; // degrees, planning and exact re-check
+
+/// Plans problem `p` of `set` with `planner` (seeded) and checks the path: it starts at the
+/// start, ends at the goal it names, and passes the exact checker at `check_rad`.
+fn plan_and_check_exactly<C: SegmentChecker>(
+    planner: &mut RrtConnect<C>,
+    world: &CollisionWorld,
+    set: &str,
+    p: &MbmProblem,
+    seed: u64,
+    check_rad: f64,
+) -> PlanResult {
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+    let r = planner
+        .plan(&p.start, &p.goals, &mut term, seed)
+        .unwrap_or_else(|e| panic!("{set}[{}]: {e}", p.index));
+    assert_eq!(r.path.first(), Some(&p.start));
+    assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
+    let mut exact = SpaceValidator::new(
+        planner.space().clone(),
+        world,
+        ExactChecker::new(world),
+        check_rad,
+        0.005,
+    );
+    assert_eq!(exact.validate_path(&r.path), Ok(()), "{set}[{}]", p.index);
+    r
+}
 
 #[test]
 fn loads_both_problem_files() {
@@ -155,27 +185,8 @@ fn one_panda_problem_per_set_is_solved_and_exactly_valid() {
             .expect("a valid problem");
         let world = p.world(robot.clone());
         let space = p.space(&world, &vars).expect("space");
-        let mut planner = RrtConnect::new(space.clone(), &world, settings).expect("planner");
-        let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
-        let r = planner
-            .plan(&p.start, &p.goals, &mut term, 7)
-            .unwrap_or_else(|e| panic!("{}[{}]: {e}", set.name, p.index));
-        assert_eq!(r.path.first(), Some(&p.start));
-        assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
-        let mut exact = SpaceValidator::new(
-            space,
-            &world,
-            ExactChecker::new(&world),
-            RES.to_radians(),
-            0.005,
-        );
-        assert_eq!(
-            exact.validate_path(&r.path),
-            Ok(()),
-            "{}[{}]",
-            set.name,
-            p.index
-        );
+        let mut planner = RrtConnect::new(space, &world, settings).expect("planner");
+        let r = plan_and_check_exactly(&mut planner, &world, &set.name, p, 7, RES.to_radians());
         assert!(r.stats.length_simplified <= r.stats.length_raw + 1e-9);
     }
 }
@@ -261,23 +272,9 @@ fn sphere_checker_solves_two_panda_problems_per_set_exactly_valid() {
             let space = p.space(&world, &vars).expect("space");
             let checker = AutoChecker::new(&world, 0.0);
             assert_eq!(checker.kind(), "spheres");
-            let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, settings)
-                .expect("planner");
-            let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
-            let r = planner
-                .plan(&p.start, &p.goals, &mut term, 11)
-                .unwrap_or_else(|e| panic!("{}[{}]: {e}", set.name, p.index));
-            assert_eq!(r.path.first(), Some(&p.start));
-            assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
-            let mut exact =
-                SpaceValidator::new(space, &world, ExactChecker::new(&world), res, 0.005);
-            assert_eq!(
-                exact.validate_path(&r.path),
-                Ok(()),
-                "{}[{}]",
-                set.name,
-                p.index
-            );
+            let mut planner =
+                RrtConnect::with_checker(space, &world, checker, settings).expect("planner");
+            plan_and_check_exactly(&mut planner, &world, &set.name, p, 11, res);
         }
     }
 }
@@ -308,28 +305,10 @@ fn certified_bench_settings_solve(name: &str, range: f64, per_set: usize, check_
             let world = p.world(robot.clone());
             let space = p.space(&world, &vars).expect("space");
             let checker = AutoChecker::new(&world, 0.0);
-            let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, settings)
-                .expect("planner");
-            let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
-            let r = planner
-                .plan(&p.start, &p.goals, &mut term, 5)
-                .unwrap_or_else(|e| panic!("{}[{}]: {e}", set.name, p.index));
-            assert_eq!(r.path.first(), Some(&p.start));
-            assert_eq!(r.path.last(), Some(&p.goals[r.goal_index]));
-            let mut exact = SpaceValidator::new(
-                space,
-                &world,
-                ExactChecker::new(&world),
-                check_deg.to_radians(),
-                0.005,
-            );
-            assert_eq!(
-                exact.validate_path(&r.path),
-                Ok(()),
-                "{}[{}]",
-                set.name,
-                p.index
-            );
+            let mut planner =
+                RrtConnect::with_checker(space, &world, checker, settings).expect("planner");
+            let check = check_deg.to_radians();
+            plan_and_check_exactly(&mut planner, &world, &set.name, p, 5, check);
         }
     }
 }

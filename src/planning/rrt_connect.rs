@@ -439,35 +439,18 @@ fn extend_dynamic_domain<C: SegmentChecker>(
     if d2 > r * r {
         return Extend::Trapped;
     }
-    if d2 == 0.0 {
-        return Extend::Reached(near);
-    }
-    let d = d2.sqrt();
-    let reached = d <= range;
-    if reached {
-        q_new.copy_from_slice(target);
-    } else {
-        v.space()
-            .interpolate(tree.state(near), target, range / d, q_new);
-    }
-    if !v.is_motion_valid(tree.state(near), q_new) {
+    let grown = extend_from(tree, v, range, (near, d2), target, q_new);
+    if grown == Extend::Trapped {
         let shrunk = if r.is_finite() {
             (r * (1.0 - DYNAMIC_DOMAIN_ALPHA)).max(range)
         } else {
             radius
         };
         tree.set_radius(near, shrunk);
-        return Extend::Trapped;
-    }
-    if r.is_finite() {
+    } else if r.is_finite() {
         tree.set_radius(near, r * (1.0 + DYNAMIC_DOMAIN_ALPHA));
     }
-    let i = tree.add(q_new, near);
-    if reached {
-        Extend::Reached(i)
-    } else {
-        Extend::Advanced(i)
-    }
+    grown
 }
 
 /// EXTEND (Kuffner & LaValle 2000): step from the nearest state of `tree` toward `target` by at
@@ -480,9 +463,22 @@ pub(super) fn extend<C: SegmentChecker>(
     target: &[f64],
     q_new: &mut [f64],
 ) -> Extend {
-    let Some((near, d2)) = tree.nearest(target) else {
+    let Some(nearest) = tree.nearest(target) else {
         return Extend::Trapped;
     };
+    extend_from(tree, v, range, nearest, target, q_new)
+}
+
+/// The step of EXTEND from the state `near` (at squared distance `d2` from `target`).
+#[inline]
+fn extend_from<C: SegmentChecker>(
+    tree: &mut Tree,
+    v: &mut SpaceValidator<C>,
+    range: f64,
+    (near, d2): (u32, f64),
+    target: &[f64],
+    q_new: &mut [f64],
+) -> Extend {
     if d2 == 0.0 {
         return Extend::Reached(near);
     }
