@@ -536,6 +536,23 @@ async fn plans_wait_events_and_cancel() {
     let path = v["result"]["path"].as_array().expect("path");
     assert!(path.len() >= 2);
     assert_eq!(v["result"]["joints"].as_array().map(|a| a.len()), Some(7));
+    assert_eq!(v["result"]["collision_model"], "fast", "{v}");
+    // VAMP-style RRT-Connect settings; certification asked but armar is not made of spheres.
+    let mut tuned = plan.clone();
+    tuned["dynamic_domain"] = json!(4.0);
+    tuned["balance"] = json!(true);
+    tuned["certify"] = json!(0.04);
+    let (s, v) = h.post("/v1/plans?wait=30", &tuned).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    assert_eq!(v["result"]["certified"], false, "{v}");
+    for (key, value) in [("certify", json!(2.0)), ("dynamic_domain", json!(-1.0))] {
+        let mut bad = plan.clone();
+        bad[key] = value;
+        let (s, v) = h.post("/v1/plans", &bad).await;
+        assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+        assert_eq!(field(&v), key, "{v}");
+    }
 
     // 202 + Location, then GET with wait.
     let r = h

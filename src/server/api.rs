@@ -307,6 +307,18 @@ pub struct JointSpacePlan {
     /// EXTEND step (joint-space distance; default 0.2 × the space's extent).
     #[serde(default)]
     pub range: Option<f64>,
+    /// Dynamic-domain sampling radius (joint-space distance, Yershova et al. 2005; VAMP uses
+    /// 4). Default: off.
+    #[serde(default)]
+    pub dynamic_domain: Option<f64>,
+    /// Grow the smaller tree each iteration instead of alternating (default false).
+    #[serde(default)]
+    pub balance: Option<bool>,
+    /// Certified motion checks for robots made of spheres: every segment is proven free as a
+    /// continuous motion, spheres inflated by at most this many metres per checked state
+    /// (0 < certify ≤ 0.5). Other robots keep checking states at the resolution. Default: off.
+    #[serde(default)]
+    pub certify: Option<f64>,
 }
 
 /// `kind: collision_sweep` — uniform random configurations of a scene's robots checked for

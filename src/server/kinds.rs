@@ -13,7 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
-use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use crate::collision::{AutoChecker, CollisionChecker, CollisionWorld, FastChecker};
 use crate::planning::{
     JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, ShortcutSettings, Termination,
 };
@@ -136,11 +136,21 @@ struct JointSpaceWork {
 
 fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
     let time_limit = time_limit(r.time_limit, max)?;
-    if let Some(x) = r.range {
-        if !(x.is_finite() && x > 0.0) {
+    for (field, value) in [("range", r.range), ("dynamic_domain", r.dynamic_domain)] {
+        if let Some(x) = value {
+            if !(x.is_finite() && x > 0.0) {
+                return Err(ApiError::invalid(
+                    field,
+                    format!("{x} is not a positive number"),
+                ));
+            }
+        }
+    }
+    if let Some(x) = r.certify {
+        if !(x.is_finite() && x > 0.0 && x <= 0.5) {
             return Err(ApiError::invalid(
-                "range",
-                format!("{x} is not a positive number"),
+                "certify",
+                format!("{x} is not in (0, 0.5] metres"),
             ));
         }
     }
@@ -201,6 +211,9 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
     let settings = RrtConnectSettings {
         range: r.range,
         shortcut: r.simplify.unwrap_or(true).then(ShortcutSettings::default),
+        dynamic_domain: r.dynamic_domain,
+        balance: r.balance.unwrap_or(false),
+        certify: r.certify,
         ..RrtConnectSettings::default()
     };
     Ok(Prepared {
@@ -241,7 +254,13 @@ impl JobWork for JointSpaceWork {
         let w = *self;
         let space = JointSpace::new(&w.world, &w.vars, w.base).map_err(plan_failure)?;
         let names = space.names().to_vec();
-        let mut planner = RrtConnect::new(space, &w.world, w.settings).map_err(plan_failure)?;
+        // The sphere checker for sphere robots (it can certify segments), else the fast one.
+        let checker = AutoChecker::new(&w.world, 0.0);
+        let checker_kind = checker.kind();
+        let certified = w.settings.certify.is_some()
+            && matches!(&checker, AutoChecker::Spheres(s) if s.certifiable());
+        let mut planner =
+            RrtConnect::with_checker(space, &w.world, checker, w.settings).map_err(plan_failure)?;
         ctx.progress(json!({"phase": "planning", "dimensions": names.len()}));
         let mut term = ctx.termination();
         let res = planner
@@ -249,6 +268,8 @@ impl JobWork for JointSpaceWork {
             .map_err(plan_failure)?;
         Ok(json!({
             "planner": "rrt_connect",
+            "collision_model": checker_kind,
+            "certified": certified,
             "joints": names,
             "path": res.path,
             "goal_index": res.goal_index,
