@@ -1,6 +1,8 @@
 //! State and motion validity in a [`JointSpace`] (OMPL's `StateValidityChecker` and
 //! `DiscreteMotionValidator`): bounds plus a [`CollisionChecker`] on the world configuration,
-//! segments through the collision module's [`MotionValidator`] (fixed resolution, bisection order).
+//! segments through the collision module's [`MotionValidator`] (fixed resolution, bisection order),
+//! a checker's own 8-lane segment check, or — when asked and the checker can — a certified check
+//! of the continuous segment ([`SegmentChecker::segment_certified`]).
 
 use super::JointSpace;
 use crate::collision::{
