@@ -19,7 +19,7 @@ use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{paper_settings, BimanualProblem, BimanualSettings};
 use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::task::{kitchen_task, GraspAlgorithm, KitchenTask};
-use manyhands::planning::{IkRrtSettings, PlanError, PlanStats, Termination};
+use manyhands::planning::{IkRrtSettings, PlanError, PlanResult, PlanStats, Termination};
 use manyhands::reachability::{GridCache, GridRecipe};
 
 #[derive(Args, Debug)]
@@ -143,6 +143,27 @@ fn timed_runs(
         .collect()
 }
 
+/// `armar` grasps the wok with the right hand (torso + right arm) from `q0`.
+fn grasp_wok(
+    s: &Scene,
+    world: &CollisionWorld,
+    q0: &[f64],
+    algorithm: GraspAlgorithm,
+    time_limit: f64,
+    seed: u64,
+) -> Result<(ReachProblem, PlanResult), PlanError> {
+    let p = ReachProblem::grasp(s, world, q0, "armar", "torso_right_arm", "wok")?;
+    let r = algorithm.plan_reach(
+        &p,
+        None,
+        IkRrtSettings::default(),
+        ik_settings(),
+        &mut term(time_limit),
+        seed,
+    )?;
+    Ok((p, r))
+}
+
 fn reach_row(
     s: &Scene,
     algorithm: GraspAlgorithm,
@@ -154,15 +175,7 @@ fn reach_row(
     let world = CollisionWorld::from_scene(s);
     let q0 = CollisionWorld::start_config(s);
     let runs = timed_runs(a, |seed| {
-        let p = ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok")?;
-        let r = algorithm.plan_reach(
-            &p,
-            None,
-            IkRrtSettings::default(),
-            ik_settings(),
-            &mut term(a.time_limit),
-            seed,
-        )?;
+        let (_, r) = grasp_wok(s, &world, &q0, algorithm, a.time_limit, seed)?;
         Ok(vec![r.stats])
     });
     Ok(Row {
@@ -184,15 +197,7 @@ fn regrasp_row(
 ) -> Result<Row> {
     let world = CollisionWorld::from_scene(s);
     let q0 = CollisionWorld::start_config(s);
-    let p = ReachProblem::grasp(s, &world, &q0, "armar", "torso_right_arm", "wok")?;
-    let r = GraspAlgorithm::IkRrt.plan_reach(
-        &p,
-        None,
-        IkRrtSettings::default(),
-        ik_settings(),
-        &mut term(a.time_limit),
-        0,
-    )?;
+    let (p, r) = grasp_wok(s, &world, &q0, GraspAlgorithm::IkRrt, a.time_limit, 0)?;
     let q1 = p
         .space
         .to_world(r.path.last().ok_or_else(|| anyhow!("empty grasp path"))?);

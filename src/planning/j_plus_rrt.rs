@@ -434,6 +434,16 @@ enum GoalExt {
 }
 
 impl<C: SegmentChecker> Core<C> {
+    /// The search's start time and the validator's check and segment counts now (what
+    /// `solution` and `stopped` report against).
+    fn counters(&self) -> (Instant, u64, u64) {
+        (
+            Instant::now(),
+            self.validator.checks(),
+            self.validator.segments(),
+        )
+    }
+
     fn new(
         space: JointSpace,
         world: &CollisionWorld,
@@ -774,12 +784,7 @@ impl<C: SegmentChecker> JPlusRrt<C> {
         term: &mut Termination,
         seed: u64,
     ) -> Result<PlanResult, PlanError> {
-        let t0 = Instant::now();
-        let counters = (
-            t0,
-            self.core.validator.checks(),
-            self.core.validator.segments(),
-        );
+        let counters = self.core.counters();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut stats = PlanStats::default();
         let hand = &self.hand;
@@ -980,12 +985,7 @@ impl<C: SegmentChecker> DualArmJPlusRrt<C> {
         term: &mut Termination,
         seed: u64,
     ) -> Result<PlanResult, PlanError> {
-        let t0 = Instant::now();
-        let counters = (
-            t0,
-            self.core.validator.checks(),
-            self.core.validator.segments(),
-        );
+        let counters = self.core.counters();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut stats = PlanStats::default();
         let (gk, rk, held) = (&self.giver, &self.receiver, self.held);
