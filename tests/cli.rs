@@ -238,3 +238,41 @@ fn bench_mbm_writes_an_ompl_benchmark_log() {
     assert_eq!(lines[runs_at + 5], ".");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn query_runs_the_grasp_ik_endpoints_locally() {
+    let dir = std::env::temp_dir().join(format!("manyhands-cli-query-{}", std::process::id()));
+    let d = dir.to_string_lossy().to_string();
+    // The dual-arm IK with the wok held: same body as POST /v1/ik/dual-arm, same answer shape.
+    let body = r#"{"scene":"kitchen","robot":"armar","object":"wok","held":"wok_l_02","seed":3,
+        "region":{"min":[0.3,-0.3,1.0],"max":[0.6,0.2,1.4]}}"#;
+    let v = json(&["--json", "query", "ik-dual-arm", body, "--data-dir", &d]);
+    assert_eq!(v["found"], true, "{v}");
+    assert_eq!(v["left_grasp"], "wok_l_02", "{v}");
+    assert_eq!(v["solution"].as_array().map(|s| s.len()), Some(17), "{v}");
+    // The reachability grids were cached for the next run.
+    assert!(dir.join("reach").read_dir().map(|d| d.count()).unwrap_or(0) >= 2);
+    let again = json(&["--json", "query", "ik-dual-arm", body, "--data-dir", &d]);
+    assert_eq!(
+        again["solution"], v["solution"],
+        "same body and seed, same answer"
+    );
+    // Bad values name their field; unknown fields are refused.
+    let (code, _, err) = run(&[
+        "query",
+        "ik-grasp",
+        r#"{"scene":"kitchen","robot":"armar","group":"torso_right_arm","object":"wok","psi_samples":0}"#,
+        "--data-dir",
+        &d,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("psi_samples"), "{err}");
+    let (code, _, err) = run(&[
+        "query",
+        "ik-base-placement",
+        r#"{"scene":"kitchen","robbot":1}"#,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("robbot"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

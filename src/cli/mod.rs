@@ -8,6 +8,7 @@ mod grasp;
 mod loadtest;
 mod mbm;
 mod plan;
+mod query;
 mod reach;
 mod serve;
 
@@ -69,6 +70,9 @@ pub enum Command {
         #[command(subcommand)]
         cmd: plan::PlanCmd,
     },
+    /// Grasp IK queries run locally with the HTTP endpoints' JSON bodies: ik-grasp, ik-dual-arm,
+    /// ik-base-placement.
+    Query(query::QueryArgs),
     /// Benchmarks (medians over many seeded runs).
     Bench {
         #[command(subcommand)]
@@ -124,5 +128,6 @@ pub fn run() -> Result<()> {
         Command::Loadtest(a) => loadtest::run(&ctx, a),
         Command::Bench { cmd } => bench::run(&ctx, cmd),
         Command::Plan { cmd } => plan::run(&ctx, cmd),
+        Command::Query(a) => query::run(&ctx, a),
     }
 }

@@ -13,8 +13,10 @@ use crate::collision::CollisionWorld;
 use crate::geometry::Pose;
 use crate::kinematics::dual_arm::{DualArmIk, DualArmQuery, DualArmSolution};
 use crate::kinematics::randomized::{
-    GraspQuery, IkSolution, RandomizedIk, RandomizedIkError, RandomizedIkSettings, ReachabilityMap,
+    ArmChain, GraspQuery, IkSolution, RandomizedIk, RandomizedIkError, RandomizedIkSettings,
+    ReachabilityMap,
 };
+use crate::kinematics::Chain;
 use crate::model::{Robot, Scene};
 
 /// Why a query cannot be set up.
@@ -123,6 +125,20 @@ fn check_grid(
         });
     }
     Ok(())
+}
+
+/// The SRDF chain group running exactly from an arm's base to its tip: the chain of that arm's
+/// reachability grid (e.g. `right_arm` for ARMAR's `torso_right_arm`). `None` when the robot
+/// defines no such group.
+pub fn arm_grid_group(robot: &Robot, arm: &ArmChain) -> Option<String> {
+    robot
+        .groups
+        .iter()
+        .find(|g| {
+            Chain::from_group(robot, &g.name)
+                .is_some_and(|c| c.base_link == arm.arm_base && c.tip_link == arm.chain.tip_link)
+        })
+        .map(|g| g.name.clone())
 }
 
 /// A single-arm grasp problem: robot of a scene, chain, object and its grasp set, with one fast

@@ -8,6 +8,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use utoipa::ToSchema;
 
+pub use super::dual_arm_ik::{
+    BasePlacementRequest, DualArmIkRequest, RegionJson, TwoHandIkResponse,
+};
 use super::error::ErrorDetail;
 pub use super::grasp_ik::{GraspIkRequest, GraspIkResponse};
 pub use super::grasp_quality::{

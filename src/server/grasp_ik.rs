@@ -2,7 +2,8 @@
 //! [`crate::reachability::queries::SingleArmProblem`]): sample the chain's free joints (hip), solve
 //! the S-R-S arm analytically for the object's grasps, check self- and environment collision
 //! with the object in the hand, stop after `max_tries`. The answer is a configuration plus the
-//! grasp it reaches. A synchronous query: lookups on the async side, the search on the CPU pool.
+//! grasp it reaches. With `reachability` (default) the arm IK is called only for grasps the arm's
+//! 6-D reachability grid (000 §II-B) marks reachable. A synchronous query: lookups on the async side, the search on the CPU pool.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -14,9 +15,13 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
-use crate::model::Scene;
-use crate::reachability::queries::{QueryError, SingleArmProblem};
+use crate::kinematics::randomized::{
+    ArmChain, IkCounters, RandomizedIkError, RandomizedIkSettings,
+};
+use crate::model::{Robot, Scene};
+use crate::reachability::cache::{GridCache, GridRecipe};
+use crate::reachability::queries::{arm_grid_group, QueryError, SingleArmProblem};
+use crate::reachability::ReachabilityGrid;
 
 use super::error::{ApiError, ApiResult, ErrorBody};
 use super::extract::ApiJson;
@@ -47,6 +52,12 @@ pub struct GraspIkRequest {
     /// Random seed (default 1): same request and seed, same answer.
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Call the arm IK only for grasps whose cell of the arm's 6-D reachability grid is
+    /// reachable (000 §II-B/§II-D; default true). The grid of the arm chain (an SRDF group from
+    /// the arm's base to its tip, e.g. `right_arm`) is built on first use and kept under the
+    /// server's data folder; without such a group the query runs unfiltered.
+    #[serde(default)]
+    pub reachability: Option<bool>,
 }
 
 /// The answer: `found` with the configuration and grasp, or not found after `counters.tries`.
@@ -72,6 +83,9 @@ pub struct GraspIkResponse {
     pub tries: u64,
     pub ik_calls: u64,
     pub collision_checks: u64,
+    /// Whether the reachability filter was used.
+    pub reachability: bool,
+    /// Wall time of the search (µs), without building or loading the grid.
     pub time_us: f64,
 }
 
@@ -85,8 +99,9 @@ pub async fn grasp_ik(
     ApiJson(req): ApiJson<GraspIkRequest>,
 ) -> ApiResult<Json<GraspIkResponse>> {
     let entry = st.catalog.scene(&req.scene, "scene")?;
+    let grids = st.catalog.grids();
     st.pool
-        .run(move || compute(&entry.scene, &req))
+        .run(move || compute(&entry.scene, &req, Some(&grids)))
         .await
         .map(Json)
 }
@@ -101,8 +116,27 @@ fn query_error(e: QueryError) -> ApiError {
     ApiError::invalid(field, e.to_string())
 }
 
-/// Validates and solves a request on `scene`.
-pub fn compute(scene: &Scene, req: &GraspIkRequest) -> ApiResult<GraspIkResponse> {
+/// The reachability grid of `arm` from `grids`, when the robot has a group for the arm chain.
+pub fn arm_grid(
+    grids: &GridCache,
+    robot: &Arc<Robot>,
+    arm: &ArmChain,
+) -> ApiResult<Option<Arc<ReachabilityGrid>>> {
+    let Some(group) = arm_grid_group(robot, arm) else {
+        return Ok(None);
+    };
+    grids
+        .get(robot, &group, GridRecipe::arm())
+        .map(Some)
+        .map_err(|e| ApiError::invalid("reachability", e.to_string()))
+}
+
+/// Validates and solves a request on `scene`; `grids` supplies the arm's reachability grid.
+pub fn compute(
+    scene: &Scene,
+    req: &GraspIkRequest,
+    grids: Option<&GridCache>,
+) -> ApiResult<GraspIkResponse> {
     let max_tries = req.max_tries.unwrap_or(20_000);
     if !(1..=MAX_TRIES).contains(&max_tries) {
         return Err(ApiError::invalid(
@@ -125,6 +159,12 @@ pub fn compute(scene: &Scene, req: &GraspIkRequest) -> ApiResult<GraspIkResponse
     }
     let mut problem =
         SingleArmProblem::new(scene, &req.robot, &req.group, &req.object).map_err(query_error)?;
+    let grid = match grids.filter(|_| req.reachability.unwrap_or(true)) {
+        Some(g) => arm_grid(g, &problem.ik.robot().clone(), problem.ik.split())?,
+        None => None,
+    };
+    let reachability = grid.is_some();
+    problem.set_grid(grid).map_err(query_error)?;
     let settings = RandomizedIkSettings {
         max_tries,
         psi_samples: psi,
@@ -133,7 +173,7 @@ pub fn compute(scene: &Scene, req: &GraspIkRequest) -> ApiResult<GraspIkResponse
     let mut rng = ChaCha8Rng::seed_from_u64(req.seed.unwrap_or(1));
     let started = Instant::now();
     let object_pose = problem.object_pose;
-    let answer = problem.solve(&object_pose, false, &settings, &mut rng);
+    let answer = problem.solve(&object_pose, reachability, &settings, &mut rng);
     let time_us = started.elapsed().as_secs_f64() * 1e6;
     let robot = problem.ik.robot().clone();
     let vars = problem.ik.split().chain.vars.clone();
@@ -158,6 +198,7 @@ pub fn compute(scene: &Scene, req: &GraspIkRequest) -> ApiResult<GraspIkResponse
                 tries,
                 ik_calls,
                 collision_checks,
+                reachability,
                 time_us,
             })
         }
@@ -174,6 +215,7 @@ pub fn compute(scene: &Scene, req: &GraspIkRequest) -> ApiResult<GraspIkResponse
                 tries,
                 ik_calls,
                 collision_checks,
+                reachability,
                 time_us,
             })
         }

@@ -13,6 +13,7 @@
 
 pub mod api;
 pub mod catalog;
+pub mod dual_arm_ik;
 pub mod error;
 pub mod extract;
 pub mod grasp_ik;
@@ -298,6 +299,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/v1/ik", post(queries::ik))
         .route("/v1/check", post(queries::check))
         .route("/v1/ik/grasp", post(grasp_ik::grasp_ik))
+        .route("/v1/ik/dual-arm", post(dual_arm_ik::dual_arm_ik))
+        .route("/v1/ik/base-placement", post(dual_arm_ik::base_placement))
         .route("/v1/grasp-quality", post(grasp_quality::grasp_quality))
         .route("/v1/plans", post(plans::submit).get(plans::list))
         .route("/v1/plans/{id}", get(plans::get).delete(plans::cancel))

@@ -2,6 +2,8 @@
 //! planner's answer (joint limits, and the exact parry checker at 5 mm / 0.5°).
 #![allow(dead_code)] // each test binary uses its own subset
 
+pub mod server;
+
 use std::path::PathBuf;
 
 use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};

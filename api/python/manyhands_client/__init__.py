@@ -123,9 +123,24 @@ class Client:
 
     def grasp_ik(self, scene: str, robot: str, group: str, obj: str, **kw: Any) -> Json:
         """POST /v1/ik/grasp: randomized IK (hip sampled, arm analytic) for one of ``obj``'s grasps
-        where it lies in ``scene``; also ``max_tries``, ``psi_samples``, ``seed``."""
+        where it lies in ``scene``; also ``max_tries``, ``psi_samples``, ``seed``, ``reachability``."""
         body = {"scene": scene, "robot": robot, "group": group, "object": obj, **kw}
         return self._post("/v1/ik/grasp", body)
+
+    def dual_arm_ik(self, scene: str, robot: str, obj: str, region: Json, **kw: Any) -> Json:
+        """POST /v1/ik/dual-arm: hip and both arms holding ``obj`` with two hands, its origin
+        inside ``region`` (``{"min": [x, y, z], "max": [x, y, z]}``, world frame); also ``held``
+        (a left grasp the object is already held by), ``left_group``, ``right_group``,
+        ``reachability``, ``max_tries``, ``psi_samples``, ``seed``."""
+        body = {"scene": scene, "robot": robot, "object": obj, "region": region, **kw}
+        return self._post("/v1/ik/dual-arm", body)
+
+    def base_placement_ik(self, scene: str, robot: str, obj: str, **kw: Any) -> Json:
+        """POST /v1/ik/base-placement: platform, hip and both arms grasping ``obj`` where it lies
+        (IkDualArm, bimanual inverse reachability); also ``radius``, ``cell``, ``yaw_bins``,
+        ``left_group``, ``right_group``, ``max_tries``, ``psi_samples``, ``seed``."""
+        body = {"scene": scene, "robot": robot, "object": obj, **kw}
+        return self._post("/v1/ik/base-placement", body)
 
     def check(self, scene: str, robots: Optional[List[Json]] = None) -> Json:
         return self._post("/v1/check", {"scene": scene, "robots": robots or []})

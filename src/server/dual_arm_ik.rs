@@ -1,0 +1,524 @@
+//! `POST /v1/ik/dual-arm` and `POST /v1/ik/base-placement`: the two-handed IK queries.
+//!
+//! - Dual-arm IK (paper 000 §III, [`DualArmProblem`]): the object pose is free inside a world box;
+//!   hip and both arms are solved so that the left hand holds one of the object's left grasps and
+//!   the right hand one of its right grasps, the object collision-free where it floats and in the
+//!   hands. Variant (b), `held`: the object is already in the left hand by that grasp, so only the
+//!   right grasp is chosen (17-D: hip + both arms). Arm IKs are called only for grasps whose arm
+//!   reachability grid cell is reachable (000 §II-B), grids built on first use.
+//! - Base placement (paper 002 §III, Alg. 1 IkDualArm, [`BimanualProblem`]): the object lies in the
+//!   scene; the platform pose (x, y, yaw) is sampled from the bimanual inverse reachability map
+//!   R_bi = min(R_left, R_right) of the object's grasps, then hip and both arms are solved for the
+//!   grasps the sampled cell lists. Answers base + hip + both arms (20 DoF for ARMAR).
+//!
+//! Synchronous queries: lookups on the async side, the search on the CPU pool.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::extract::State;
+use axum::Json;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::collision::CollisionWorld;
+use crate::geometry::PoseJson;
+use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
+use crate::model::{Robot, Scene};
+use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use crate::planning::{GoalSampler, PlanError};
+use crate::reachability::cache::{GridCache, GridRecipe};
+use crate::reachability::queries::{DualArmProblem, QueryError};
+
+use super::error::{ApiError, ApiResult, ErrorBody};
+use super::extract::ApiJson;
+use super::grasp_ik::{arm_grid, MAX_TRIES};
+use super::AppState;
+
+/// Largest edge of the object's position box (m).
+pub const MAX_REGION_EDGE: f64 = 10.0;
+
+/// A box of the world frame (metres): `min[i] ≤ max[i]`.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RegionJson {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+/// `POST /v1/ik/dual-arm`: hip and both arms of `robot` holding `object` with two hands.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DualArmIkRequest {
+    pub scene: String,
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// Object of the scene with grasps for both hands.
+    pub object: String,
+    /// Chain group "free joints + left 7-DoF S-R-S arm" (default `torso_left_arm`).
+    #[serde(default)]
+    pub left_group: Option<String>,
+    /// Chain group "free joints + right arm" (default `torso_right_arm`); the free joints are
+    /// shared with the left chain.
+    #[serde(default)]
+    pub right_group: Option<String>,
+    /// Where the object's origin may be (world frame); its orientation is free.
+    pub region: RegionJson,
+    /// Name of a left grasp the object is already held by (variant (b), 000 §III); absent: both
+    /// grasps are chosen (variant (a)).
+    #[serde(default)]
+    pub held: Option<String>,
+    /// Use the arms' reachability grids as a filter (default true).
+    #[serde(default)]
+    pub reachability: Option<bool>,
+    /// Samples of object pose and hip before "no solution" (1..=1000000, default 20000).
+    #[serde(default)]
+    pub max_tries: Option<u64>,
+    /// Swivel angles per arm-IK call (1..=360, default 8).
+    #[serde(default)]
+    pub psi_samples: Option<u32>,
+    /// Random seed (default 1): same request and seed, same answer.
+    #[serde(default)]
+    pub seed: Option<u64>,
+}
+
+/// `POST /v1/ik/base-placement`: platform, hip and both arms of a mobile `robot` grasping
+/// `object` where it lies, the platform placed by IkDualArm (002 Alg. 1).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BasePlacementRequest {
+    pub scene: String,
+    /// Robot instance of the scene; its SRDF group `base` holds the platform's x, y, yaw.
+    pub robot: String,
+    /// Object of the scene with grasps for both hands.
+    pub object: String,
+    /// Chain group from the platform through the left arm (default `torso_left_arm`).
+    #[serde(default)]
+    pub left_group: Option<String>,
+    /// Chain group from the platform through the right arm (default `torso_right_arm`).
+    #[serde(default)]
+    pub right_group: Option<String>,
+    /// Base positions within this distance of the object (m, (0, 5], default 1.5).
+    #[serde(default)]
+    pub radius: Option<f64>,
+    /// Cell of the base-position grid (m, [0.02, 1], default 0.1).
+    #[serde(default)]
+    pub cell: Option<f64>,
+    /// Base yaw bins (1..=360, default 16).
+    #[serde(default)]
+    pub yaw_bins: Option<usize>,
+    /// Base samples before "no solution" (1..=1000000, default 20000).
+    #[serde(default)]
+    pub max_tries: Option<u64>,
+    /// Swivel angles per arm-IK call (1..=360, default 8).
+    #[serde(default)]
+    pub psi_samples: Option<u32>,
+    /// Random seed (default 1): same request and seed, same answer.
+    #[serde(default)]
+    pub seed: Option<u64>,
+}
+
+/// The answer of both two-handed queries: `found` with the configuration and the grasps, or not
+/// found after `tries`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct TwoHandIkResponse {
+    pub found: bool,
+    /// Why nothing was found (`found: false`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub left_grasp: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub right_grasp: Option<String>,
+    /// The variables the query chose (hip and both arms; plus the platform for base placement).
+    pub joints: Vec<String>,
+    /// Their values.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solution: Option<Vec<f64>>,
+    /// Every variable of the robot (`joint: value`): the solution's, the rest from the scene's
+    /// start configuration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub config: Option<serde_json::Map<String, serde_json::Value>>,
+    /// World pose of the object in the hands (dual-arm; for base placement where it lies).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub object_pose: Option<PoseJson>,
+    /// Samples of the free parameters, analytic arm-IK calls, collision checks.
+    pub tries: u64,
+    pub ik_calls: u64,
+    pub collision_checks: u64,
+    /// Whether reachability filtered the arm-IK calls (always, for base placement).
+    pub reachability: bool,
+    /// Time to build the inverse reachability maps (base placement), µs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub map_time_us: Option<f64>,
+    /// Wall time of the search (µs), without building or loading grids.
+    pub time_us: f64,
+}
+
+#[utoipa::path(post, path = "/v1/ik/dual-arm", tag = "queries", request_body = DualArmIkRequest,
+    responses((status = 200, body = TwoHandIkResponse, description = "a solution, or `found: false` after `max_tries`"),
+              (status = 400, body = ErrorBody, description = "malformed JSON"),
+              (status = 404, body = ErrorBody, description = "unknown scene"),
+              (status = 422, body = ErrorBody, description = "bad value; `field` names it (`robot`, `left_group`, `right_group`, `object`, `held`, `region`, `max_tries`, `psi_samples`)")))]
+pub async fn dual_arm_ik(
+    State(st): State<Arc<AppState>>,
+    ApiJson(req): ApiJson<DualArmIkRequest>,
+) -> ApiResult<Json<TwoHandIkResponse>> {
+    let entry = st.catalog.scene(&req.scene, "scene")?;
+    let grids = st.catalog.grids();
+    st.pool
+        .run(move || dual_arm_compute(&entry.scene, &req, Some(&grids)))
+        .await
+        .map(Json)
+}
+
+#[utoipa::path(post, path = "/v1/ik/base-placement", tag = "queries", request_body = BasePlacementRequest,
+    responses((status = 200, body = TwoHandIkResponse, description = "a solution, or `found: false` after `max_tries`"),
+              (status = 400, body = ErrorBody, description = "malformed JSON"),
+              (status = 404, body = ErrorBody, description = "unknown scene"),
+              (status = 422, body = ErrorBody, description = "bad value; `field` names it (`robot`, `left_group`, `right_group`, `object`, `radius`, `cell`, `yaw_bins`, `max_tries`, `psi_samples`)")))]
+pub async fn base_placement(
+    State(st): State<Arc<AppState>>,
+    ApiJson(req): ApiJson<BasePlacementRequest>,
+) -> ApiResult<Json<TwoHandIkResponse>> {
+    let entry = st.catalog.scene(&req.scene, "scene")?;
+    let grids = st.catalog.grids();
+    st.pool
+        .run(move || base_placement_compute(&entry.scene, &req, &grids))
+        .await
+        .map(Json)
+}
+
+/// `max_tries` and `psi_samples` checked, defaults filled in.
+fn ik_settings(max_tries: Option<u64>, psi: Option<u32>) -> ApiResult<RandomizedIkSettings> {
+    let max_tries = max_tries.unwrap_or(20_000);
+    if !(1..=MAX_TRIES).contains(&max_tries) {
+        return Err(ApiError::invalid(
+            "max_tries",
+            format!("{max_tries} is not in 1..={MAX_TRIES}"),
+        ));
+    }
+    let psi = psi.unwrap_or(8);
+    if !(1..=360).contains(&psi) {
+        return Err(ApiError::invalid(
+            "psi_samples",
+            format!("{psi} is not in 1..=360"),
+        ));
+    }
+    Ok(RandomizedIkSettings {
+        max_tries,
+        psi_samples: psi,
+        ..RandomizedIkSettings::default()
+    })
+}
+
+/// The scene's robot instance `name` and its model.
+fn robot_of<'a>(scene: &'a Scene, name: &str) -> ApiResult<&'a Arc<Robot>> {
+    scene
+        .robots
+        .iter()
+        .find(|r| r.name == name)
+        .map(|r| &r.robot)
+        .ok_or_else(|| {
+            ApiError::invalid(
+                "robot",
+                format!("scene '{}' has no robot '{name}'", scene.name),
+            )
+        })
+}
+
+/// Checks that both groups exist on the robot and the object in the scene, so that set-up
+/// errors name the right field.
+fn check_names(
+    scene: &Scene,
+    robot: &Robot,
+    left: &str,
+    right: &str,
+    object: &str,
+) -> ApiResult<()> {
+    for (field, g) in [("left_group", left), ("right_group", right)] {
+        if robot.group(g).is_none() {
+            return Err(ApiError::invalid(
+                field,
+                format!("robot '{}' has no group '{g}'", robot.name),
+            ));
+        }
+    }
+    if scene.object(object).is_none() {
+        return Err(ApiError::invalid(
+            "object",
+            format!("scene '{}' has no object '{object}'", scene.name),
+        ));
+    }
+    Ok(())
+}
+
+fn query_error(e: QueryError) -> ApiError {
+    let field = match &e {
+        QueryError::NoRobot { .. } => "robot",
+        QueryError::NoObject { .. } | QueryError::NoGrasps { .. } => "object",
+        _ => "left_group",
+    };
+    ApiError::invalid(field, e.to_string())
+}
+
+/// The full configuration of robot `model` as a `joint: value` map.
+fn config_map(model: &Robot, q: &[f64]) -> serde_json::Map<String, serde_json::Value> {
+    (0..model.dof())
+        .map(|v| (model.var_name(v).to_string(), q[v].into()))
+        .collect()
+}
+
+fn not_found(
+    e: RandomizedIkError,
+    joints: Vec<String>,
+    reachability: bool,
+    time_us: f64,
+) -> ApiResult<TwoHandIkResponse> {
+    match e {
+        RandomizedIkError::NoSolution { tries, counters } => Ok(TwoHandIkResponse {
+            found: false,
+            reason: Some(RandomizedIkError::NoSolution { tries, counters }.to_string()),
+            left_grasp: None,
+            right_grasp: None,
+            joints,
+            solution: None,
+            config: None,
+            object_pose: None,
+            tries,
+            ik_calls: counters.ik_calls,
+            collision_checks: counters.collision_checks,
+            reachability,
+            map_time_us: None,
+            time_us,
+        }),
+        e => Err(ApiError::invalid("left_group", e.to_string())),
+    }
+}
+
+/// Validates and solves a dual-arm IK request on `scene`; `grids` supplies the arms'
+/// reachability grids.
+pub fn dual_arm_compute(
+    scene: &Scene,
+    req: &DualArmIkRequest,
+    grids: Option<&GridCache>,
+) -> ApiResult<TwoHandIkResponse> {
+    let settings = ik_settings(req.max_tries, req.psi_samples)?;
+    let RegionJson { min, max } = req.region;
+    if min.iter().chain(&max).any(|v| !v.is_finite())
+        || (0..3).any(|i| min[i] > max[i] || max[i] - min[i] > MAX_REGION_EDGE)
+    {
+        return Err(ApiError::invalid(
+            "region",
+            format!(
+                "min {min:?} / max {max:?}: finite, min ≤ max, edges at most {MAX_REGION_EDGE} m"
+            ),
+        ));
+    }
+    let model = robot_of(scene, &req.robot)?.clone();
+    let left = req.left_group.as_deref().unwrap_or("torso_left_arm");
+    let right = req.right_group.as_deref().unwrap_or("torso_right_arm");
+    check_names(scene, &model, left, right, &req.object)?;
+    let mut problem =
+        DualArmProblem::new(scene, &req.robot, left, right, &req.object).map_err(query_error)?;
+    let held = match &req.held {
+        None => None,
+        Some(name) => Some(
+            problem
+                .left_grasps
+                .names
+                .iter()
+                .position(|n| n == name)
+                .ok_or_else(|| {
+                    ApiError::invalid(
+                        "held",
+                        format!(
+                            "'{name}' is not a left grasp of '{}' (grasps: {})",
+                            req.object,
+                            problem.left_grasps.names.join(", ")
+                        ),
+                    )
+                })?,
+        ),
+    };
+    let pair = match grids.filter(|_| req.reachability.unwrap_or(true)) {
+        Some(g) => {
+            let l = arm_grid(g, &model, problem.ik.left())?;
+            let r = arm_grid(g, &model, problem.ik.right())?;
+            l.zip(r)
+        }
+        None => None,
+    };
+    let reachability = pair.is_some();
+    problem.set_grids(pair).map_err(query_error)?;
+    let mut vars: Vec<usize> = problem.ik.free_vars().to_vec();
+    for arm in [problem.ik.left(), problem.ik.right()] {
+        for &v in &arm.chain.vars {
+            if !vars.contains(&v) {
+                vars.push(v);
+            }
+        }
+    }
+    let joints: Vec<String> = vars
+        .iter()
+        .map(|&v| model.var_name(v).to_string())
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(req.seed.unwrap_or(1));
+    let started = Instant::now();
+    let answer = problem.solve((min, max), held, reachability, &settings, &mut rng);
+    let time_us = started.elapsed().as_secs_f64() * 1e6;
+    match answer {
+        Ok(sol) => {
+            let c: &IkCounters = &sol.counters;
+            Ok(TwoHandIkResponse {
+                found: true,
+                reason: None,
+                left_grasp: problem.left_grasps.names.get(sol.left_grasp).cloned(),
+                right_grasp: problem.right_grasps.names.get(sol.right_grasp).cloned(),
+                solution: Some(vars.iter().map(|&v| sol.config[v]).collect()),
+                config: Some(config_map(&model, &sol.config)),
+                object_pose: Some(PoseJson::from_pose(&problem.object_pose_of(&sol))),
+                joints,
+                tries: c.tries,
+                ik_calls: c.ik_calls,
+                collision_checks: c.collision_checks,
+                reachability,
+                map_time_us: None,
+                time_us,
+            })
+        }
+        Err(e) => not_found(e, joints, reachability, time_us),
+    }
+}
+
+/// The field of a base-placement set-up error.
+fn placement_error(e: PlanError) -> ApiError {
+    match e {
+        PlanError::InvalidGoal { reason, .. } => ApiError::invalid("object", reason),
+        e => {
+            let msg = e.to_string();
+            let field = if msg.contains("group 'base'") {
+                "robot"
+            } else if msg.contains("map settings") {
+                "radius"
+            } else {
+                "left_group"
+            };
+            ApiError::invalid(field, msg)
+        }
+    }
+}
+
+/// Validates and solves a base-placement request on `scene`; the platform-frame reachability
+/// grids of both chains come from `grids` (built on first use).
+pub fn base_placement_compute(
+    scene: &Scene,
+    req: &BasePlacementRequest,
+    grids: &GridCache,
+) -> ApiResult<TwoHandIkResponse> {
+    let settings = ik_settings(req.max_tries, req.psi_samples)?;
+    let defaults = BimanualSettings::default();
+    let radius = req.radius.unwrap_or(defaults.radius);
+    if !(radius > 0.0 && radius <= 5.0) {
+        return Err(ApiError::invalid(
+            "radius",
+            format!("{radius} is not in (0, 5] m"),
+        ));
+    }
+    let cell = req.cell.unwrap_or(defaults.cell);
+    if !(0.02..=1.0).contains(&cell) {
+        return Err(ApiError::invalid(
+            "cell",
+            format!("{cell} is not in [0.02, 1] m"),
+        ));
+    }
+    let yaw_bins = req.yaw_bins.unwrap_or(defaults.yaw_bins);
+    if !(1..=360).contains(&yaw_bins) {
+        return Err(ApiError::invalid(
+            "yaw_bins",
+            format!("{yaw_bins} is not in 1..=360"),
+        ));
+    }
+    let model = robot_of(scene, &req.robot)?.clone();
+    let left = req.left_group.as_deref().unwrap_or("torso_left_arm");
+    let right = req.right_group.as_deref().unwrap_or("torso_right_arm");
+    check_names(scene, &model, left, right, &req.object)?;
+    let grid = |field: &str, g: &str| {
+        grids
+            .get(&model, g, GridRecipe::default())
+            .map_err(|e| ApiError::invalid(field, e.to_string()))
+    };
+    let (gl, gr) = (grid("left_group", left)?, grid("right_group", right)?);
+    let world = CollisionWorld::from_scene(scene);
+    let q0 = CollisionWorld::start_config(scene);
+    let problem = BimanualProblem::new(
+        scene,
+        &world,
+        &q0,
+        &req.robot,
+        (left, right),
+        &req.object,
+        (&gl, &gr),
+        BimanualSettings {
+            radius,
+            cell,
+            yaw_bins,
+            ..defaults
+        },
+    )
+    .map_err(placement_error)?;
+    let map_time_us = problem.map_time.as_secs_f64() * 1e6;
+    let placed = world
+        .robots
+        .iter()
+        .find(|p| p.name == req.robot)
+        .ok_or_else(|| ApiError::invalid("robot", format!("no robot '{}'", req.robot)))?;
+    let (off, dof) = (placed.offset, model.dof());
+    let vars = problem.space.vars().to_vec();
+    let joints: Vec<String> = vars
+        .iter()
+        .map(|&v| model.var_name(v - off).to_string())
+        .collect();
+    let mut goals = problem.goals(settings);
+    let mut rng = ChaCha8Rng::seed_from_u64(req.seed.unwrap_or(1));
+    let mut out = vec![0.0; vars.len()];
+    let started = Instant::now();
+    let label = goals.sample_goal(&mut rng, &mut out);
+    let time_us = started.elapsed().as_secs_f64() * 1e6;
+    let c = *goals.counters();
+    match label {
+        Some(label) => {
+            let (l, r) = problem.decode(label);
+            let wq = problem.space.to_world(&out);
+            let q = &wq[off..off + dof];
+            Ok(TwoHandIkResponse {
+                found: true,
+                reason: None,
+                left_grasp: problem.left_names.get(l).cloned(),
+                right_grasp: problem.right_names.get(r).cloned(),
+                joints,
+                solution: Some(out),
+                config: Some(config_map(&model, q)),
+                object_pose: Some(PoseJson::from_pose(&problem.object_pose)),
+                tries: c.tries,
+                ik_calls: c.ik_calls,
+                collision_checks: c.collision_checks,
+                reachability: true,
+                map_time_us: Some(map_time_us),
+                time_us,
+            })
+        }
+        None => {
+            let e = RandomizedIkError::NoSolution {
+                tries: c.tries,
+                counters: c,
+            };
+            let mut r = not_found(e, joints, true, time_us)?;
+            r.map_time_us = Some(map_time_us);
+            Ok(r)
+        }
+    }
+}
