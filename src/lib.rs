@@ -4,6 +4,7 @@
 //! `collision`, `kinematics` → `model` → `geometry`.
 //! The planning core never depends on tokio or axum.
 
+pub mod client;
 pub mod collision;
 pub mod geometry;
 pub mod grasp;

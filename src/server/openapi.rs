@@ -68,3 +68,80 @@ pub fn openapi_json() -> String {
     s.push('\n');
     s
 }
+
+/// Standalone JSON Schemas (draft 2020-12) of the request bodies, one per operation that takes a
+/// JSON body described by a component: `(file name, pretty JSON with a trailing newline)`, e.g.
+/// `post-v1-ik-dual-arm.request.schema.json`. Each holds its component and every component it
+/// refers to under `$defs`, so it validates on its own (the scene body has its own
+/// hand-written `api/scene.schema.json`). Checked in under `api/schemas/`.
+pub fn request_schemas() -> Vec<(String, String)> {
+    use serde_json::{json, Map, Value};
+    let spec: Value = serde_json::from_str(&openapi_json()).unwrap_or(Value::Null);
+    let components = spec["components"]["schemas"].clone();
+    let prefix = "#/components/schemas/";
+    // Names of the components `v` refers to, and `v` with its references moved to `$defs`.
+    fn rewrite(v: &Value, prefix: &str, refs: &mut Vec<String>) -> Value {
+        match v {
+            Value::Object(m) => Value::Object(
+                m.iter()
+                    .map(|(k, x)| match (k.as_str(), x.as_str()) {
+                        ("$ref", Some(r)) if r.starts_with(prefix) => {
+                            let name = r[prefix.len()..].to_string();
+                            let out = Value::String(format!("#/$defs/{name}"));
+                            refs.push(name);
+                            (k.clone(), out)
+                        }
+                        _ => (k.clone(), rewrite(x, prefix, refs)),
+                    })
+                    .collect(),
+            ),
+            Value::Array(a) => Value::Array(a.iter().map(|x| rewrite(x, prefix, refs)).collect()),
+            x => x.clone(),
+        }
+    }
+    let mut out = Vec::new();
+    let Some(paths) = spec["paths"].as_object() else {
+        return out;
+    };
+    for (path, ops) in paths {
+        let Some(ops) = ops.as_object() else { continue };
+        for (method, op) in ops {
+            let r = &op["requestBody"]["content"]["application/json"]["schema"]["$ref"];
+            let Some(name) = r.as_str().and_then(|r| r.strip_prefix(prefix)) else {
+                continue;
+            };
+            let mut todo = vec![name.to_string()];
+            let mut defs = Map::new();
+            while let Some(n) = todo.pop() {
+                if defs.contains_key(&n) {
+                    continue;
+                }
+                let mut refs = Vec::new();
+                defs.insert(n.clone(), rewrite(&components[&n], prefix, &mut refs));
+                todo.extend(refs);
+            }
+            let slug: String = format!("{method}{path}")
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+                .collect::<String>()
+                .split('-')
+                .filter(|s| !s.is_empty())
+                .collect::<Vec<_>>()
+                .join("-");
+            let file = format!("{slug}.request.schema.json");
+            let doc = json!({
+                "$schema": "https://json-schema.org/draft/2020-12/schema",
+                "$id": format!("https://manyhands.local/api/schemas/{file}"),
+                "title": format!("{} {path} request body", method.to_uppercase()),
+                "description": format!("Body of `{} {path}` (component `{name}` of api/openapi.json).", method.to_uppercase()),
+                "$ref": format!("#/$defs/{name}"),
+                "$defs": Value::Object(defs),
+            });
+            let mut text = serde_json::to_string_pretty(&doc).unwrap_or_default();
+            text.push('\n');
+            out.push((file, text));
+        }
+    }
+    out.sort();
+    out
+}

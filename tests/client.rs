@@ -1,0 +1,193 @@
+//! The Rust client (`manyhands::client`) against the real server on a loopback port: every
+//! endpoint kind through typed requests, API errors decoded with their field, a job waited for,
+//! its event stream read to `end`, and a running job cancelled.
+
+mod common;
+use common::server::start;
+
+use std::time::Duration;
+
+use manyhands::client::{Client, ClientError, SseParser};
+use manyhands::server::api::JobState;
+use reqwest::StatusCode;
+use serde::de::DeserializeOwned;
+use serde_json::{json, Value};
+
+/// A typed request from JSON (the same text a curl user would send).
+fn req<T: DeserializeOwned>(v: Value) -> T {
+    serde_json::from_value(v).expect("request type")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn client_covers_every_endpoint_kind() {
+    let h = start("rust-client").await;
+    let c = Client::new(&h.base).expect("client");
+    assert!(
+        Client::new("localhost:8080").is_err(),
+        "a URL without scheme is refused"
+    );
+
+    // Operations and resources.
+    let health = c.health().await.expect("health");
+    assert_eq!(health.status, "ok");
+    assert!(health.robots >= 2 && health.scenes >= 4, "{health:?}");
+    assert!(c.metrics().await.expect("metrics").contains("manyhands_"));
+    let robots = c.robots().await.expect("robots");
+    assert!(robots.iter().any(|r| r.name == "armar"));
+    let armar = c.robot("armar").await.expect("armar");
+    assert_eq!(armar.dof, 20);
+    assert!(c
+        .scenes()
+        .await
+        .expect("scenes")
+        .iter()
+        .any(|s| s.name == "kitchen"));
+    let kitchen = c.scene("kitchen").await.expect("scene");
+    let e = c.robot("robbie").await.expect_err("unknown robot");
+    assert_eq!(e.status(), Some(StatusCode::NOT_FOUND), "{e}");
+    // Upload a scene, read it back, delete it.
+    let mut copy = kitchen.clone();
+    copy["name"] = json!("kitchen_copy");
+    let summary = c.put_scene("kitchen_copy", &copy).await.expect("put scene");
+    assert_eq!(summary.name, "kitchen_copy");
+    c.delete_scene("kitchen_copy").await.expect("delete scene");
+    assert!(c.scene("kitchen_copy").await.is_err());
+
+    // Queries.
+    let fk = c
+        .fk(&req(
+            json!({"robot": "armar", "config": {"right_elbow": -1.2}, "links": ["right_tcp"]}),
+        ))
+        .await
+        .expect("fk");
+    let pose = &fk.links[0].pose;
+    let ik = c
+        .ik(&req(json!({"robot": "armar", "group": "right_arm",
+            "pose": {"position": pose.position, "quat_xyzw": pose.quat_xyzw}})))
+        .await
+        .expect("ik");
+    assert!(ik.solutions_found > 0, "{ik:?}");
+    let check = c
+        .check(&req(json!({"scene": "kitchen"})))
+        .await
+        .expect("check");
+    assert!(!check.collision, "{check:?}");
+    let g = c
+        .grasp_ik(&req(json!({"scene": "kitchen", "robot": "armar",
+            "group": "torso_right_arm", "object": "wok", "seed": 1})))
+        .await
+        .expect("grasp ik");
+    assert!(g.found && g.reachability, "{g:?}");
+    let d = c
+        .dual_arm_ik(&req(
+            json!({"scene": "kitchen", "robot": "armar", "object": "wok",
+            "region": {"min": [0.3, -0.3, 1.0], "max": [0.6, 0.2, 1.4]}, "seed": 1}),
+        ))
+        .await
+        .expect("dual-arm ik");
+    assert!(
+        d.found && d.left_grasp.is_some() && d.right_grasp.is_some(),
+        "{d:?}"
+    );
+    let b = c
+        .base_placement_ik(&req(json!({"scene": "kitchen", "robot": "armar",
+            "object": "table", "seed": 1})))
+        .await
+        .expect("base placement");
+    assert!(b.found && b.joints.len() == 20, "{b:?}");
+    let q = c
+        .grasp_quality(&req(json!({"scene": "kitchen", "object": "wok"})))
+        .await
+        .expect("grasp quality");
+    assert_eq!(q.grasps.len(), 25);
+
+    // An API error carries status and field.
+    let e = c
+        .fk(&req(
+            json!({"robot": "armar", "config": {"right_elbow": 4.2}}),
+        ))
+        .await
+        .expect_err("out of limits");
+    assert_eq!(e.status(), Some(StatusCode::UNPROCESSABLE_ENTITY), "{e}");
+    assert_eq!(e.field(), Some("config.right_elbow"), "{e}");
+    assert!(matches!(e, ClientError::Api { .. }));
+
+    // Jobs: wait in one call, poll with wait(), the event stream, cancel.
+    let sweep =
+        json!({"kind": "collision_sweep", "scene": "kitchen", "samples": 2000, "time_limit": 5});
+    let done = c
+        .submit(&req(sweep.clone()), Some(30.0))
+        .await
+        .expect("submit");
+    assert_eq!(done.state, JobState::Succeeded, "{done:?}");
+    assert!(done.result.is_some());
+    let job = c.submit(&req(sweep.clone()), None).await.expect("submit");
+    let polled = c
+        .wait(&job.id, Duration::from_secs(30))
+        .await
+        .expect("wait");
+    assert_eq!(polled.state, JobState::Succeeded);
+    assert!(c
+        .jobs()
+        .await
+        .expect("jobs")
+        .jobs
+        .iter()
+        .any(|j| j.id == job.id));
+    let long = json!({"kind": "collision_sweep", "scene": "kitchen", "samples": 1_000_000_000u64, "time_limit": 0.5});
+    let job = c.submit_json(&long, None).await.expect("submit");
+    let mut seen = 0;
+    let events = c.events(&job.id, |_| seen += 1).await.expect("events");
+    assert_eq!(
+        events.last().map(|e| e.event.as_str()),
+        Some("end"),
+        "{events:?}"
+    );
+    assert_eq!(seen, events.len());
+    let mut long30 = long.clone();
+    long30["time_limit"] = json!(30);
+    let job = c.submit_json(&long30, None).await.expect("submit");
+    let cancelled = c.cancel(&job.id).await.expect("cancel");
+    assert!(
+        matches!(
+            cancelled.state,
+            JobState::Cancelled | JobState::Running | JobState::Queued
+        ),
+        "{cancelled:?}"
+    );
+    let fin = c
+        .wait(&job.id, Duration::from_secs(10))
+        .await
+        .expect("wait");
+    assert_eq!(fin.state, JobState::Cancelled, "{fin:?}");
+    // wait() gives up cleanly.
+    let job = c.submit_json(&long30, None).await.expect("submit");
+    let e = c
+        .wait(&job.id, Duration::from_millis(50))
+        .await
+        .expect_err("not final yet");
+    assert!(matches!(e, ClientError::WaitTimeout { .. }), "{e}");
+    c.cancel(&job.id).await.expect("cancel");
+    drop(h);
+}
+
+#[test]
+fn sse_parser_handles_split_chunks_comments_and_multiline_data() {
+    let mut p = SseParser::default();
+    let mut all = Vec::new();
+    for chunk in [
+        &b": keep-alive\n\nevent: sta"[..],
+        b"te\ndata: {\"state\":",
+        b"\"running\"}\n\n",
+        b"data: line one\r\ndata: line two\r\n\r\n",
+        b"event: end\ndata: {\"state\":\"succeeded\"}\n\n",
+    ] {
+        all.extend(p.feed(chunk));
+    }
+    assert_eq!(all.len(), 3, "{all:?}");
+    assert_eq!(all[0].event, "state");
+    assert_eq!(all[0].data, json!({"state": "running"}));
+    assert_eq!(all[1].event, "message");
+    assert_eq!(all[1].data, json!("line one\nline two"));
+    assert_eq!(all[2].event, "end");
+}
