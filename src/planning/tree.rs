@@ -1,17 +1,41 @@
 //! RRT search trees (LaValle 1998): states in one flat `Vec<f64>` with parent indices, and an
-//! exact nearest-neighbour query in the space's weighted metric: a linear scan while the tree
-//! is small, then an incremental k-d tree (Bentley 1975; buckets of [`BUCKET`] states split at
-//! the median of their widest weighted coordinate) that answers the same exact query with
-//! pruning, for trees of 10⁴–10⁵ states (14-DoF bimanual problems). Allocation-free per query;
+//! exact nearest-neighbour query in the space's weighted metric: an incremental k-d tree
+//! (Bentley 1975; buckets of [`BUCKET`] states split at the median of their widest weighted
+//! coordinate) whose leaves also keep their states coordinate-major, so a leaf is scanned with
+//! vector arithmetic (AVX when the CPU has it). Small trees scan every leaf; larger ones descend
+//! with pruning, for trees of 10⁴–10⁵ states (14-DoF bimanual problems). Allocation-free per query;
 //! insertion only grows flat arrays. Each state also carries a dynamic-domain radius
 //! (Yershova et al., ICRA 2005) for planners that use one.
+
+/// Weighted squared distances from `q` to the [`BUCKET`] states of a coordinate-major leaf block,
+/// all slots at once, coordinate by coordinate: the summation order (and rounding) of
+/// [`Tree::nearest_linear`], so both give the same distances to the last bit.
+#[inline(always)]
+fn block_distances(data: &[f64], weights: &[f64], q: &[f64]) -> [f64; BUCKET] {
+    let mut d = [0.0f64; BUCKET];
+    for ((col, &w), &qk) in data.chunks_exact(BUCKET).zip(weights).zip(q) {
+        let col: &[f64; BUCKET] = col.try_into().unwrap_or(&[f64::INFINITY; BUCKET]);
+        for s in 0..BUCKET {
+            let e = col[s] - qk;
+            d[s] += w * e * e;
+        }
+    }
+    d
+}
+
+/// [`block_distances`] compiled for AVX (4 lanes of f64; no FMA, so the rounding is the same).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn block_distances_avx(data: &[f64], weights: &[f64], q: &[f64]) -> [f64; BUCKET] {
+    block_distances(data, weights, q)
+}
 
 /// Parent index of a root state.
 pub const NO_PARENT: u32 = u32::MAX;
 
 /// States per k-d tree leaf before it splits.
 pub const BUCKET: usize = 16;
-/// Trees up to this size are searched by linear scan (faster than descending the k-d tree).
+/// Trees up to this size are searched by scanning every leaf (faster than descending).
 const LINEAR_SCAN_MAX: usize = 192;
 
 #[derive(Debug, Clone, Copy)]
@@ -19,6 +43,9 @@ enum KdNode {
     Leaf {
         len: u8,
         items: [u32; BUCKET],
+        /// The leaf's states, coordinate-major (`dim × BUCKET` values from `block · dim · BUCKET`
+        /// in `leaf_data`; unused slots hold +∞), so one query scans a leaf with vector loads.
+        block: u32,
     },
     Split {
         dim: u32,
@@ -39,6 +66,9 @@ pub struct Tree {
     radii: Vec<f64>,
     kd: Vec<KdNode>,
     kd_overflow: Vec<u32>,
+    leaf_data: Vec<f64>,
+    /// The CPU has AVX (leaf scans use it).
+    avx: bool,
 }
 
 impl Tree {
@@ -53,8 +83,14 @@ impl Tree {
             kd: vec![KdNode::Leaf {
                 len: 0,
                 items: [0; BUCKET],
+                block: 0,
             }],
             kd_overflow: Vec::new(),
+            leaf_data: vec![f64::INFINITY; weights.len() * BUCKET],
+            #[cfg(target_arch = "x86_64")]
+            avx: std::is_x86_feature_detected!("avx"),
+            #[cfg(not(target_arch = "x86_64"))]
+            avx: false,
         }
     }
 
@@ -68,7 +104,28 @@ impl Tree {
         self.kd.push(KdNode::Leaf {
             len: 0,
             items: [0; BUCKET],
+            block: 0,
         });
+        self.leaf_data.clear();
+        self.leaf_data.resize(self.dim * BUCKET, f64::INFINITY);
+    }
+
+    /// Writes state `i` into slot `slot` of leaf block `block`.
+    #[inline]
+    fn put_in_block(&mut self, block: u32, slot: usize, i: u32) {
+        let b = block as usize * self.dim * BUCKET;
+        for k in 0..self.dim {
+            self.leaf_data[b + k * BUCKET + slot] = self.states[i as usize * self.dim + k];
+        }
+    }
+
+    /// Fills leaf block `block` with `items` (the rest +∞).
+    fn fill_block(&mut self, block: u32, items: &[u32]) {
+        let b = block as usize * self.dim * BUCKET;
+        self.leaf_data[b..b + self.dim * BUCKET].fill(f64::INFINITY);
+        for (slot, &i) in items.iter().enumerate() {
+            self.put_in_block(block, slot, i);
+        }
     }
 
     /// The dynamic-domain radius of state `i`.
@@ -117,15 +174,18 @@ impl Tree {
                         *hi as usize
                     };
                 }
-                KdNode::Leaf { len, items } => {
+                KdNode::Leaf { len, items, block } => {
                     if (*len as usize) == BUCKET {
                         // A full leaf that could not split (identical states).
                         self.kd_overflow.push(i);
                         return;
                     }
-                    items[*len as usize] = i;
+                    let (slot, block) = (*len as usize, *block);
+                    items[slot] = i;
                     *len += 1;
-                    if (*len as usize) == BUCKET {
+                    let full = (*len as usize) == BUCKET;
+                    self.put_in_block(block, slot, i);
+                    if full {
                         self.kd_split(n);
                     }
                     return;
@@ -136,7 +196,7 @@ impl Tree {
 
     /// Splits a full leaf at the median of its widest (weighted) coordinate.
     fn kd_split(&mut self, n: usize) {
-        let KdNode::Leaf { items, .. } = self.kd[n] else {
+        let KdNode::Leaf { items, block, .. } = self.kd[n] else {
             return;
         };
         let (mut best_dim, mut best_spread) = (0usize, -1.0f64);
@@ -176,13 +236,21 @@ impl Tree {
             return;
         }
         let lo = self.kd.len() as u32;
+        // The low half reuses the full leaf's block, the high half gets a new one.
+        let hi_block = (self.leaf_data.len() / (self.dim * BUCKET)) as u32;
+        self.leaf_data
+            .resize(self.leaf_data.len() + self.dim * BUCKET, f64::INFINITY);
+        self.fill_block(block, &lo_leaf.0[..lo_leaf.1 as usize]);
+        self.fill_block(hi_block, &hi_leaf.0[..hi_leaf.1 as usize]);
         self.kd.push(KdNode::Leaf {
             len: lo_leaf.1,
             items: lo_leaf.0,
+            block,
         });
         self.kd.push(KdNode::Leaf {
             len: hi_leaf.1,
             items: hi_leaf.0,
+            block: hi_block,
         });
         self.kd[n] = KdNode::Split {
             dim: best_dim as u32,
@@ -216,11 +284,17 @@ impl Tree {
     /// ties go to the lowest index in a linear scan, to the first found in the k-d tree.
     #[inline]
     pub fn nearest(&self, q: &[f64]) -> Option<(u32, f64)> {
-        if self.len() <= LINEAR_SCAN_MAX {
-            return self.nearest_linear(q);
-        }
         let mut best = (u32::MAX, f64::INFINITY);
-        self.kd_search(0, q, &mut best);
+        if self.len() <= LINEAR_SCAN_MAX {
+            // Every leaf block in storage order: a vectorised linear scan, no descent.
+            for n in 0..self.kd.len() {
+                if let KdNode::Leaf { len, items, block } = &self.kd[n] {
+                    self.scan_leaf(*block, &items[..*len as usize], q, &mut best);
+                }
+            }
+        } else {
+            self.kd_search(0, q, &mut best);
+        }
         for &i in &self.kd_overflow {
             let d = self.dist_sq(i, q);
             if d < best.1 {
@@ -241,15 +315,31 @@ impl Tree {
         d
     }
 
+    /// Offers the states of a leaf block to `best` (distances from `q`).
+    #[inline]
+    fn scan_leaf(&self, block: u32, items: &[u32], q: &[f64], best: &mut (u32, f64)) {
+        let b = block as usize * self.dim * BUCKET;
+        let data = &self.leaf_data[b..b + self.dim * BUCKET];
+        #[cfg(target_arch = "x86_64")]
+        let d = if self.avx {
+            // SAFETY: `avx` is set only when the CPU has AVX (checked in `Tree::new`).
+            unsafe { block_distances_avx(data, &self.weights, q) }
+        } else {
+            block_distances(data, &self.weights, q)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let d = block_distances(data, &self.weights, q);
+        for (s, &i) in items.iter().enumerate() {
+            if d[s] < best.1 {
+                *best = (i, d[s]);
+            }
+        }
+    }
+
     fn kd_search(&self, n: usize, q: &[f64], best: &mut (u32, f64)) {
         match &self.kd[n] {
-            KdNode::Leaf { len, items } => {
-                for &i in &items[..*len as usize] {
-                    let d = self.dist_sq(i, q);
-                    if d < best.1 {
-                        *best = (i, d);
-                    }
-                }
+            KdNode::Leaf { len, items, block } => {
+                self.scan_leaf(*block, &items[..*len as usize], q, best);
             }
             KdNode::Split { dim, value, lo, hi } => {
                 let diff = q[*dim as usize] - value;
