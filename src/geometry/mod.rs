@@ -9,4 +9,4 @@ mod trig;
 
 pub use pose::{iso_from_rpy, quat_to_rpy, Pose, PoseJson};
 pub use shape::{Geometry, Mesh, Shape};
-pub use trig::sin_cos;
+pub use trig::{atan2, sin_cos};

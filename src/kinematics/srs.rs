@@ -39,14 +39,13 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::{Matrix3, Point3, Unit, Vector3};
+use nalgebra::{Matrix3, Point3, Quaternion, Translation3, Unit, UnitQuaternion, Vector3};
 use rand::seq::SliceRandom;
 use rand::Rng;
 use thiserror::Error;
 
 use super::chain::Chain;
-use super::fk::joint_motion;
-use crate::geometry::Pose;
+use crate::geometry::{atan2, sin_cos, Pose};
 use crate::model::{JointKind, Limits, Robot};
 
 /// Distance (m) within which joint axes must meet in the shoulder / wrist centre.
@@ -137,7 +136,7 @@ pub struct SrsArm {
 #[inline]
 fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
     // Rodrigues: I + sinθ [k]× + (1 − cosθ) [k]×²
-    let (sn, cs) = angle.sin_cos();
+    let (sn, cs) = sin_cos(angle);
     let kx = k.cross_matrix();
     Matrix3::identity() + kx * sn + kx * kx * (1.0 - cs)
 }
@@ -148,7 +147,7 @@ fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
 fn sp1(k: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
     let ap = a - k * k.dot(a);
     let bp = b - k * k.dot(b);
-    k.dot(&ap.cross(&bp)).atan2(ap.dot(&bp))
+    atan2(k.dot(&ap.cross(&bp)), ap.dot(&bp))
 }
 
 /// Solves `e^{[k1]a} e^{[k2]b} e^{[k3]c} = r` (k1 ∦ k2, k2 ∦ k3): Paden–Kahan subproblem 2
@@ -224,7 +223,7 @@ pub(crate) fn pose_distance(a: &Pose, b: &Pose) -> (f64, f64) {
     let dp = (a.translation.vector - b.translation.vector).norm();
     let q = a.rotation.inverse() * b.rotation;
     let (w, v) = (q.scalar(), q.imag());
-    let ang = 2.0 * v.norm().atan2(w.abs());
+    let ang = 2.0 * atan2(v.norm(), w.abs());
     (dp, ang)
 }
 
@@ -453,7 +452,11 @@ impl SrsArm {
     pub fn fk(&self, q7: &[f64; 7]) -> Pose {
         let mut t = Pose::identity();
         for ((pre, axis), &v) in self.pre.iter().zip(&self.local_axis).zip(q7) {
-            t = t * pre * joint_motion(JointKind::Revolute, axis, v);
+            // e^{[axis] v} as a unit quaternion (cos v/2, axis sin v/2), with the fast sin_cos.
+            let (sn, cs) = sin_cos(0.5 * v);
+            let q =
+                UnitQuaternion::new_unchecked(Quaternion::from_parts(cs, axis.into_inner() * sn));
+            t = t * pre * Pose::from_parts(Translation3::identity(), q);
         }
         t * self.tail
     }
@@ -493,7 +496,7 @@ impl SrsArm {
         let u = rsh * f.column(0);
         let d = rsh * f.column(1);
         let (n, un) = Self::target_frame(&u);
-        d.dot(&un).atan2(d.dot(&n))
+        atan2(d.dot(&un), d.dot(&n))
     }
 
     /// All solutions for a target tip pose (chain-base frame) at swivel angle ψ, within the joint
@@ -526,7 +529,7 @@ impl SrsArm {
             return 0;
         }
         let c = c.clamp(-1.0, 1.0);
-        let th0 = k4.dot(&xwp.cross(&xsp)).atan2(xwp.dot(&xsp));
+        let th0 = atan2(k4.dot(&xwp.cross(&xsp)), xwp.dot(&xsp));
         // Near the stretched (α = π) and folded (α = 0) elbow, acos amplifies rounding
         // (δc ≈ 1e-16 → δα ≈ 1e-8); snap to a single branch there. The distance error of the
         // snap is ≲ r_w r_s / d · (1e-6)² / 2, far below the 1e-9 verification tolerance.
@@ -543,7 +546,7 @@ impl SrsArm {
         let th4s = [th0 + al, th0 - al];
         // Target frame for ψ.
         let (nv, un) = Self::target_frame(&u);
-        let (sp, cp) = psi.sin_cos();
+        let (sp, cp) = sin_cos(psi);
         let d = nv * cp + un * sp;
         let b = Matrix3::from_columns(&[u, d, u.cross(&d)]);
         let rt = target.rotation.to_rotation_matrix().into_inner();
