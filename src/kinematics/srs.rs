@@ -137,8 +137,22 @@ pub struct SrsArm {
 fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
     // Rodrigues: I + sinθ [k]× + (1 − cosθ) [k]×²
     let (sn, cs) = sin_cos(angle);
-    let kx = k.cross_matrix();
-    Matrix3::identity() + kx * sn + kx * kx * (1.0 - cs)
+    // Written out: c I + (1 − c) k kᵀ + s [k]× (k unit).
+    let (x, y, z) = (k.x, k.y, k.z);
+    let t = 1.0 - cs;
+    let (tx, ty, tz) = (t * x, t * y, t * z);
+    let (sx, sy, sz) = (sn * x, sn * y, sn * z);
+    Matrix3::new(
+        tx * x + cs,
+        tx * y - sz,
+        tx * z + sy,
+        tx * y + sz,
+        ty * y + cs,
+        ty * z - sx,
+        tx * z - sy,
+        ty * z + sx,
+        tz * z + cs,
+    )
 }
 
 /// Paden–Kahan subproblem 1 for directions: the angle about unit `k` that rotates `a` onto `b`
