@@ -3,82 +3,30 @@
 //! configurations whose last waypoint puts the hands where the events say (checked against
 //! `POST /v1/fk`), and bad requests name their field.
 
-use std::path::PathBuf;
-use std::time::Duration;
+mod common;
+use common::server::{field, start, Harness};
 
-use manyhands::server::{Config, Server};
 use reqwest::StatusCode;
 use serde_json::{json, Value};
 
-struct Harness {
-    _server: Server,
-    base: String,
-    http: reqwest::Client,
-}
-
-async fn start(name: &str) -> Harness {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos())
-        .unwrap_or(0);
-    let dir = std::env::temp_dir().join(format!(
-        "manyhands-grasp-plans-{name}-{}-{nanos}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).expect("dir");
-    let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir);
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    cfg.robots_dir = root.join("robots");
-    cfg.scenes_dir = root.join("scenes");
-    cfg.workers = 2;
-    cfg.query_threads = 2;
-    let server = Server::start(cfg).await.expect("server");
-    Harness {
-        base: format!("http://{}", server.addr()),
-        _server: server,
-        http: reqwest::Client::builder()
-            .timeout(Duration::from_secs(60))
-            .build()
-            .expect("client"),
-    }
-}
-
-impl Harness {
-    /// `POST /v1/fk` of armar's `config`: its right TCP is near the kitchen wok (which lies
-    /// still at (0.65, -0.2, 0.9)).
-    async fn assert_right_tcp_at_wok(&self, config: &Value) {
-        let (s, fk) = self
-            .post(
-                "/v1/fk",
-                &json!({"robot": "armar", "config": config, "links": ["right_tcp"]}),
-            )
-            .await;
-        assert_eq!(s, StatusCode::OK, "{fk}");
-        let p = &fk["links"][0]["pose"]["position"];
-        let d = [0.65, -0.2, 0.9]
-            .iter()
-            .enumerate()
-            .map(|(k, w)| (p[k].as_f64().unwrap_or(f64::NAN) - w).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
-    }
-
-    async fn post(&self, path: &str, body: &Value) -> (StatusCode, Value) {
-        let r = self
-            .http
-            .post(format!("{}{path}", self.base))
-            .json(body)
-            .send()
-            .await
-            .expect("POST");
-        let s = r.status();
-        (s, r.json().await.unwrap_or(Value::Null))
-    }
-}
-
-fn field(v: &Value) -> String {
-    v["error"]["field"].as_str().unwrap_or("").to_string()
+/// `POST /v1/fk` of armar's `config`: its right TCP is near the kitchen wok (which lies still at
+/// (0.65, -0.2, 0.9)).
+async fn assert_right_tcp_at_wok(h: &Harness, config: &Value) {
+    let (s, fk) = h
+        .post(
+            "/v1/fk",
+            &json!({"robot": "armar", "config": config, "links": ["right_tcp"]}),
+        )
+        .await;
+    assert_eq!(s, StatusCode::OK, "{fk}");
+    let p = &fk["links"][0]["pose"]["position"];
+    let d = [0.65, -0.2, 0.9]
+        .iter()
+        .enumerate()
+        .map(|(k, w)| (p[k].as_f64().unwrap_or(f64::NAN) - w).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(d < 0.4, "right TCP {p} is {d} m from the wok");
 }
 
 /// The plan's last waypoint as a `{joint: value}` map of `robot`.
@@ -123,7 +71,7 @@ async fn grasp_planners_over_http() {
     let (_, v2) = h.post("/v1/plans?wait=60", &req).await;
     assert_eq!(v2["result"]["waypoints"], r["waypoints"]);
     // FK of the last waypoint: the right TCP is where a wok grasp puts it (the wok lies still).
-    h.assert_right_tcp_at_wok(&last_config(r, "armar")).await;
+    assert_right_tcp_at_wok(&h, &last_config(r, "armar")).await;
 
     // The same query with J+-RRT (000 Alg. 1–2): no IK solutions, Jacobian steps instead.
     let mut jreq = req.clone();
@@ -249,7 +197,7 @@ async fn randomized_grasp_ik_over_http() {
     assert_eq!(v2["solution"], v["solution"]);
     assert_eq!(v2["grasp"], v["grasp"]);
     // The hand is at the wok.
-    h.assert_right_tcp_at_wok(&v["config"]).await;
+    assert_right_tcp_at_wok(&h, &v["config"]).await;
     // Bad fields are named.
     for (key, val, want) in [
         ("robot", json!("robbie"), "robot"),

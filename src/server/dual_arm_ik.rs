@@ -25,7 +25,7 @@ use utoipa::ToSchema;
 
 use crate::collision::CollisionWorld;
 use crate::geometry::PoseJson;
-use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
+use crate::kinematics::randomized::{IkCounters, RandomizedIkError};
 use crate::model::{Robot, Scene};
 use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
 use crate::planning::{GoalSampler, PlanError};
@@ -34,7 +34,7 @@ use crate::reachability::queries::{DualArmProblem, QueryError};
 
 use super::error::{ApiError, ApiResult, ErrorBody};
 use super::extract::ApiJson;
-use super::grasp_ik::{arm_grid, MAX_TRIES};
+use super::grasp_ik::{arm_grid, ik_settings};
 use super::AppState;
 
 /// Largest edge of the object's position box (m).
@@ -190,29 +190,6 @@ pub async fn base_placement(
         .run(move || base_placement_compute(&entry.scene, &req, &grids))
         .await
         .map(Json)
-}
-
-/// `max_tries` and `psi_samples` checked, defaults filled in.
-fn ik_settings(max_tries: Option<u64>, psi: Option<u32>) -> ApiResult<RandomizedIkSettings> {
-    let max_tries = max_tries.unwrap_or(20_000);
-    if !(1..=MAX_TRIES).contains(&max_tries) {
-        return Err(ApiError::invalid(
-            "max_tries",
-            format!("{max_tries} is not in 1..={MAX_TRIES}"),
-        ));
-    }
-    let psi = psi.unwrap_or(8);
-    if !(1..=360).contains(&psi) {
-        return Err(ApiError::invalid(
-            "psi_samples",
-            format!("{psi} is not in 1..=360"),
-        ));
-    }
-    Ok(RandomizedIkSettings {
-        max_tries,
-        psi_samples: psi,
-        ..RandomizedIkSettings::default()
-    })
 }
 
 /// The scene's robot instance `name` and its model.

@@ -106,6 +106,30 @@ pub async fn grasp_ik(
         .map(Json)
 }
 
+/// Randomized-IK settings of a request: `max_tries` (1..=[`MAX_TRIES`], default 20 000) and
+/// `psi_samples` (1..=360, default 8) checked, the rest the defaults.
+pub fn ik_settings(max_tries: Option<u64>, psi: Option<u32>) -> ApiResult<RandomizedIkSettings> {
+    let max_tries = max_tries.unwrap_or(20_000);
+    if !(1..=MAX_TRIES).contains(&max_tries) {
+        return Err(ApiError::invalid(
+            "max_tries",
+            format!("{max_tries} is not in 1..={MAX_TRIES}"),
+        ));
+    }
+    let psi = psi.unwrap_or(8);
+    if !(1..=360).contains(&psi) {
+        return Err(ApiError::invalid(
+            "psi_samples",
+            format!("{psi} is not in 1..=360"),
+        ));
+    }
+    Ok(RandomizedIkSettings {
+        max_tries,
+        psi_samples: psi,
+        ..RandomizedIkSettings::default()
+    })
+}
+
 /// The field a set-up error is about.
 fn query_error(e: QueryError) -> ApiError {
     let field = match &e {
@@ -137,20 +161,7 @@ pub fn compute(
     req: &GraspIkRequest,
     grids: Option<&GridCache>,
 ) -> ApiResult<GraspIkResponse> {
-    let max_tries = req.max_tries.unwrap_or(20_000);
-    if !(1..=MAX_TRIES).contains(&max_tries) {
-        return Err(ApiError::invalid(
-            "max_tries",
-            format!("{max_tries} is not in 1..={MAX_TRIES}"),
-        ));
-    }
-    let psi = req.psi_samples.unwrap_or(8);
-    if !(1..=360).contains(&psi) {
-        return Err(ApiError::invalid(
-            "psi_samples",
-            format!("{psi} is not in 1..=360"),
-        ));
-    }
+    let settings = ik_settings(req.max_tries, req.psi_samples)?;
     if scene.object(&req.object).is_none() {
         return Err(ApiError::invalid(
             "object",
@@ -165,11 +176,6 @@ pub fn compute(
     };
     let reachability = grid.is_some();
     problem.set_grid(grid).map_err(query_error)?;
-    let settings = RandomizedIkSettings {
-        max_tries,
-        psi_samples: psi,
-        ..RandomizedIkSettings::default()
-    };
     let mut rng = ChaCha8Rng::seed_from_u64(req.seed.unwrap_or(1));
     let started = Instant::now();
     let object_pose = problem.object_pose;
