@@ -124,10 +124,21 @@ impl Client {
     }
 
     fn request(&self, method: Method, path: &str) -> reqwest::RequestBuilder {
-        let r = self.http.request(method, format!("{}{path}", self.base));
+        self.authorized(self.http.request(method, format!("{}{path}", self.base)))
+    }
+
+    fn authorized(&self, r: reqwest::RequestBuilder) -> reqwest::RequestBuilder {
         match &self.token {
             Some(t) => r.bearer_auth(t),
             None => r,
+        }
+    }
+
+    /// `/v1/plans`, with `?wait=SECONDS` when given.
+    fn plans_path(wait: Option<f64>) -> String {
+        match wait {
+            Some(w) => format!("/v1/plans?wait={w}"),
+            None => "/v1/plans".to_string(),
         }
     }
 
@@ -290,21 +301,13 @@ impl Client {
 
     /// `POST /v1/plans` (with `?wait=SECONDS` when given): the job as accepted, or final.
     pub async fn submit(&self, req: &PlanRequest, wait: Option<f64>) -> ClientResult<Job> {
-        let path = match wait {
-            Some(w) => format!("/v1/plans?wait={w}"),
-            None => "/v1/plans".to_string(),
-        };
-        self.post(&path, req).await
+        self.post(&Self::plans_path(wait), req).await
     }
 
     /// `POST /v1/plans` with a raw JSON body (any job kind, including ones newer than this
     /// client's types).
     pub async fn submit_json(&self, req: &Value, wait: Option<f64>) -> ClientResult<Job> {
-        let path = match wait {
-            Some(w) => format!("/v1/plans?wait={w}"),
-            None => "/v1/plans".to_string(),
-        };
-        self.post(&path, req).await
+        self.post(&Self::plans_path(wait), req).await
     }
 
     pub async fn job(&self, id: &str) -> ClientResult<Job> {
