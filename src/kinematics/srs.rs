@@ -39,12 +39,13 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::{Matrix3, Point3, Quaternion, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Point3, Unit, Vector3};
 use rand::seq::SliceRandom;
 use rand::Rng;
 use thiserror::Error;
 
 use super::chain::Chain;
+use super::fk::joint_motion;
 use crate::geometry::{atan2, sin_cos, Pose};
 use crate::model::{JointKind, Limits, Robot};
 
@@ -466,11 +467,7 @@ impl SrsArm {
     pub fn fk(&self, q7: &[f64; 7]) -> Pose {
         let mut t = Pose::identity();
         for ((pre, axis), &v) in self.pre.iter().zip(&self.local_axis).zip(q7) {
-            // e^{[axis] v} as a unit quaternion (cos v/2, axis sin v/2), with the fast sin_cos.
-            let (sn, cs) = sin_cos(0.5 * v);
-            let q =
-                UnitQuaternion::new_unchecked(Quaternion::from_parts(cs, axis.into_inner() * sn));
-            t = t * pre * Pose::from_parts(Translation3::identity(), q);
+            t = t * pre * joint_motion(JointKind::Revolute, axis, v);
         }
         t * self.tail
     }
