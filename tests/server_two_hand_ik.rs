@@ -6,7 +6,7 @@
 //! with the object in the hands.
 
 mod common;
-use common::server::{field, start};
+use common::server::{field, start, Harness};
 use common::{pose_close, scene};
 
 use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker};
@@ -57,6 +57,17 @@ fn assert_hands_at_grasps(s: &Scene, v: &Value, object: &str, pose: &Pose) -> (H
         );
     }
     (left, right)
+}
+
+/// Each `(key, value, field)`: `req` with `key` set to `value` gets a 422 naming `field`.
+async fn assert_fields_named(h: &Harness, path: &str, req: &Value, bad: &[(&str, Value, &str)]) {
+    for (key, val, want) in bad {
+        let mut b = req.clone();
+        b[*key] = val.clone();
+        let (st, v) = h.post(path, &b).await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{key}: {v}");
+        assert_eq!(field(&v), *want, "{v}");
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -114,7 +125,7 @@ async fn dual_arm_ik_over_http() {
         assert_eq!(v2["solution"], v["solution"]);
     }
     // Bad fields are named.
-    for (key, val, want) in [
+    let bad = [
         ("robot", json!("robbie"), "robot"),
         ("left_group", json!("nope"), "left_group"),
         ("right_group", json!("nope"), "right_group"),
@@ -127,13 +138,8 @@ async fn dual_arm_ik_over_http() {
         ),
         ("max_tries", json!(0), "max_tries"),
         ("psi_samples", json!(0), "psi_samples"),
-    ] {
-        let mut b = req.clone();
-        b[key] = val;
-        let (st, v) = h.post("/v1/ik/dual-arm", &b).await;
-        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{key}: {v}");
-        assert_eq!(field(&v), want, "{v}");
-    }
+    ];
+    assert_fields_named(&h, "/v1/ik/dual-arm", &req, &bad).await;
     // Out of reach: "no solution after N tries", not an error.
     let mut b = req.clone();
     b["region"] = json!({"min": [3.0, 3.0, 1.0], "max": [3.2, 3.2, 1.2]});
@@ -167,20 +173,15 @@ async fn base_placement_ik_over_http() {
     assert!(exact.is_free(&q), "{:?}", exact.first_contact(&q));
     let (_, v2) = h.post("/v1/ik/base-placement", &req).await;
     assert_eq!(v2["solution"], v["solution"], "same seed, same answer");
-    for (key, val, want) in [
+    let bad = [
         ("robot", json!("robbie"), "robot"),
         ("object", json!("spoon"), "object"),
         ("radius", json!(-1.0), "radius"),
         ("cell", json!(0.0), "cell"),
         ("yaw_bins", json!(0), "yaw_bins"),
         ("max_tries", json!(2_000_000), "max_tries"),
-    ] {
-        let mut b = req.clone();
-        b[key] = val;
-        let (st, v) = h.post("/v1/ik/base-placement", &b).await;
-        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{key}: {v}");
-        assert_eq!(field(&v), want, "{v}");
-    }
+    ];
+    assert_fields_named(&h, "/v1/ik/base-placement", &req, &bad).await;
     // Bases within 0.2 m of the table's centre stand in the table: every sample collides, and
     // the answer is a clean "no solution after N tries".
     let mut b = req.clone();

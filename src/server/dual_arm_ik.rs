@@ -27,14 +27,14 @@ use crate::collision::CollisionWorld;
 use crate::geometry::PoseJson;
 use crate::kinematics::randomized::{IkCounters, RandomizedIkError};
 use crate::model::{Robot, Scene};
-use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use crate::planning::bimanual_ik_rrt::{base_vars, BimanualProblem, BimanualSettings};
 use crate::planning::{GoalSampler, PlanError};
 use crate::reachability::cache::{GridCache, GridRecipe};
-use crate::reachability::queries::{DualArmProblem, QueryError};
+use crate::reachability::queries::DualArmProblem;
 
 use super::error::{ApiError, ApiResult, ErrorBody};
 use super::extract::ApiJson;
-use super::grasp_ik::{arm_grid, ik_settings};
+use super::grasp_ik::{arm_grid, config_map, ik_settings, query_error};
 use super::AppState;
 
 /// Largest edge of the object's position box (m).
@@ -233,22 +233,6 @@ fn check_names(
     Ok(())
 }
 
-fn query_error(e: QueryError) -> ApiError {
-    let field = match &e {
-        QueryError::NoRobot { .. } => "robot",
-        QueryError::NoObject { .. } | QueryError::NoGrasps { .. } => "object",
-        _ => "left_group",
-    };
-    ApiError::invalid(field, e.to_string())
-}
-
-/// The full configuration of robot `model` as a `joint: value` map.
-fn config_map(model: &Robot, q: &[f64]) -> serde_json::Map<String, serde_json::Value> {
-    (0..model.dof())
-        .map(|v| (model.var_name(v).to_string(), q[v].into()))
-        .collect()
-}
-
 fn not_found(
     e: RandomizedIkError,
     joints: Vec<String>,
@@ -299,8 +283,8 @@ pub fn dual_arm_compute(
     let left = req.left_group.as_deref().unwrap_or("torso_left_arm");
     let right = req.right_group.as_deref().unwrap_or("torso_right_arm");
     check_names(scene, &model, left, right, &req.object)?;
-    let mut problem =
-        DualArmProblem::new(scene, &req.robot, left, right, &req.object).map_err(query_error)?;
+    let mut problem = DualArmProblem::new(scene, &req.robot, left, right, &req.object)
+        .map_err(|e| query_error(e, "left_group"))?;
     let held = match &req.held {
         None => None,
         Some(name) => Some(
@@ -330,7 +314,9 @@ pub fn dual_arm_compute(
         None => None,
     };
     let reachability = pair.is_some();
-    problem.set_grids(pair).map_err(query_error)?;
+    problem
+        .set_grids(pair)
+        .map_err(|e| query_error(e, "left_group"))?;
     let mut vars: Vec<usize> = problem.ik.free_vars().to_vec();
     for arm in [problem.ik.left(), problem.ik.right()] {
         for &v in &arm.chain.vars {
@@ -371,21 +357,11 @@ pub fn dual_arm_compute(
     }
 }
 
-/// The field of a base-placement set-up error.
+/// The field of a base-placement set-up error (the robot's `base` group is checked before).
 fn placement_error(e: PlanError) -> ApiError {
     match e {
         PlanError::InvalidGoal { reason, .. } => ApiError::invalid("object", reason),
-        e => {
-            let msg = e.to_string();
-            let field = if msg.contains("group 'base'") {
-                "robot"
-            } else if msg.contains("map settings") {
-                "radius"
-            } else {
-                "left_group"
-            };
-            ApiError::invalid(field, msg)
-        }
+        e => ApiError::invalid("left_group", e.to_string()),
     }
 }
 
@@ -423,6 +399,7 @@ pub fn base_placement_compute(
     let left = req.left_group.as_deref().unwrap_or("torso_left_arm");
     let right = req.right_group.as_deref().unwrap_or("torso_right_arm");
     check_names(scene, &model, left, right, &req.object)?;
+    base_vars(&model).map_err(|e| ApiError::invalid("robot", e.to_string()))?;
     let grid = |field: &str, g: &str| {
         grids
             .get(&model, g, GridRecipe::default())

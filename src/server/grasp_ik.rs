@@ -130,14 +130,21 @@ pub fn ik_settings(max_tries: Option<u64>, psi: Option<u32>) -> ApiResult<Random
     })
 }
 
-/// The field a set-up error is about.
-fn query_error(e: QueryError) -> ApiError {
+/// A query set-up error as a 422 naming its field; errors about the chain name `group_field`.
+pub fn query_error(e: QueryError, group_field: &str) -> ApiError {
     let field = match &e {
         QueryError::NoRobot { .. } => "robot",
         QueryError::NoObject { .. } | QueryError::NoGrasps { .. } => "object",
-        _ => "group",
+        _ => group_field,
     };
     ApiError::invalid(field, e.to_string())
+}
+
+/// The full configuration of robot `model` as a `joint: value` map.
+pub fn config_map(model: &Robot, q: &[f64]) -> serde_json::Map<String, serde_json::Value> {
+    (0..model.dof())
+        .map(|v| (model.var_name(v).to_string(), q[v].into()))
+        .collect()
 }
 
 /// The reachability grid of `arm` from `grids`, when the robot has a group for the arm chain.
@@ -168,14 +175,16 @@ pub fn compute(
             format!("scene '{}' has no object '{}'", scene.name, req.object),
         ));
     }
-    let mut problem =
-        SingleArmProblem::new(scene, &req.robot, &req.group, &req.object).map_err(query_error)?;
+    let mut problem = SingleArmProblem::new(scene, &req.robot, &req.group, &req.object)
+        .map_err(|e| query_error(e, "group"))?;
     let grid = match grids.filter(|_| req.reachability.unwrap_or(true)) {
         Some(g) => arm_grid(g, &problem.ik.robot().clone(), problem.ik.split())?,
         None => None,
     };
     let reachability = grid.is_some();
-    problem.set_grid(grid).map_err(query_error)?;
+    problem
+        .set_grid(grid)
+        .map_err(|e| query_error(e, "group"))?;
     let mut rng = ChaCha8Rng::seed_from_u64(req.seed.unwrap_or(1));
     let started = Instant::now();
     let object_pose = problem.object_pose;
@@ -191,15 +200,12 @@ pub fn compute(
     match answer {
         Ok(sol) => {
             let (tries, ik_calls, collision_checks) = counters(&sol.counters);
-            let config = (0..robot.dof())
-                .map(|v| (robot.var_name(v).to_string(), sol.config[v].into()))
-                .collect();
             Ok(GraspIkResponse {
                 found: true,
                 reason: None,
                 grasp: problem.grasps.names.get(sol.grasp).cloned(),
                 solution: Some(vars.iter().map(|&v| sol.config[v]).collect()),
-                config: Some(config),
+                config: Some(config_map(&robot, &sol.config)),
                 joints,
                 tries,
                 ik_calls,
