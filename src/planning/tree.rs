@@ -352,23 +352,17 @@ impl Tree {
         }
     }
 
-    /// [`Self::nearest`] by linear scan.
-    #[inline]
+    /// [`Self::nearest`] by linear scan over every state (the reference the leaf scans match);
+    /// ties go to the lowest index.
     pub fn nearest_linear(&self, q: &[f64]) -> Option<(u32, f64)> {
-        let mut best = f64::INFINITY;
-        let mut best_i = None;
-        for (i, s) in self.states.chunks_exact(self.dim).enumerate() {
-            let mut d = 0.0;
-            for k in 0..self.dim {
-                let e = s[k] - q[k];
-                d += self.weights[k] * e * e;
-            }
-            if d < best {
-                best = d;
-                best_i = Some(i as u32);
+        let mut best = (u32::MAX, f64::INFINITY);
+        for i in 0..self.len() as u32 {
+            let d = self.dist_sq(i, q);
+            if d < best.1 {
+                best = (i, d);
             }
         }
-        best_i.map(|i| (i, best))
+        (best.0 != u32::MAX).then_some(best)
     }
 
     /// Indices from the root down to `i` (into `out`, cleared first).
