@@ -93,6 +93,59 @@ fn lookups_agree_with_fk_and_collision() {
     assert!(g.data().iter().any(|&e| e == g.max_entry()) && g.max_entry() > 0);
 }
 
+/// The lookup's angle bins are those of nalgebra's roll-pitch-yaw (URDF convention) binned
+/// over [−π, π) / [−π/2, π/2) (at gimbal lock the pitch bin only); away from bin edges they must
+/// agree exactly.
+#[test]
+fn cell_angles_are_the_urdf_rpy_bins() {
+    let robot = armar();
+    for bins in [6u32, 8, 5] {
+        let chain = Chain::from_group(&robot, "right_arm").expect("chain");
+        let p = GridParams::auto(&robot, &chain, 0.2, bins, 1000, 1).expect("params");
+        let g = ReachabilityGrid::build(&robot, "right_arm", &p, &|_| {}).expect("build");
+        let b = bins as f64;
+        let bin = |a: f64, lo: f64, span: f64| -> Option<usize> {
+            let x = (a - lo) / span * b;
+            // Skip poses within 1e-9 of an edge (rounding may go either way there).
+            if (x - x.round()).abs() < 1e-9 {
+                return None;
+            }
+            Some((x.floor().max(0.0) as usize).min(bins as usize - 1))
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let centre = nalgebra::Vector3::from_fn(|k, _| g.cell_centre(k, 0));
+        let mut checked = 0;
+        for i in 0..20_000 {
+            let rot = if i % 10 == 0 {
+                // Gimbal lock: pitch exactly ±π/2.
+                let pitch = if i % 20 == 0 { 0.5 } else { -0.5 } * std::f64::consts::PI;
+                nalgebra::UnitQuaternion::from_euler_angles(rng.random_range(-3.0..3.0), pitch, 0.3)
+            } else {
+                manyhands::kinematics::dual_arm::random_rotation(&mut rng)
+            };
+            let pose = Pose::from_parts(centre.into(), rot);
+            let (r, pi, y) = rot.euler_angles();
+            let pi_ = std::f64::consts::PI;
+            let (Some(br), Some(bp), Some(by)) = (
+                bin(r, -pi_, 2.0 * pi_),
+                bin(pi, -0.5 * pi_, pi_),
+                bin(y, -pi_, 2.0 * pi_),
+            ) else {
+                continue;
+            };
+            let c = g.cell_coords(&pose).expect("inside");
+            if pi.cos() < 1e-6 {
+                // At (or within rounding of) gimbal lock roll and yaw are not determined.
+                assert_eq!(c[4], bp, "pitch {pi}, {bins} bins");
+                continue;
+            }
+            assert_eq!(&c[3..], &[br, bp, by], "rpy ({r}, {pi}, {y}), {bins} bins");
+            checked += 1;
+        }
+        assert!(checked > 15_000);
+    }
+}
+
 #[test]
 fn file_roundtrip_and_refusals() {
     let robot = armar();

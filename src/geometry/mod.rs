@@ -7,6 +7,6 @@ mod pose;
 mod shape;
 mod trig;
 
-pub use pose::{iso_from_rpy, quat_to_rpy, Pose, PoseJson};
+pub use pose::{iso_from_rpy, quat_from_rpy, quat_to_rpy, Pose, PoseJson};
 pub use shape::{Geometry, Mesh, Shape};
 pub use trig::{atan2, sin_cos};

@@ -153,6 +153,7 @@ impl DualArmIk {
         let mut lc: Vec<(f64, usize)> = Vec::new();
         let mut rc: Vec<(f64, usize)> = Vec::new();
         let (nl, nr) = (query.left_grasps.len(), query.right_grasps.len());
+        let (mut pl, mut pr) = (vec![0.0; nl], vec![0.0; nr]);
         for _ in 0..settings.max_tries {
             c.tries += 1;
             robot.sample_vars(&self.free_vars, &mut q, rng);
@@ -172,18 +173,12 @@ impl DualArmIk {
             rc.clear();
             let filtered = match reach {
                 Some((ml, mr)) if rng.random::<f64>() < settings.reach_probability => {
-                    let best = |obj: &Pose, c: &mut IkCounters| -> f64 {
-                        let bl = query
-                            .left_grasps
-                            .iter()
-                            .map(|g| ml.probability(&(linv * obj * g)))
-                            .fold(0.0, f64::max);
-                        let br = query
-                            .right_grasps
-                            .iter()
-                            .map(|g| mr.probability(&(rinv * obj * g)))
-                            .fold(0.0, f64::max);
+                    let mut best = |obj: &Pose, c: &mut IkCounters| -> f64 {
+                        ml.probabilities(&(linv * obj), query.left_grasps, &mut pl);
+                        mr.probabilities(&(rinv * obj), query.right_grasps, &mut pr);
                         c.reach_lookups += (nl + nr) as u64;
+                        let bl = pl.iter().copied().fold(0.0, f64::max);
+                        let br = pr.iter().copied().fold(0.0, f64::max);
                         bl.min(br)
                     };
                     let s = best(&obj, &mut c);
@@ -209,18 +204,20 @@ impl DualArmIk {
                         c.gradient_steps += moves as u64;
                         obj = p;
                     }
-                    for (g, t) in query.left_grasps.iter().enumerate() {
-                        let p = ml.probability(&(linv * obj * t));
-                        if p > settings.threshold {
-                            lc.push((p, g));
-                        }
-                    }
-                    for (g, t) in query.right_grasps.iter().enumerate() {
-                        let p = mr.probability(&(rinv * obj * t));
-                        if p > settings.threshold {
-                            rc.push((p, g));
-                        }
-                    }
+                    ml.probabilities(&(linv * obj), query.left_grasps, &mut pl);
+                    mr.probabilities(&(rinv * obj), query.right_grasps, &mut pr);
+                    lc.extend(
+                        pl.iter()
+                            .enumerate()
+                            .filter(|(_, &p)| p > settings.threshold)
+                            .map(|(g, &p)| (p, g)),
+                    );
+                    rc.extend(
+                        pr.iter()
+                            .enumerate()
+                            .filter(|(_, &p)| p > settings.threshold)
+                            .map(|(g, &p)| (p, g)),
+                    );
                     c.reach_lookups += (nl + nr) as u64;
                     lc.sort_by(|a, b| b.0.total_cmp(&a.0));
                     rc.sort_by(|a, b| b.0.total_cmp(&a.0));

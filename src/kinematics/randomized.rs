@@ -34,6 +34,14 @@ use crate::model::Robot;
 pub trait ReachabilityMap: Send + Sync {
     /// Probability in [0, 1] for a TCP pose in the chain-base frame (0 outside the map).
     fn probability(&self, pose_in_base: &Pose) -> f64;
+    /// The probability of `frame · t` for every TCP pose `t` of `tcps`, into `out` (same
+    /// length). Implementations may batch: the grid finds every cell first and then reads them,
+    /// so the (cache-missing) memory loads overlap.
+    fn probabilities(&self, frame: &Pose, tcps: &[Pose], out: &mut [f64]) {
+        for (o, t) in out.iter_mut().zip(tcps) {
+            *o = self.probability(&(frame * t));
+        }
+    }
     /// Extent of one voxel in (x, y, z, roll, pitch, yaw): m and rad.
     fn voxel_steps(&self) -> [f64; 6];
 }
@@ -231,13 +239,14 @@ fn psi_sweep<R: Rng + ?Sized>(
     let k = psi_samples.max(1);
     let psi0 = rng.random_range(-PI..PI);
     counters.ik_calls += 1;
+    let target = arm.prepare(target);
     for i in 0..k {
         let mut psi = psi0 + 2.0 * PI * i as f64 / k as f64;
         if psi >= PI {
             psi -= 2.0 * PI;
         }
         counters.psi_solves += 1;
-        let n = arm.solve(target, psi, sols);
+        let n = arm.solve_prepared(&target, psi, sols);
         if n == 0 {
             continue;
         }
@@ -372,6 +381,7 @@ impl RandomizedIk {
         let mut q = query.start.to_vec();
         let mut counters = IkCounters::default();
         let mut cand: Vec<(f64, usize)> = Vec::with_capacity(targets.len());
+        let mut probs = vec![0.0; targets.len()];
         let arm = &self.split.arm;
         for _ in 0..settings.max_tries {
             counters.tries += 1;
@@ -380,9 +390,9 @@ impl RandomizedIk {
             cand.clear();
             match reach {
                 Some(map) if rng.random::<f64>() < settings.reach_probability => {
-                    for (g, t) in targets.iter().enumerate() {
-                        counters.reach_lookups += 1;
-                        let p = map.probability(&(inv * t));
+                    counters.reach_lookups += targets.len() as u64;
+                    map.probabilities(&inv, &targets, &mut probs);
+                    for (g, &p) in probs.iter().enumerate() {
                         if p > settings.threshold {
                             cand.push((p, g));
                         }
@@ -426,7 +436,10 @@ impl RandomizedIk {
 /// Pose from position and URDF roll-pitch-yaw.
 #[inline]
 fn pose_from6(v: &[f64; 6]) -> Pose {
-    crate::geometry::iso_from_rpy([v[0], v[1], v[2]], [v[3], v[4], v[5]])
+    Pose::from_parts(
+        nalgebra::Translation3::new(v[0], v[1], v[2]),
+        crate::geometry::quat_from_rpy([v[3], v[4], v[5]]),
+    )
 }
 
 /// Gradient ascent in reachability space (000 §II-C): from `start`, repeatedly look at the 12

@@ -132,6 +132,51 @@ pub struct SrsArm {
     tip0_rot_inv: Matrix3<f64>,
     reach_min: f64,
     reach_max: f64,
+    /// Pre-filters of the joint limits.
+    arcs: [ArcTest; 7],
+    /// The shoulder (joints 1–3) and wrist (joints 5–7) axis triples.
+    shoulder: Triple,
+    wrist: Triple,
+    /// `pre` and `tail` as rotation matrices and translations (for the FK check of `solve`).
+    pre_r: [Matrix3<f64>; 7],
+    pre_t: [Vector3<f64>; 7],
+    tail_r: Matrix3<f64>,
+    tail_t: Vector3<f64>,
+}
+
+/// One elbow branch of a prepared target: θ4 and the arm frame `[â, p, m]` (transposed).
+#[derive(Debug, Clone, Copy)]
+struct Elbow {
+    q4: f64,
+    a4: Angle,
+    r4: Matrix3<f64>,
+    frame_t: Matrix3<f64>,
+}
+
+/// The part of an IK query that does not depend on the swivel angle ψ: the target, the
+/// shoulder–wrist direction with its ψ = 0 frame, and the elbow branches within the limits.
+/// Made by [`SrsArm::prepare`], solved at any ψ by [`SrsArm::solve_prepared`]; a ψ sweep
+/// prepares once.
+#[derive(Debug, Clone)]
+pub struct SrsTarget {
+    /// Target rotation and translation (chain-base frame).
+    rt: Matrix3<f64>,
+    tt: Vector3<f64>,
+    /// `rt · T_tip(0)⁻¹` (rotation part).
+    rt_tip: Matrix3<f64>,
+    u: Vector3<f64>,
+    nv: Vector3<f64>,
+    un: Vector3<f64>,
+    elbows: [Elbow; 2],
+    n_elbows: usize,
+}
+
+impl SrsTarget {
+    /// False when no ψ can have a solution (wrist target out of reach, or no elbow branch
+    /// within the joint limits).
+    pub fn reachable(&self) -> bool {
+        self.n_elbows > 0
+    }
 }
 
 #[inline]
@@ -156,60 +201,197 @@ fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
     )
 }
 
+/// A joint angle as its sine and cosine (read off the arguments of the `atan2` that would give
+/// it, so building its rotation needs no trigonometry); the angle itself is taken (one `atan2`)
+/// only for solutions that passed every other test.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Angle {
+    s: f64,
+    c: f64,
+}
+
+impl Angle {
+    /// The angle `atan2(y, x)`: `sin = y / h`, `cos = x / h` (h = hypot); 0 when x = y = 0,
+    /// NaN when either is NaN.
+    #[inline]
+    fn of(y: f64, x: f64) -> Angle {
+        let h = (x * x + y * y).sqrt();
+        if h > 0.0 {
+            let inv = 1.0 / h;
+            Angle {
+                s: y * inv,
+                c: x * inv,
+            }
+        } else if h == 0.0 {
+            Angle { s: 0.0, c: 1.0 }
+        } else {
+            Angle {
+                s: f64::NAN,
+                c: f64::NAN,
+            }
+        }
+    }
+
+    #[inline]
+    fn value(&self) -> f64 {
+        atan2(self.s, self.c)
+    }
+}
+
+/// A necessary condition for [`into_limits`] from an angle's sine and cosine: θ lies within
+/// `half` (+ 1e-6 rad slack) of the middle of the range, i.e. `cos(θ − mid) ≥ cos(half)`.
+/// A cheap pre-filter; the exact test runs on the solutions that pass.
+#[derive(Debug, Clone, Copy)]
+struct ArcTest {
+    sm: f64,
+    cm: f64,
+    min_cos: f64,
+}
+
+impl ArcTest {
+    fn new(lim: &Limits) -> ArcTest {
+        let off = ArcTest {
+            sm: 0.0,
+            cm: 0.0,
+            min_cos: -1.0,
+        };
+        if !lim.bounded {
+            return off;
+        }
+        let mid = 0.5 * (lim.lower + lim.upper);
+        let half = 0.5 * (lim.upper - lim.lower) + 1e-6;
+        // Where cos is flat (half near 0 or π) rounding could matter: no pre-filter there.
+        if !(1e-3..=PI - 1e-3).contains(&half) || !mid.is_finite() {
+            return off;
+        }
+        let (sm, cm) = mid.sin_cos();
+        ArcTest {
+            sm,
+            cm,
+            min_cos: half.cos(),
+        }
+    }
+
+    /// False only when the angle certainly lies outside the limits (also for NaN).
+    #[inline]
+    fn admits(&self, a: &Angle) -> bool {
+        self.sm * a.s + self.cm * a.c >= self.min_cos
+    }
+}
+
+/// Rodrigues' rotation about unit `k` from the angle's sine and cosine.
+#[inline]
+fn rot_sc(k: &Vector3<f64>, sn: f64, cs: f64) -> Matrix3<f64> {
+    // c I + (1 − c) k kᵀ + s [k]×
+    let (x, y, z) = (k.x, k.y, k.z);
+    let t = 1.0 - cs;
+    let (tx, ty, tz) = (t * x, t * y, t * z);
+    let (sx, sy, sz) = (sn * x, sn * y, sn * z);
+    Matrix3::new(
+        tx * x + cs,
+        tx * y - sz,
+        tx * z + sy,
+        tx * y + sz,
+        ty * y + cs,
+        ty * z - sx,
+        tx * z - sy,
+        ty * z + sx,
+        tz * z + cs,
+    )
+}
+
+/// `v` rotated about unit `k` by the angle whose sine and cosine are given.
+#[inline]
+fn rotate_sc(k: &Vector3<f64>, sn: f64, cs: f64, v: &Vector3<f64>) -> Vector3<f64> {
+    v * cs + k.cross(v) * sn + k * (k.dot(v) * (1.0 - cs))
+}
+
 /// Paden–Kahan subproblem 1 for directions: the angle about unit `k` that rotates `a` onto `b`
 /// (in the plane ⟂ k).
 #[inline]
-fn sp1(k: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+fn sp1(k: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Angle {
     let ap = a - k * k.dot(a);
     let bp = b - k * k.dot(b);
-    atan2(k.dot(&ap.cross(&bp)), ap.dot(&bp))
+    Angle::of(k.dot(&ap.cross(&bp)), ap.dot(&bp))
 }
 
-/// Solves `e^{[k1]a} e^{[k2]b} e^{[k3]c} = r` (k1 ∦ k2, k2 ∦ k3): Paden–Kahan subproblem 2
-/// applied to k3, then subproblem 1 for the third angle. Up to two solutions.
-#[inline]
-fn euler3(
-    k1: &Vector3<f64>,
-    k2: &Vector3<f64>,
-    k3: &Vector3<f64>,
-    r: &Matrix3<f64>,
-    out: &mut [[f64; 3]; 2],
-) -> usize {
-    let x = *k3;
-    let y = r * k3;
-    let k12 = k1.dot(k2);
-    let denom = k12 * k12 - 1.0;
-    let alpha = (k12 * k2.dot(&x) - k1.dot(&y)) / denom;
-    let beta = (k12 * k1.dot(&y) - k2.dot(&x)) / denom;
-    let cr = k1.cross(k2);
-    let cr2 = cr.norm_squared();
-    let g2 = (1.0 - alpha * alpha - beta * beta - 2.0 * alpha * beta * k12) / cr2;
-    if g2.is_nan() || g2 < -1e-12 {
-        return 0; // orientation not reachable by this axis triple (or NaN)
-    }
-    let g = g2.max(0.0).sqrt();
-    let ngam = if g > 0.0 { 2 } else { 1 };
-    // A direction ⟂ k3 to read off the third angle.
-    let v = {
+/// A triple of rotation axes (k1 ∦ k2, k2 ∦ k3) and what solving `e^{[k1]a} e^{[k2]b}
+/// e^{[k3]c} = r` needs of them alone.
+#[derive(Debug, Clone)]
+struct Triple {
+    k1: Vector3<f64>,
+    k2: Vector3<f64>,
+    k3: Vector3<f64>,
+    k12: f64,
+    denom: f64,
+    cr: Vector3<f64>,
+    cr2: f64,
+    /// A unit direction ⟂ k3 to read off the third angle.
+    v: Vector3<f64>,
+}
+
+impl Triple {
+    fn new(k1: &Vector3<f64>, k2: &Vector3<f64>, k3: &Vector3<f64>) -> Triple {
+        let k12 = k1.dot(k2);
+        let cr = k1.cross(k2);
         let t = if k3.x.abs() < 0.6 {
             Vector3::x()
         } else {
             Vector3::y()
         };
-        (t - k3 * k3.dot(&t)).normalize()
-    };
-    let mut n = 0;
-    for i in 0..ngam {
-        let gamma = if i == 0 { g } else { -g };
-        let c = k1 * alpha + k2 * beta + cr * gamma;
-        let b = sp1(k2, &x, &c);
-        let a = sp1(k1, &c, &y);
-        let rest = (rot(k1, a) * rot(k2, b)).transpose() * r;
-        let cc = sp1(k3, &v, &(rest * v));
-        out[n] = [a, b, cc];
-        n += 1;
+        Triple {
+            k1: *k1,
+            k2: *k2,
+            k3: *k3,
+            k12,
+            denom: k12 * k12 - 1.0,
+            cr,
+            cr2: cr.norm_squared(),
+            v: (t - k3 * k3.dot(&t)).normalize(),
+        }
     }
-    n
+
+    /// Solves `e^{[k1]a} e^{[k2]b} e^{[k3]c} = r`: Paden–Kahan subproblem 2 applied to k3, then
+    /// subproblem 1 for the third angle. Up to two solutions; a solution with an angle that
+    /// `arcs` rule out is dropped as soon as that angle is known.
+    #[inline]
+    fn solve(&self, r: &Matrix3<f64>, arcs: &[ArcTest], out: &mut [[Angle; 3]; 2]) -> usize {
+        let (k1, k2, k3) = (&self.k1, &self.k2, &self.k3);
+        let x = *k3;
+        let y = r * k3;
+        let k12 = self.k12;
+        let alpha = (k12 * k2.dot(&x) - k1.dot(&y)) / self.denom;
+        let beta = (k12 * k1.dot(&y) - k2.dot(&x)) / self.denom;
+        let g2 = (1.0 - alpha * alpha - beta * beta - 2.0 * alpha * beta * k12) / self.cr2;
+        if g2.is_nan() || g2 < -1e-12 {
+            return 0; // orientation not reachable by this axis triple (or NaN)
+        }
+        let g = g2.max(0.0).sqrt();
+        let ngam = if g > 0.0 { 2 } else { 1 };
+        let rv = r * self.v;
+        let mut n = 0;
+        for i in 0..ngam {
+            let gamma = if i == 0 { g } else { -g };
+            let c = k1 * alpha + k2 * beta + self.cr * gamma;
+            let b = sp1(k2, &x, &c);
+            if !arcs[1].admits(&b) {
+                continue;
+            }
+            let a = sp1(k1, &c, &y);
+            if !arcs[0].admits(&a) {
+                continue;
+            }
+            // (e^{[k1]a} e^{[k2]b})ᵀ r v
+            let rest = rotate_sc(k2, -b.s, b.c, &rotate_sc(k1, -a.s, a.c, &rv));
+            let c3 = sp1(k3, &self.v, &rest);
+            if !arcs[2].admits(&c3) {
+                continue;
+            }
+            out[n] = [a, b, c3];
+            n += 1;
+        }
+        n
+    }
 }
 
 /// Maps `v` into `lim` by adding multiples of 2π (the representative nearest the middle of the
@@ -223,12 +405,23 @@ fn into_limits(v: f64, lim: &Limits) -> Option<f64> {
         return Some(v - 2.0 * PI * ((v + PI) / (2.0 * PI)).floor());
     }
     let mid = 0.5 * (lim.lower + lim.upper);
-    let t = v + 2.0 * PI * ((mid - v) / (2.0 * PI)).round();
+    let t = v + 2.0 * PI * round_fast((mid - v) / (2.0 * PI));
     const EPS: f64 = 1e-10;
     if t >= lim.lower - EPS && t <= lim.upper + EPS {
         Some(t.clamp(lim.lower, lim.upper))
     } else {
         None
+    }
+}
+
+/// Round to nearest (ties to even) without a libm call (baseline x86-64 has no SSE4.1 round).
+#[inline]
+fn round_fast(x: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
+    if x.abs() < 1e15 {
+        (x + MAGIC) - MAGIC
+    } else {
+        x.round()
     }
 }
 
@@ -373,7 +566,17 @@ impl SrsArm {
         let reach_max = (axial * axial + (rw + rs) * (rw + rs)).sqrt();
         let reach_min = (axial * axial + (rw - rs) * (rw - rs)).sqrt();
         let tip0_inv = tip0.inverse();
+        let mat = |p: &Pose| p.rotation.to_rotation_matrix().into_inner();
+        let shoulder = Triple::new(&k[0], &k[1], &k[2]);
+        let wrist = Triple::new(&k[4], &k[5], &k[6]);
         Ok(SrsArm {
+            arcs: std::array::from_fn(|i| ArcTest::new(&limits[i])),
+            shoulder,
+            wrist,
+            pre_r: std::array::from_fn(|i| mat(&pre[i])),
+            pre_t: std::array::from_fn(|i| pre[i].translation.vector),
+            tail_r: mat(&tail),
+            tail_t: tail.translation.vector,
             chain: chain.clone(),
             vars,
             names,
@@ -513,13 +716,35 @@ impl SrsArm {
     /// All solutions for a target tip pose (chain-base frame) at swivel angle ψ, within the joint
     /// limits and verified by FK to 1e-9 m / 1e-9 rad. Writes them to `out` (chain variable
     /// order) and returns their number (0 when out of reach). Allocates nothing.
+    /// `prepare` + `solve_prepared`.
     pub fn solve(&self, target: &Pose, psi: f64, out: &mut [[f64; 7]; 8]) -> usize {
-        let mut n = 0;
+        self.solve_prepared(&self.prepare(target), psi, out)
+    }
+
+    /// The ψ-independent part of [`SrsArm::solve`] (steps 1–2 of the module docs): the wrist
+    /// target, θ4 from Paden–Kahan subproblem 3 and each elbow branch's arm frame.
+    pub fn prepare(&self, target: &Pose) -> SrsTarget {
+        let rt = target.rotation.to_rotation_matrix().into_inner();
+        let mut t = SrsTarget {
+            rt,
+            tt: target.translation.vector,
+            rt_tip: rt * self.tip0_rot_inv,
+            u: Vector3::zeros(),
+            nv: Vector3::zeros(),
+            un: Vector3::zeros(),
+            elbows: [Elbow {
+                q4: 0.0,
+                a4: Angle::default(),
+                r4: Matrix3::identity(),
+                frame_t: Matrix3::identity(),
+            }; 2],
+            n_elbows: 0,
+        };
         let wt = (target * self.w_in_tip).coords;
         let dv = wt - self.s;
         let dist = dv.norm();
-        if !dist.is_finite() || !psi.is_finite() || dist < 1e-12 {
-            return 0;
+        if !dist.is_finite() || dist < 1e-12 {
+            return t;
         }
         let u = dv / dist;
         // θ4: subproblem 3, |e^{ξ4θ4} w − s| = dist.
@@ -531,13 +756,13 @@ impl SrsArm {
         let axial = k4.dot(&(self.w - self.s));
         let dp2 = dist * dist - axial * axial;
         if dp2 < -1e-12 {
-            return 0;
+            return t;
         }
         let dp2 = dp2.max(0.0);
         let (rw, rs) = (xwp.norm(), xsp.norm());
         let c = (rw * rw + rs * rs - dp2) / (2.0 * rw * rs);
         if c.is_nan() || c.abs() > 1.0 + 1e-9 {
-            return 0;
+            return t;
         }
         let c = c.clamp(-1.0, 1.0);
         let th0 = atan2(k4.dot(&xwp.cross(&xsp)), xwp.dot(&xsp));
@@ -554,52 +779,70 @@ impl SrsArm {
         } else {
             2
         };
-        let th4s = [th0 + al, th0 - al];
-        // Target frame for ψ.
-        let (nv, un) = Self::target_frame(&u);
-        let (sp, cp) = sin_cos(psi);
-        let d = nv * cp + un * sp;
-        let b = Matrix3::from_columns(&[u, d, u.cross(&d)]);
-        let rt = target.rotation.to_rotation_matrix().into_inner();
-        let rt_tip = rt * self.tip0_rot_inv;
-        let mut sh = [[0.0; 3]; 2];
-        let mut wr = [[0.0; 3]; 2];
-        for &th4 in &th4s[..n4] {
+        for th4 in [th0 + al, th0 - al].into_iter().take(n4) {
             let Some(q4) = into_limits(th4, &self.limits[3]) else {
                 continue;
             };
             let Some(a) = self.arm_frame(th4) else {
                 continue;
             };
-            let rsh = b * a.transpose();
-            let ns = euler3(&self.k[0], &self.k[1], &self.k[2], &rsh, &mut sh);
-            let r4 = rot(k4, th4);
+            let (s4, c4) = sin_cos(q4);
+            t.elbows[t.n_elbows] = Elbow {
+                q4,
+                a4: Angle { s: s4, c: c4 },
+                r4: rot_sc(k4, s4, c4),
+                frame_t: a.transpose(),
+            };
+            t.n_elbows += 1;
+        }
+        let (nv, un) = Self::target_frame(&u);
+        (t.u, t.nv, t.un) = (u, nv, un);
+        t
+    }
+
+    /// [`SrsArm::solve`] of a prepared target at swivel angle ψ (steps 3–4 of the module docs,
+    /// then the FK check). Allocates nothing.
+    pub fn solve_prepared(&self, t: &SrsTarget, psi: f64, out: &mut [[f64; 7]; 8]) -> usize {
+        if t.n_elbows == 0 || !psi.is_finite() {
+            return 0;
+        }
+        let mut n = 0;
+        let (sp, cp) = sin_cos(psi);
+        let d = t.nv * cp + t.un * sp;
+        let b = Matrix3::from_columns(&[t.u, d, t.u.cross(&d)]);
+        let mut sh = [[Angle::default(); 3]; 2];
+        let mut wr = [[Angle::default(); 3]; 2];
+        let arcs = &self.arcs;
+        for e in &t.elbows[..t.n_elbows] {
+            let rsh = b * e.frame_t;
+            let ns = self.shoulder.solve(&rsh, &arcs[..3], &mut sh);
             for s3 in &sh[..ns] {
-                let Some(q1) = into_limits(s3[0], &self.limits[0]) else {
-                    continue;
-                };
-                let Some(q2) = into_limits(s3[1], &self.limits[1]) else {
-                    continue;
-                };
-                let Some(q3) = into_limits(s3[2], &self.limits[2]) else {
-                    continue;
-                };
-                let r123 = rot(&self.k[0], s3[0]) * rot(&self.k[1], s3[1]) * rot(&self.k[2], s3[2]);
-                let rw = (r123 * r4).transpose() * rt_tip;
-                let nw = euler3(&self.k[4], &self.k[5], &self.k[6], &rw, &mut wr);
+                let [q1, q2, q3] = *s3;
+                let r1234 = rot_sc(&self.k[0], q1.s, q1.c)
+                    * rot_sc(&self.k[1], q2.s, q2.c)
+                    * rot_sc(&self.k[2], q3.s, q3.c)
+                    * e.r4;
+                let rw = r1234.transpose() * t.rt_tip;
+                let nw = self.wrist.solve(&rw, &arcs[4..], &mut wr);
                 for w3 in &wr[..nw] {
-                    let Some(q5) = into_limits(w3[0], &self.limits[4]) else {
+                    let [q5, q6, q7] = *w3;
+                    if n >= out.len() || !self.fk_matches(&[q1, q2, q3, e.a4, q5, q6, q7], t) {
                         continue;
-                    };
-                    let Some(q6) = into_limits(w3[1], &self.limits[5]) else {
-                        continue;
-                    };
-                    let Some(q7) = into_limits(w3[2], &self.limits[6]) else {
-                        continue;
-                    };
-                    let sol = [q1, q2, q3, q4, q5, q6, q7];
-                    let (ep, er) = pose_distance(&self.fk(&sol), target);
-                    if ep <= SOLUTION_TOLERANCE && er <= SOLUTION_TOLERANCE && n < out.len() {
+                    }
+                    let mut sol = [0.0; 7];
+                    let mut ok = true;
+                    for (i, a) in [q1, q2, q3, q5, q6, q7].iter().enumerate() {
+                        let j = if i < 3 { i } else { i + 1 };
+                        match into_limits(a.value(), &self.limits[j]) {
+                            Some(v) => sol[j] = v,
+                            None => {
+                                ok = false;
+                                break;
+                            }
+                        }
+                    }
+                    if ok {
+                        sol[3] = e.q4;
                         out[n] = sol;
                         n += 1;
                     }
@@ -609,6 +852,24 @@ impl SrsArm {
         n
     }
 
+    /// The FK check of a candidate solution: the URDF chain (`pre`, joint rotations, `tail`),
+    /// independent of the product-of-exponentials data the solver used, reaches the target
+    /// within [`SOLUTION_TOLERANCE`] in position and orientation.
+    #[inline]
+    fn fk_matches(&self, sol: &[Angle; 7], t: &SrsTarget) -> bool {
+        let mut r = Matrix3::identity();
+        let mut p = Vector3::zeros();
+        for (i, a) in sol.iter().enumerate() {
+            p += r * self.pre_t[i];
+            r = r * self.pre_r[i] * rot_sc(&self.local_axis[i], a.s, a.c);
+        }
+        p += r * self.tail_t;
+        r *= self.tail_r;
+        // ‖R_a − R_b‖_F = 2√2 |sin(θ/2)| for the angle θ between two rotations.
+        let rot_tol = 2.0 * std::f64::consts::SQRT_2 * (0.5 * SOLUTION_TOLERANCE).sin();
+        (p - t.tt).norm() <= SOLUTION_TOLERANCE && (r - t.rt).norm() <= rot_tol
+    }
+
     /// Convenience wrapper of [`SrsArm::solve`] returning a `Vec`.
     pub fn solve_all(&self, target: &Pose, psi: f64) -> Vec<[f64; 7]> {
         let mut out = [[0.0; 7]; 8];
@@ -616,8 +877,8 @@ impl SrsArm {
         out[..n].to_vec()
     }
 
-    fn feasible_at(&self, target: &Pose, psi: f64, out: &mut [[f64; 7]; 8]) -> bool {
-        self.solve(target, psi, out) > 0
+    fn feasible_at(&self, target: &SrsTarget, psi: f64, out: &mut [[f64; 7]; 8]) -> bool {
+        self.solve_prepared(target, psi, out) > 0
     }
 
     /// Intervals `(from, to)` of ψ ∈ [−π, π) for which at least one solution within the limits
@@ -627,6 +888,7 @@ impl SrsArm {
     /// the swivel-angle enumeration of paper 000 §II-A.
     pub fn feasible_psi(&self, target: &Pose, samples: usize) -> Vec<(f64, f64)> {
         let samples = samples.max(1);
+        let target = &self.prepare(target);
         let mut out = [[0.0; 7]; 8];
         let step = 2.0 * PI / samples as f64;
         let psi_at = |i: usize| -PI + step * i as f64;
@@ -681,11 +943,12 @@ impl SrsArm {
         rng: &mut R,
     ) -> Vec<[f64; 7]> {
         let steps = psi_steps.max(1);
+        let target = self.prepare(target);
         let mut out = [[0.0; 7]; 8];
         let mut all = Vec::new();
         for i in 0..steps {
             let psi = -PI + 2.0 * PI * i as f64 / steps as f64;
-            let n = self.solve(target, psi, &mut out);
+            let n = self.solve_prepared(&target, psi, &mut out);
             all.extend_from_slice(&out[..n]);
         }
         let sort_by = |all: &mut Vec<[f64; 7]>, seed: &[f64; 7], wts: &[f64; 7]| {
@@ -715,9 +978,23 @@ mod tests {
         let k2 = Vector3::new(0.3, 1.0, 0.1).normalize();
         let k3 = Vector3::new(1.0, -0.2, 0.4).normalize();
         let r = rot(&k1, 0.7) * rot(&k2, -1.1) * rot(&k3, 2.5);
-        let mut out = [[0.0; 3]; 2];
-        let n = euler3(&k1, &k2, &k3, &r, &mut out);
+        let mut out = [[Angle::default(); 3]; 2];
+        let all = ArcTest::new(&Limits {
+            lower: 0.0,
+            upper: 0.0,
+            velocity: 1.0,
+            effort: 1.0,
+            bounded: false,
+        });
+        let n = Triple::new(&k1, &k2, &k3).solve(&r, &[all; 3], &mut out);
         assert!(n >= 1);
+        for a in &out[..n] {
+            for x in a {
+                let v = x.value();
+                assert!((x.s - v.sin()).abs() < 1e-12 && (x.c - v.cos()).abs() < 1e-12);
+            }
+        }
+        let out = out.map(|a| a.map(|x| x.value()));
         for s in &out[..n] {
             let r2 = rot(&k1, s[0]) * rot(&k2, s[1]) * rot(&k3, s[2]);
             assert!((r2 - r).norm() < 1e-12);
@@ -725,6 +1002,64 @@ mod tests {
         assert!(out[..n]
             .iter()
             .any(|s| (s[0] - 0.7).abs() < 1e-9 && (s[1] + 1.1).abs() < 1e-9));
+    }
+
+    #[test]
+    fn arc_test_never_rejects_an_angle_within_limits() {
+        let ranges = [
+            (-0.5, 1.0),
+            (-2.9, 2.9),
+            (0.0, 3.1),
+            (-3.1, 3.13),
+            (-1e-4, 1e-4),
+            (1.0, 1.0 + 2.0 * PI),
+            (-6.0, 6.0),
+        ];
+        for (lower, upper) in ranges {
+            let l = Limits {
+                lower,
+                upper,
+                velocity: 1.0,
+                effort: 1.0,
+                bounded: true,
+            };
+            let arc = ArcTest::new(&l);
+            let n = 20_000;
+            let (mut inside, mut rejected_outside) = (0, 0);
+            for i in 0..=n {
+                let v = lower - 0.3 + (upper - lower + 0.6) * i as f64 / n as f64;
+                for k in [-2.0, 0.0, 1.0] {
+                    let a = v + 2.0 * PI * k;
+                    let ang = Angle::of(a.sin() * 3.0, a.cos() * 3.0);
+                    let admitted = arc.admits(&ang);
+                    if into_limits(ang.value(), &l).is_some() {
+                        inside += 1;
+                        assert!(admitted, "{a} in [{lower}, {upper}] rejected");
+                    } else if !admitted {
+                        rejected_outside += 1;
+                    }
+                }
+            }
+            assert!(inside > 0);
+            // Where the filter is active it rejects what lies clearly outside.
+            if arc.min_cos > -1.0 {
+                assert!(rejected_outside > 0, "[{lower}, {upper}]");
+            }
+        }
+        // Exact boundaries, and NaN.
+        let l = Limits {
+            lower: -0.5,
+            upper: 1.0,
+            velocity: 1.0,
+            effort: 1.0,
+            bounded: true,
+        };
+        let arc = ArcTest::new(&l);
+        for v in [-0.5f64, 1.0, -0.5 - 5e-11, 1.0 + 5e-11] {
+            assert!(arc.admits(&Angle::of(v.sin(), v.cos())));
+        }
+        assert!(!arc.admits(&Angle::of(f64::NAN, 1.0)));
+        assert!(!arc.admits(&Angle::of(1.4f64.sin(), 1.4f64.cos())));
     }
 
     #[test]

@@ -424,6 +424,7 @@ impl HandOffProblem {
             space: self.space.clone(),
             world_q,
             cand: Vec::new(),
+            probs: Vec::new(),
             counters: IkCounters::default(),
         }
     }
@@ -447,6 +448,7 @@ pub struct HandOffGoals {
     space: JointSpace,
     world_q: Vec<f64>,
     cand: Vec<(f64, usize)>,
+    probs: Vec<f64>,
     counters: IkCounters,
 }
 
@@ -475,9 +477,10 @@ impl GoalSampler for HandOffGoals {
             self.cand.clear();
             match self.grid.as_deref() {
                 Some(map) if rng.random::<f64>() < self.settings.reach_probability => {
-                    for (g, t) in self.grasps.iter().enumerate() {
-                        self.counters.reach_lookups += 1;
-                        let p = map.probability(&(inv * object * t));
+                    self.counters.reach_lookups += self.grasps.len() as u64;
+                    self.probs.resize(self.grasps.len(), 0.0);
+                    map.probabilities(&(inv * object), &self.grasps, &mut self.probs);
+                    for (g, &p) in self.probs.iter().enumerate() {
                         if p > self.settings.threshold {
                             self.cand.push((p, g));
                         }

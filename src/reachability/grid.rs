@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
-use crate::geometry::Pose;
+use crate::geometry::{atan2, Pose};
 use crate::kinematics::randomized::ReachabilityMap;
 use crate::kinematics::Chain;
 use crate::model::Robot;
@@ -224,7 +224,53 @@ pub struct ReachabilityGrid {
     stats: BuildStats,
     max_entry: u8,
     inv_max: f64,
+    bins: AngleBins,
     data: Vec<u8>,
+}
+
+/// The inner edges of the angle bins as sines and cosines, so a lookup bins roll, pitch and
+/// yaw by comparisons instead of `atan2` / `asin` (a bin is the number of edges at or below
+/// the angle).
+#[derive(Debug, Clone)]
+struct AngleBins {
+    /// sin of the pitch edges −π/2 + k·π/b (ascending): sin is increasing on [−π/2, π/2].
+    pitch_sin: Vec<f64>,
+    /// Roll / yaw edges −π + k·2π/b in (−π, 0): their cosines (cos is increasing there).
+    neg_cos: Vec<f64>,
+    /// Roll / yaw edges in [0, π): their cosines (cos is decreasing there).
+    pos_cos: Vec<f64>,
+}
+
+impl AngleBins {
+    fn new(bins: u32) -> AngleBins {
+        let b = bins as f64;
+        let edges = (1..bins).map(|k| -PI + k as f64 * 2.0 * PI / b);
+        AngleBins {
+            pitch_sin: (1..bins)
+                .map(|k| (-0.5 * PI + k as f64 * PI / b).sin())
+                .collect(),
+            neg_cos: edges.clone().filter(|&e| e < 0.0).map(f64::cos).collect(),
+            pos_cos: edges.filter(|&e| e >= 0.0).map(f64::cos).collect(),
+        }
+    }
+
+    /// Bin of `atan2(y, x)` over [−π, π) (y = ±0 with x < 0 counts as π).
+    #[inline]
+    fn full_turn(&self, y: f64, x: f64) -> usize {
+        let h = (x * x + y * y).sqrt();
+        let c = if h > 0.0 { x / h } else { 1.0 };
+        if y >= 0.0 {
+            self.neg_cos.len() + self.pos_cos.iter().filter(|&&e| c <= e).count()
+        } else {
+            self.neg_cos.iter().filter(|&&e| c >= e).count()
+        }
+    }
+
+    /// Bin of the pitch whose sine is `s`, over [−π/2, π/2).
+    #[inline]
+    fn pitch(&self, s: f64) -> usize {
+        self.pitch_sin.iter().filter(|&&e| s >= e).count()
+    }
 }
 
 /// FNV-1a, 64 bit.
@@ -275,6 +321,7 @@ impl ReachabilityGrid {
             stats: BuildStats::default(),
             max_entry: 0,
             inv_max: 0.0,
+            bins: AngleBins::new(params.rot_bins),
             data: vec![0; params.cells()],
         };
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
@@ -413,11 +460,12 @@ impl ReachabilityGrid {
     #[inline]
     fn angle_bin(&self, a: f64, lo: f64, span: f64) -> usize {
         let b = self.params.rot_bins as usize;
-        let i = ((a - lo) / span * b as f64).floor();
-        if i <= 0.0 {
-            0
+        let x = (a - lo) / span * b as f64;
+        // Truncation is floor for x > 0; x ≤ 0 and NaN go to bin 0.
+        if x > 0.0 {
+            (x as usize).min(b - 1)
         } else {
-            (i as usize).min(b - 1)
+            0
         }
     }
 
@@ -435,10 +483,28 @@ impl ReachabilityGrid {
             }
             c[k] = f as usize;
         }
-        let (roll, pitch, yaw) = pose.rotation.euler_angles();
-        c[3] = self.angle_bin(roll, -PI, 2.0 * PI);
-        c[4] = self.angle_bin(pitch, -0.5 * PI, PI);
-        c[5] = self.angle_bin(yaw, -PI, 2.0 * PI);
+        // URDF roll-pitch-yaw (as nalgebra's `euler_angles`), from the needed entries of the
+        // rotation matrix only, binned by comparisons (see `AngleBins`).
+        let q = pose.rotation.quaternion();
+        let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+        let r20 = 2.0 * (x * z - w * y);
+        if r20.abs() < 1.0 {
+            let (r21, r22) = (2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y));
+            let (r10, r00) = (2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z));
+            c[3] = self.bins.full_turn(r21, r22);
+            c[4] = self.bins.pitch(-r20);
+            c[5] = self.bins.full_turn(r10, r00);
+        } else {
+            let (r01, r02) = (2.0 * (x * y - w * z), 2.0 * (x * z + w * y));
+            let (roll, pitch) = if r20 <= -1.0 {
+                (atan2(r01, r02), 0.5 * PI)
+            } else {
+                (-atan2(-r01, -r02), -0.5 * PI)
+            };
+            c[3] = self.angle_bin(roll, -PI, 2.0 * PI);
+            c[4] = self.angle_bin(pitch, -0.5 * PI, PI);
+            c[5] = self.angle_bin(0.0, -PI, 2.0 * PI);
+        }
         Some(c)
     }
 
@@ -601,6 +667,7 @@ impl ReachabilityGrid {
             tip_link,
             hash,
             dims: params.dims(),
+            bins: AngleBins::new(params.rot_bins),
             params,
             stats,
             max_entry: 0,
@@ -690,6 +757,20 @@ impl ReachabilityMap for ReachabilityGrid {
     #[inline]
     fn probability(&self, pose_in_base: &Pose) -> f64 {
         ReachabilityGrid::probability(self, pose_in_base)
+    }
+
+    fn probabilities(&self, frame: &Pose, tcps: &[Pose], out: &mut [f64]) {
+        // Cells first, loads after: the loads are independent, so their cache misses overlap.
+        const CHUNK: usize = 32;
+        let mut cells = [usize::MAX; CHUNK];
+        for (ts, os) in tcps.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
+            for (c, t) in cells.iter_mut().zip(ts) {
+                *c = self.cell_of(&(frame * t)).unwrap_or(usize::MAX);
+            }
+            for (o, &c) in os.iter_mut().zip(&cells) {
+                *o = self.data.get(c).map_or(0.0, |&e| e as f64 * self.inv_max);
+            }
+        }
     }
 
     fn voxel_steps(&self) -> [f64; 6] {

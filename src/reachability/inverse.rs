@@ -19,6 +19,7 @@ use super::grid::ReachabilityGrid;
 use crate::geometry::Pose;
 use crate::kinematics::dual_arm::DualArmIk;
 use crate::kinematics::link_pose;
+use crate::kinematics::randomized::ReachabilityMap;
 use crate::kinematics::randomized::{
     solve_psi, IkCounters, RandomizedIkError, RandomizedIkSettings,
 };
@@ -133,14 +134,15 @@ pub fn inverse_map(
         .enumerate()
         .for_each(|(ix, (values, lists))| {
             let mut q = start.to_vec();
+            let mut probs = vec![0.0; targets.len()];
             for iy in 0..n {
                 for iw in 0..yaw_bins {
                     let xyw = layout.cell_pose(ix, iy, iw);
                     let inv = platform_pose(robot, robot_base, &mut q, base_vars, platform, xyw)
                         .inverse();
                     let k = iy * yaw_bins + iw;
-                    for (g, t) in targets.iter().enumerate() {
-                        let p = grid.probability(&(inv * t));
+                    grid.probabilities(&inv, targets, &mut probs);
+                    for (g, &p) in probs.iter().enumerate() {
                         if p > threshold {
                             values[k] = values[k].max(p as f32);
                             lists[k].push(g as u16);
