@@ -13,6 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
 use super::commands::Ctx;
+use super::load_http::{encode_post, Conn};
 
 #[derive(Args, Debug)]
 pub struct LoadtestArgs {
@@ -80,51 +81,36 @@ fn lat_json(mut v: Vec<u32>, secs: f64) -> Value {
     })
 }
 
-#[allow(clippy::too_many_arguments)] // one client's whole job description
+/// One simulated client: a keep-alive connection sending pre-encoded requests until the
+/// deadline.
 async fn client(
-    http: reqwest::Client,
-    base: Arc<String>,
-    auth: Option<Arc<String>>,
-    ik_bodies: Arc<Vec<Vec<u8>>>,
-    plan_body: Arc<Vec<u8>>,
+    addr: Arc<String>,
+    ik_requests: Arc<Vec<Vec<u8>>>,
+    plan_request: Arc<Vec<u8>>,
     plan_fraction: f64,
     deadline: Instant,
     seed: u64,
 ) -> ClientStats {
     let mut st = ClientStats::default();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let ik_url = format!("{base}/v1/ik");
-    let plan_url = format!("{base}/v1/plans");
+    let mut conn = Conn::new(&addr);
     while Instant::now() < deadline {
         let plan = rng.random::<f64>() < plan_fraction;
-        let (url, body) = if plan {
-            (&plan_url, plan_body.as_ref().clone())
+        let request = if plan {
+            plan_request.as_slice()
         } else {
-            (
-                &ik_url,
-                ik_bodies[rng.random_range(0..ik_bodies.len())].clone(),
-            )
+            ik_requests[rng.random_range(0..ik_requests.len())].as_slice()
         };
-        let mut req = http
-            .post(url.as_str())
-            .header("content-type", "application/json")
-            .body(body);
-        if let Some(a) = &auth {
-            req = req.header("authorization", a.as_str());
-        }
         let t0 = Instant::now();
-        match req.send().await {
-            Ok(resp) => {
-                let code = resp.status().as_u16();
-                let bytes = resp.bytes().await;
+        match conn.send(request).await {
+            Ok((code, body)) => {
                 let us = t0.elapsed().as_micros().min(u32::MAX as u128) as u32;
                 *st.status.entry(code).or_insert(0) += 1;
                 if plan {
                     st.plan_lat_us.push(us);
                     if code == 202 || code == 200 {
-                        if let Some(id) = bytes
+                        if let Some(id) = serde_json::from_slice::<Value>(body)
                             .ok()
-                            .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
                             .and_then(|v| v.get("id").and_then(|i| i.as_str()).map(str::to_string))
                         {
                             st.accepted.push(id);
@@ -138,6 +124,29 @@ async fn client(
         }
     }
     st
+}
+
+/// `host:port` and path prefix of an `http://` base URL.
+fn split_url(base: &str) -> Result<(String, String)> {
+    let rest = base
+        .strip_prefix("http://")
+        .context("--url: only http:// URLs of a local server")?;
+    let (host, path) = rest.split_once('/').unwrap_or((rest, ""));
+    let addr = if host
+        .rsplit_once(':')
+        .is_some_and(|(_, p)| p.parse::<u16>().is_ok())
+    {
+        host.to_string()
+    } else {
+        format!("{host}:80")
+    };
+    let prefix = path.trim_end_matches('/');
+    let prefix = if prefix.is_empty() {
+        String::new()
+    } else {
+        format!("/{prefix}")
+    };
+    Ok((addr, prefix))
 }
 
 fn check_loopback(url: &str) -> Result<()> {
@@ -203,19 +212,23 @@ pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
         if !health.as_ref().is_ok_and(|r| r.status().is_success()) {
             bail!("no healthy server at {base} (start one with `manyhands serve`)");
         }
+        let (addr, prefix) = split_url(&base)?;
+        let host = addr.clone();
+        let encode = |path: &str, body: &[u8]| {
+            encode_post(&host, &format!("{prefix}{path}"), auth.as_deref().map(|a| a.as_str()), body)
+        };
+        let ik_requests = Arc::new(ik_bodies.iter().map(|b| encode("/v1/ik", b)).collect::<Vec<_>>());
+        let plan_request = Arc::new(encode("/v1/plans", &plan_body));
+        let addr = Arc::new(addr);
         let base = Arc::new(base.clone());
-        let ik_bodies = Arc::new(ik_bodies);
-        let plan_body = Arc::new(plan_body);
         let started = Instant::now();
         let deadline = started + Duration::from_secs_f64(a.duration);
         let tasks: Vec<_> = (0..a.clients)
             .map(|i| {
                 tokio::spawn(client(
-                    http.clone(),
-                    base.clone(),
-                    auth.clone(),
-                    ik_bodies.clone(),
-                    plan_body.clone(),
+                    addr.clone(),
+                    ik_requests.clone(),
+                    plan_request.clone(),
                     a.plan_fraction.clamp(0.0, 1.0),
                     deadline,
                     i as u64 + 1,

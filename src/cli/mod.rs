@@ -5,6 +5,7 @@ mod bench_ik;
 mod bench_planners;
 mod commands;
 mod grasp;
+mod load_http;
 mod loadtest;
 mod mbm;
 mod plan;

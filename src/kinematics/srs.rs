@@ -306,13 +306,11 @@ fn rotate_sc(k: &Vector3<f64>, sn: f64, cs: f64, v: &Vector3<f64>) -> Vector3<f6
     v * cs + k.cross(v) * sn + k * (k.dot(v) * (1.0 - cs))
 }
 
-/// Paden–Kahan subproblem 1 for directions: the angle about unit `k` that rotates `a` onto `b`
-/// (in the plane ⟂ k).
+/// Paden–Kahan subproblem 1 for directions: the angle about unit `k` that rotates `ap` onto `bp`,
+/// both already projected onto the plane ⟂ k.
 #[inline]
-fn sp1(k: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Angle {
-    let ap = a - k * k.dot(a);
-    let bp = b - k * k.dot(b);
-    Angle::of(k.dot(&ap.cross(&bp)), ap.dot(&bp))
+fn sp1_projected(k: &Vector3<f64>, ap: &Vector3<f64>, bp: &Vector3<f64>) -> Angle {
+    Angle::of(k.dot(&ap.cross(bp)), ap.dot(bp))
 }
 
 /// A triple of rotation axes (k1 ∦ k2, k2 ∦ k3) and what solving `e^{[k1]a} e^{[k2]b}
@@ -328,6 +326,8 @@ struct Triple {
     cr2: f64,
     /// A unit direction ⟂ k3 to read off the third angle.
     v: Vector3<f64>,
+    /// k3 projected onto the plane ⟂ k2 (the fixed side of the subproblem giving b).
+    k3_perp2: Vector3<f64>,
 }
 
 impl Triple {
@@ -348,6 +348,7 @@ impl Triple {
             cr,
             cr2: cr.norm_squared(),
             v: (t - k3 * k3.dot(&t)).normalize(),
+            k3_perp2: k3 - k2 * k2.dot(k3),
         }
     }
 
@@ -369,21 +370,22 @@ impl Triple {
         let g = g2.max(0.0).sqrt();
         let ngam = if g > 0.0 { 2 } else { 1 };
         let rv = r * self.v;
+        let y_perp1 = y - k1 * k1.dot(&y);
         let mut n = 0;
         for i in 0..ngam {
             let gamma = if i == 0 { g } else { -g };
             let c = k1 * alpha + k2 * beta + self.cr * gamma;
-            let b = sp1(k2, &x, &c);
+            let b = sp1_projected(k2, &self.k3_perp2, &(c - k2 * k2.dot(&c)));
             if !arcs[1].admits(&b) {
                 continue;
             }
-            let a = sp1(k1, &c, &y);
+            let a = sp1_projected(k1, &(c - k1 * k1.dot(&c)), &y_perp1);
             if !arcs[0].admits(&a) {
                 continue;
             }
-            // (e^{[k1]a} e^{[k2]b})ᵀ r v
+            // (e^{[k1]a} e^{[k2]b})ᵀ r v; v is already ⟂ k3.
             let rest = rotate_sc(k2, -b.s, b.c, &rotate_sc(k1, -a.s, a.c, &rv));
-            let c3 = sp1(k3, &self.v, &rest);
+            let c3 = sp1_projected(k3, &self.v, &(rest - k3 * k3.dot(&rest)));
             if !arcs[2].admits(&c3) {
                 continue;
             }
@@ -954,7 +956,11 @@ impl SrsArm {
         let sort_by = |all: &mut Vec<[f64; 7]>, seed: &[f64; 7], wts: &[f64; 7]| {
             let dist =
                 |q: &[f64; 7]| -> f64 { (0..7).map(|j| wts[j] * (q[j] - seed[j]).powi(2)).sum() };
-            all.sort_by(|a, b| dist(a).total_cmp(&dist(b)));
+            // Distances once, then a stable sort by them (ties keep the order found).
+            let mut keyed: Vec<(f64, [f64; 7])> = all.iter().map(|q| (dist(q), *q)).collect();
+            keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+            all.clear();
+            all.extend(keyed.into_iter().map(|(_, q)| q));
         };
         match order {
             SolutionOrder::AsFound => {}

@@ -5,9 +5,10 @@
 use crate::reachability::GridCache;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, OnceLock, RwLock};
+use std::sync::{Arc, Mutex, OnceLock, RwLock};
 
 use crate::collision::CollisionWorld;
+use crate::kinematics::{Chain, SrsArm, SrsError};
 use crate::model::{load_robot_dir, load_scene_dir, ModelError, RobotLibrary, SceneJson};
 use crate::{Robot, Scene};
 
@@ -17,6 +18,39 @@ use super::error::{ApiError, ApiResult};
 pub struct RobotEntry {
     pub robot: Arc<Robot>,
     pub source: Source,
+    /// Chains and analytic arm solvers of the robot's chain groups, built on first use (at most
+    /// one per SRDF group).
+    arms: Mutex<BTreeMap<String, Arc<ArmSolver>>>,
+}
+
+/// A chain group and its analytic S-R-S solver (or why it has none).
+pub struct ArmSolver {
+    pub chain: Chain,
+    pub srs: Result<SrsArm, SrsError>,
+}
+
+impl RobotEntry {
+    pub fn new(robot: Arc<Robot>, source: Source) -> RobotEntry {
+        RobotEntry {
+            robot,
+            source,
+            arms: Mutex::new(BTreeMap::new()),
+        }
+    }
+
+    /// The chain and analytic solver of chain group `group`; `None` when `group` is not a
+    /// chain group of the robot.
+    pub fn arm(&self, group: &str) -> Option<Arc<ArmSolver>> {
+        let mut arms = self.arms.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(a) = arms.get(group) {
+            return Some(a.clone());
+        }
+        let chain = Chain::from_group(&self.robot, group)?;
+        let srs = SrsArm::new(&self.robot, &chain);
+        let a = Arc::new(ArmSolver { chain, srs });
+        arms.insert(group.to_string(), a.clone());
+        Some(a)
+    }
 }
 
 pub struct SceneEntry {
@@ -132,13 +166,7 @@ impl Catalog {
         let mut robots = BTreeMap::new();
         if robots_dir.is_dir() {
             for (name, robot) in load_robot_dir(robots_dir)? {
-                robots.insert(
-                    name,
-                    Arc::new(RobotEntry {
-                        robot,
-                        source: Source::Builtin,
-                    }),
-                );
+                robots.insert(name, Arc::new(RobotEntry::new(robot, Source::Builtin)));
             }
         }
         if let Ok(rd) = std::fs::read_dir(&up_robots) {
@@ -160,10 +188,7 @@ impl Catalog {
                     Ok(r) => {
                         robots.insert(
                             name,
-                            Arc::new(RobotEntry {
-                                robot: Arc::new(r),
-                                source: Source::Uploaded,
-                            }),
+                            Arc::new(RobotEntry::new(Arc::new(r), Source::Uploaded)),
                         );
                     }
                     Err(e) => {
@@ -326,10 +351,7 @@ impl Catalog {
         }
         self.robots.write().unwrap_or_else(lock_err).insert(
             name.to_string(),
-            Arc::new(RobotEntry {
-                robot,
-                source: Source::Uploaded,
-            }),
+            Arc::new(RobotEntry::new(robot, Source::Uploaded)),
         );
         let mut scenes = self.scenes.write().unwrap_or_else(lock_err);
         for (sname, e) in rescoped {

@@ -12,8 +12,8 @@ use rand_chacha::ChaCha8Rng;
 use crate::collision::{CollisionChecker, ExactChecker, FastChecker};
 use crate::geometry::{quat_to_rpy, Pose, PoseJson};
 use crate::kinematics::numeric::NumericIk;
-use crate::kinematics::srs::{SolutionOrder, SrsArm};
-use crate::kinematics::{forward, link_pose, Chain};
+use crate::kinematics::srs::SolutionOrder;
+use crate::kinematics::{forward, link_pose};
 use crate::model::RobotPlacement;
 use crate::Robot;
 
@@ -175,14 +175,15 @@ pub async fn ik(
     State(st): State<Arc<AppState>>,
     ApiJson(req): ApiJson<IkRequest>,
 ) -> ApiResult<Json<IkResponse>> {
-    let robot = st.catalog.robot(&req.robot, "robot")?.robot.clone();
+    let entry = st.catalog.robot(&req.robot, "robot")?;
     st.pool
-        .run(move || ik_compute(&robot, &req))
+        .run(move || ik_compute(&entry, &req))
         .await
         .map(Json)
 }
 
-pub fn ik_compute(r: &Robot, req: &IkRequest) -> ApiResult<IkResponse> {
+pub fn ik_compute(entry: &super::catalog::RobotEntry, req: &IkRequest) -> ApiResult<IkResponse> {
+    let r = &*entry.robot;
     let psi_steps = req.psi_steps.unwrap_or(36);
     if !(1..=3600).contains(&psi_steps) {
         return Err(ApiError::invalid(
@@ -199,7 +200,7 @@ pub fn ik_compute(r: &Robot, req: &IkRequest) -> ApiResult<IkResponse> {
     }
     let base = named_base(r, req.named.as_deref(), "named")?;
     let q0 = apply_config(r, &base, &req.config, "config")?;
-    let chain = Chain::from_group(r, &req.group).ok_or_else(|| {
+    let solver = entry.arm(&req.group).ok_or_else(|| {
         let why = if r.group(&req.group).is_some() {
             "is not a chain group"
         } else {
@@ -210,6 +211,7 @@ pub fn ik_compute(r: &Robot, req: &IkRequest) -> ApiResult<IkResponse> {
             format!("group '{}' of robot '{}' {why}", req.group, r.name),
         )
     })?;
+    let chain = &solver.chain;
     let target_in = pose_in(&req.pose, "pose")?;
     let target = match req.frame {
         IkFrame::Root => link_pose(r, &q0, chain.base_link).inverse() * target_in,
@@ -219,10 +221,13 @@ pub fn ik_compute(r: &Robot, req: &IkRequest) -> ApiResult<IkResponse> {
     let started = Instant::now();
     let arm = match req.solver {
         IkSolver::Numeric => None,
-        IkSolver::Auto => SrsArm::new(r, &chain).ok(),
-        IkSolver::Analytic => {
-            Some(SrsArm::new(r, &chain).map_err(|e| ApiError::invalid("solver", e.to_string()))?)
-        }
+        IkSolver::Auto => solver.srs.as_ref().ok(),
+        IkSolver::Analytic => Some(
+            solver
+                .srs
+                .as_ref()
+                .map_err(|e| ApiError::invalid("solver", e.to_string()))?,
+        ),
     };
     let (solver, solutions): (&str, Vec<Vec<f64>>) = match arm {
         Some(arm) => {
@@ -234,7 +239,7 @@ pub fn ik_compute(r: &Robot, req: &IkRequest) -> ApiResult<IkResponse> {
             ("analytic", sols.iter().map(|s| s.to_vec()).collect())
         }
         None => {
-            let mut nik = NumericIk::new(r, &chain);
+            let mut nik = NumericIk::new(r, chain);
             match nik.solve(&target, &q0, &mut rng) {
                 Ok(q) => ("numeric", vec![chain.vars.iter().map(|&v| q[v]).collect()]),
                 Err(_) => ("numeric", Vec::new()),
