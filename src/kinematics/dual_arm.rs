@@ -175,9 +175,13 @@ impl DualArmIk {
                 Some((ml, mr)) if rng.random::<f64>() < settings.reach_probability => {
                     let mut best = |obj: &Pose, c: &mut IkCounters| -> f64 {
                         ml.probabilities(&(linv * obj), query.left_grasps, &mut pl);
-                        mr.probabilities(&(rinv * obj), query.right_grasps, &mut pr);
-                        c.reach_lookups += (nl + nr) as u64;
+                        c.reach_lookups += nl as u64;
                         let bl = pl.iter().copied().fold(0.0, f64::max);
+                        if bl <= 0.0 {
+                            return 0.0; // min(0, anything ≥ 0): the right hand need not look
+                        }
+                        mr.probabilities(&(rinv * obj), query.right_grasps, &mut pr);
+                        c.reach_lookups += nr as u64;
                         let br = pr.iter().copied().fold(0.0, f64::max);
                         bl.min(br)
                     };
