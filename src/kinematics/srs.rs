@@ -36,6 +36,12 @@
 //! ψ = 0 when the elbow lies in the plane spanned by the s–w line and the base −z direction.
 //! Every solution is mapped into the joint limits (±2π) and verified by forward kinematics
 //! (error ≤ 1e-9 m / 1e-9 rad); solutions failing either are dropped.
+//!
+//! Cost: steps 1–2 depend on the target only ([`SrsArm::prepare`]), so a ψ sweep does them once.
+//! Each angle of steps 3–4 is carried as (sin, cos), read off the arguments of its `atan2`, so
+//! building rotations needs no trigonometry; a cosine test against the middle of each joint's
+//! range drops most out-of-limit branches early, and `atan2` runs only for solutions that passed
+//! the FK check.
 
 use std::f64::consts::PI;
 
