@@ -165,7 +165,9 @@ fn kitchen_task_grasps_regrasps_and_places_the_wok() {
     use manyhands::planning::task::{kitchen_task, EventKind, KitchenTask};
     let s = scene("kitchen");
     let task = KitchenTask::armar_wok();
-    for seed in 0..3 {
+    // Seed 74's first re-grasp leaves the right fingers hooked around the handle (no retreat
+    // within the budget): the task must re-plan the re-grasp and still succeed.
+    for seed in [0, 1, 2, 74] {
         let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
         let plan = kitchen_task(&s, &task, &mut term, seed)
             .unwrap_or_else(|e| panic!("seed {seed}: {e} {:?}", e.stats()));

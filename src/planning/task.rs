@@ -7,7 +7,9 @@
 //! does), place the wok in the cabinet (IK-RRT with the object held, goals = a set of place
 //! poses). Unlike the paper, which fixed one IK
 //! solution per step before planning (and so lost probabilistic completeness, as it notes), each
-//! step here searches its IK solutions while planning.
+//! step here searches its IK solutions while planning. A re-grasp whose first hand cannot
+//! retreat within [`RETREAT_ITERATIONS`] is planned again with another seed (up to
+//! [`REGRASP_ATTEMPTS`] attempts, the last with the task's whole remaining time).
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -330,86 +332,114 @@ pub fn kitchen_task(
         name1,
     );
 
-    // 2. Re-grasp to the second hand.
-    let p2 = HandOffProblem::new(
-        scene,
-        &world,
-        &q1,
-        (&task.robot, &task.first),
-        (&task.robot, &task.second),
-        &task.object,
-        held1,
-    )
-    .map_err(|e| tagged("regrasp", e))?;
-    let mut planner =
-        IkRrt::new(p2.space.clone(), &p2.world, task.planner).map_err(|e| tagged("regrasp", e))?;
-    let mut goals = p2.goals(task.grids.1.clone(), task.ik);
-    let r2 = planner
-        .plan(&p2.start, &mut goals, term, seed.wrapping_add(1))
-        .map_err(|e| tagged("regrasp", e))?;
-    let q2 = p2.space.to_world(r2.path.last().map_or(&p2.start, |v| v));
-    let held2 = p2.grasps[r2.goal_index];
-    let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
-    plan.append("regrasp", "dual_arm_ik_rrt", path, r2.stats, &p2.world);
-    let name2 = &p2.grasp_names[r2.goal_index];
-    plan.event(
-        EventKind::Grasp,
-        &task.robot,
-        &p2.receiver.end_effector,
-        &task.object,
-        name2,
-    );
-    plan.event(
-        EventKind::Release,
-        &task.robot,
-        &p2.giver.end_effector,
-        &task.object,
-        name1,
-    );
-
-    // 3. The first hand lets go and its arm returns to its joint values of the start
-    //    configuration (RRT-Connect over the hip and both arms, the object held by the second
-    //    hand, so the object can move out of the opening hand's way).
+    // 2.–3. Re-grasp to the second hand, then the first hand lets go and its arm returns to its
+    //    joint values of the start configuration. A re-grasp goal can leave the first hand's
+    //    fingers hooked around the handle, so that no retreat exists; the retreat therefore gets
+    //    an iteration budget, and when it runs out the re-grasp is planned again (another seed:
+    //    another goal). The last attempt has the task's whole remaining time.
     let hand1 = Hand::new(&world, &task.robot, &task.first).map_err(|e| tagged("retreat", e))?;
     let hand2 = Hand::new(&world, &task.robot, &task.second).map_err(|e| tagged("retreat", e))?;
-    let mut w3 = world.clone();
-    attach_by_grasp(&mut w3, &hand2, &task.object, &held2, &q2)
-        .map_err(|e| tagged("retreat", e))?;
-    let off = w3.robots[hand1.robot].offset;
-    let mut vars = hand1.world_vars(&w3);
-    for v in hand2.world_vars(&w3) {
-        if !vars.contains(&v) {
-            vars.push(v);
+    let mut attempt = 0u64;
+    let (q3, held2, w3) = loop {
+        let p2 = HandOffProblem::new(
+            scene,
+            &world,
+            &q1,
+            (&task.robot, &task.first),
+            (&task.robot, &task.second),
+            &task.object,
+            held1,
+        )
+        .map_err(|e| tagged("regrasp", e))?;
+        let mut planner = IkRrt::new(p2.space.clone(), &p2.world, task.planner)
+            .map_err(|e| tagged("regrasp", e))?;
+        let mut goals = p2.goals(task.grids.1.clone(), task.ik);
+        let seed2 = seed
+            .wrapping_add(1)
+            .wrapping_add(REGRASP_SEED_STRIDE * attempt);
+        let r2 = planner
+            .plan(&p2.start, &mut goals, term, seed2)
+            .map_err(|e| tagged("regrasp", e))?;
+        let q2 = p2.space.to_world(r2.path.last().map_or(&p2.start, |v| v));
+        let held2 = p2.grasps[r2.goal_index];
+
+        // 3. The retreat: RRT-Connect over the hip and both arms, the object held by the second
+        //    hand, so the object can move out of the opening hand's way.
+        let mut w3 = world.clone();
+        attach_by_grasp(&mut w3, &hand2, &task.object, &held2, &q2)
+            .map_err(|e| tagged("retreat", e))?;
+        let off = w3.robots[hand1.robot].offset;
+        let mut vars = hand1.world_vars(&w3);
+        for v in hand2.world_vars(&w3) {
+            if !vars.contains(&v) {
+                vars.push(v);
+            }
         }
-    }
-    // Goal candidates (RRT-Connect takes the valid ones as a goal set): the first arm at its
-    // start joint values with the hip where it is; the same with the hip back at its start values
-    // (when the turned hip puts the returned arm into the counter); and also the second arm back
-    // at its start values.
-    let arm1: Vec<usize> = hand1.arm.arm.vars().iter().map(|v| v + off).collect();
-    let arm2: Vec<usize> = hand2.arm.arm.vars().iter().map(|v| v + off).collect();
-    let hip: Vec<usize> = vars
-        .iter()
-        .copied()
-        .filter(|v| !arm1.contains(v) && !arm2.contains(v))
-        .collect();
-    let space3 = JointSpace::new(&w3, &vars, q2.clone()).map_err(|e| tagged("retreat", e))?;
-    let mut goals3: Vec<Vec<f64>> = Vec::new();
-    let mut g = q2.clone();
-    for reset in [&arm1[..], &hip[..], &arm2[..]] {
-        for &v in reset {
-            g[v] = q0[v];
+        // Goal candidates (RRT-Connect takes the valid ones as a goal set): the first arm at
+        // its start joint values with the hip where it is; the same with the hip back at its
+        // start values (when the turned hip puts the returned arm into the counter); and also
+        // the second arm back at its start values.
+        let arm1: Vec<usize> = hand1.arm.arm.vars().iter().map(|v| v + off).collect();
+        let arm2: Vec<usize> = hand2.arm.arm.vars().iter().map(|v| v + off).collect();
+        let hip: Vec<usize> = vars
+            .iter()
+            .copied()
+            .filter(|v| !arm1.contains(v) && !arm2.contains(v))
+            .collect();
+        let space3 = JointSpace::new(&w3, &vars, q2.clone()).map_err(|e| tagged("retreat", e))?;
+        let mut goals3: Vec<Vec<f64>> = Vec::new();
+        let mut g = q2.clone();
+        for reset in [&arm1[..], &hip[..], &arm2[..]] {
+            for &v in reset {
+                g[v] = q0[v];
+            }
+            goals3.push(space3.from_world(&g));
         }
-        goals3.push(space3.from_world(&g));
-    }
-    let mut planner =
-        RrtConnect::new(space3.clone(), &w3, task.retreat).map_err(|e| tagged("retreat", e))?;
-    let r3 = planner
-        .plan(&space3.from_world(&q2), &goals3, term, seed.wrapping_add(2))
-        .map_err(|e| tagged("retreat", e))?;
-    let q3 = space3.to_world(r3.path.last().map_or(&q2, |v| v));
-    let path: Vec<Vec<f64>> = r3.path.iter().map(|q| space3.to_world(q)).collect();
-    plan.append("retreat", "rrt_connect", path, r3.stats, &w3);
+        let mut planner =
+            RrtConnect::new(space3.clone(), &w3, task.retreat).map_err(|e| tagged("retreat", e))?;
+        let last = attempt + 1 >= REGRASP_ATTEMPTS;
+        let mut budget = if last {
+            term.clone()
+        } else {
+            term.clone()
+                .with_iteration_limit(term.iterations() + RETREAT_ITERATIONS)
+        };
+        let r3 = match planner.plan(
+            &space3.from_world(&q2),
+            &goals3,
+            &mut budget,
+            seed.wrapping_add(2)
+                .wrapping_add(REGRASP_SEED_STRIDE * attempt),
+        ) {
+            Ok(r) => r,
+            Err(PlanError::IterationLimit { .. }) if !last => {
+                attempt += 1;
+                continue;
+            }
+            Err(e) => return Err(tagged("retreat", e)),
+        };
+        let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
+        plan.append("regrasp", "dual_arm_ik_rrt", path, r2.stats, &p2.world);
+        let name2 = &p2.grasp_names[r2.goal_index];
+        plan.event(
+            EventKind::Grasp,
+            &task.robot,
+            &p2.receiver.end_effector,
+            &task.object,
+            name2,
+        );
+        plan.event(
+            EventKind::Release,
+            &task.robot,
+            &p2.giver.end_effector,
+            &task.object,
+            name1,
+        );
+        let q3 = space3.to_world(r3.path.last().map_or(&q2, |v| v));
+        let path: Vec<Vec<f64>> = r3.path.iter().map(|q| space3.to_world(q)).collect();
+        plan.append("retreat", "rrt_connect", path, r3.stats, &w3);
+        break (q3, held2, w3);
+    };
 
     // 4. Place with the second hand.
     let p4 = ReachProblem::place(&w3, &q3, hand2, &task.object, held2, &task.place_poses)
@@ -433,6 +463,14 @@ pub fn kitchen_task(
     plan.time = t0.elapsed();
     Ok(plan)
 }
+
+/// Re-grasp + retreat attempts of [`kitchen_task`] before it gives up.
+pub const REGRASP_ATTEMPTS: u64 = 3;
+/// RRT-Connect iterations of a retreat before the re-grasp is planned again (all but the last
+/// attempt; a retreat that exists is typically found within a few hundred).
+pub const RETREAT_ITERATIONS: u64 = 5_000;
+/// Seed offset between re-grasp attempts.
+const REGRASP_SEED_STRIDE: u64 = 1_000;
 
 /// Parameters of [`regrasp_task`]: dual-arm re-grasping (000 §V, one robot's two hands) or a
 /// hand-off between two robots (000 §VI-D) — the same query with other chains.
