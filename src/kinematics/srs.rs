@@ -185,26 +185,11 @@ impl SrsTarget {
     }
 }
 
+/// Rodrigues' rotation about unit `k` by `angle`.
 #[inline]
 fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
-    // Rodrigues: I + sinθ [k]× + (1 − cosθ) [k]×²
     let (sn, cs) = sin_cos(angle);
-    // Written out: c I + (1 − c) k kᵀ + s [k]× (k unit).
-    let (x, y, z) = (k.x, k.y, k.z);
-    let t = 1.0 - cs;
-    let (tx, ty, tz) = (t * x, t * y, t * z);
-    let (sx, sy, sz) = (sn * x, sn * y, sn * z);
-    Matrix3::new(
-        tx * x + cs,
-        tx * y - sz,
-        tx * z + sy,
-        tx * y + sz,
-        ty * y + cs,
-        ty * z - sx,
-        tx * z - sy,
-        ty * z + sx,
-        tz * z + cs,
-    )
+    rot_sc(k, sn, cs)
 }
 
 /// A joint angle as its sine and cosine (read off the arguments of the `atan2` that would give
@@ -288,7 +273,7 @@ impl ArcTest {
 /// Rodrigues' rotation about unit `k` from the angle's sine and cosine.
 #[inline]
 fn rot_sc(k: &Vector3<f64>, sn: f64, cs: f64) -> Matrix3<f64> {
-    // c I + (1 − c) k kᵀ + s [k]×
+    // I + sinθ [k]× + (1 − cosθ) [k]×², written out: c I + (1 − c) k kᵀ + s [k]× (k unit).
     let (x, y, z) = (k.x, k.y, k.z);
     let t = 1.0 - cs;
     let (tx, ty, tz) = (t * x, t * y, t * z);
