@@ -177,14 +177,6 @@ pub struct SrsTarget {
     n_elbows: usize,
 }
 
-impl SrsTarget {
-    /// False when no ψ can have a solution (wrist target out of reach, or no elbow branch
-    /// within the joint limits).
-    pub fn reachable(&self) -> bool {
-        self.n_elbows > 0
-    }
-}
-
 /// Rodrigues' rotation about unit `k` by `angle`.
 #[inline]
 fn rot(k: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
@@ -969,6 +961,16 @@ impl SrsArm {
 mod tests {
     use super::*;
 
+    fn limits(lower: f64, upper: f64, bounded: bool) -> Limits {
+        Limits {
+            lower,
+            upper,
+            velocity: 1.0,
+            effort: 1.0,
+            bounded,
+        }
+    }
+
     #[test]
     fn euler3_roundtrip() {
         let k1 = Vector3::z();
@@ -976,13 +978,7 @@ mod tests {
         let k3 = Vector3::new(1.0, -0.2, 0.4).normalize();
         let r = rot(&k1, 0.7) * rot(&k2, -1.1) * rot(&k3, 2.5);
         let mut out = [[Angle::default(); 3]; 2];
-        let all = ArcTest::new(&Limits {
-            lower: 0.0,
-            upper: 0.0,
-            velocity: 1.0,
-            effort: 1.0,
-            bounded: false,
-        });
+        let all = ArcTest::new(&limits(0.0, 0.0, false));
         let n = Triple::new(&k1, &k2, &k3).solve(&r, &[all; 3], &mut out);
         assert!(n >= 1);
         for a in &out[..n] {
@@ -1013,13 +1009,7 @@ mod tests {
             (-6.0, 6.0),
         ];
         for (lower, upper) in ranges {
-            let l = Limits {
-                lower,
-                upper,
-                velocity: 1.0,
-                effort: 1.0,
-                bounded: true,
-            };
+            let l = limits(lower, upper, true);
             let arc = ArcTest::new(&l);
             let n = 20_000;
             let (mut inside, mut rejected_outside) = (0, 0);
@@ -1044,13 +1034,7 @@ mod tests {
             }
         }
         // Exact boundaries, and NaN.
-        let l = Limits {
-            lower: -0.5,
-            upper: 1.0,
-            velocity: 1.0,
-            effort: 1.0,
-            bounded: true,
-        };
+        let l = limits(-0.5, 1.0, true);
         let arc = ArcTest::new(&l);
         for v in [-0.5f64, 1.0, -0.5 - 5e-11, 1.0 + 5e-11] {
             assert!(arc.admits(&Angle::of(v.sin(), v.cos())));
@@ -1061,13 +1045,7 @@ mod tests {
 
     #[test]
     fn limits_mapping() {
-        let l = Limits {
-            lower: -0.5,
-            upper: 1.0,
-            velocity: 1.0,
-            effort: 1.0,
-            bounded: true,
-        };
+        let l = limits(-0.5, 1.0, true);
         assert_eq!(
             into_limits(0.2 + 2.0 * PI, &l).map(|v| (v - 0.2).abs() < 1e-12),
             Some(true)

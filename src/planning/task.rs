@@ -467,7 +467,7 @@ pub fn kitchen_task(
 /// Re-grasp + retreat attempts of [`kitchen_task`] before it gives up.
 pub const REGRASP_ATTEMPTS: u64 = 3;
 /// RRT-Connect iterations of a retreat before the re-grasp is planned again (all but the last
-/// attempt; a retreat that exists is typically found within a few hundred).
+/// attempt). Running out costs ~0.3 s here (kitchen seed 74: 338 ms in all, one attempt spent).
 pub const RETREAT_ITERATIONS: u64 = 5_000;
 /// Seed offset between re-grasp attempts.
 const REGRASP_SEED_STRIDE: u64 = 1_000;
