@@ -264,7 +264,7 @@ fn gradient_ascent_climbs_to_a_local_maximum() {
     let steps = [0.05, 0.05, 0.05, 0.2, 0.2, 0.2];
     let start = Pose::translation(0.1, -0.1, 1.2);
     let mut last = score(&start);
-    let (end, s, moves) = gradient_ascent(&start, &steps, 100, |p| score(p), |_| true);
+    let (end, s, moves) = gradient_ascent(&start, &steps, 100, |p, _| score(p), |_| true);
     assert!(moves > 5 && s > last);
     let (ep, er) = pose_err(&end, &peak);
     assert!(ep < 0.05 && er < 0.2, "{ep} {er}");
@@ -273,7 +273,7 @@ fn gradient_ascent_climbs_to_a_local_maximum() {
         &start,
         &steps,
         100,
-        |p| {
+        |p, _| {
             let v = score(p);
             seen.push(v);
             v
@@ -283,8 +283,25 @@ fn gradient_ascent_climbs_to_a_local_maximum() {
     assert!(end2.translation.x <= 0.45 && s2 < s && s2 > last);
     last = s2;
     assert!(last > 0.0);
+    // A score cut short below the floor (here: −∞ for every neighbour that is not better)
+    // leads to the same climb.
+    let (end3, s3, moves3) = gradient_ascent(
+        &start,
+        &steps,
+        100,
+        |p, floor| {
+            let v = score(p);
+            if v <= floor {
+                f64::NEG_INFINITY
+            } else {
+                v
+            }
+        },
+        |_| true,
+    );
+    assert_eq!((end3, s3, moves3), (end, s, moves));
     // max_steps bounds the moves.
-    let (_, _, m) = gradient_ascent(&start, &steps, 3, |p| score(p), |_| true);
+    let (_, _, m) = gradient_ascent(&start, &steps, 3, |p, _| score(p), |_| true);
     assert_eq!(m, 3);
 }
 

@@ -69,12 +69,9 @@ pub fn random_rotation<R: Rng + ?Sized>(rng: &mut R) -> UnitQuaternion<f64> {
     let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
     let tau = std::f64::consts::TAU;
     let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-    UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-        b * (tau * u3).cos(),
-        a * (tau * u2).sin(),
-        a * (tau * u2).cos(),
-        b * (tau * u3).sin(),
-    ))
+    let (s2, c2) = crate::geometry::sin_cos(tau * u2);
+    let (s3, c3) = crate::geometry::sin_cos(tau * u3);
+    UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(b * c3, a * s2, a * c2, b * s3))
 }
 
 impl DualArmIk {
@@ -167,25 +164,31 @@ impl DualArmIk {
             let mut obj = Pose::from_parts(Translation3::from(pos), random_rotation(rng));
             let linv =
                 (query.robot_base * super::fk::link_pose(robot, &q, self.left.arm_base)).inverse();
-            let rinv =
-                (query.robot_base * super::fk::link_pose(robot, &q, self.right.arm_base)).inverse();
+            // Both arms usually hang off the same link (ARMAR's torso): one FK walk then.
+            let rinv = if self.right.arm_base == self.left.arm_base {
+                linv
+            } else {
+                (query.robot_base * super::fk::link_pose(robot, &q, self.right.arm_base)).inverse()
+            };
             lc.clear();
             rc.clear();
             let filtered = match reach {
                 Some((ml, mr)) if rng.random::<f64>() < settings.reach_probability => {
-                    let mut best = |obj: &Pose, c: &mut IkCounters| -> f64 {
+                    // min(best left, best right); when the left hand alone cannot beat
+                    // `floor` (see `gradient_ascent`), the right hand need not look.
+                    let mut best = |obj: &Pose, floor: f64, c: &mut IkCounters| -> f64 {
                         ml.probabilities(&(linv * obj), query.left_grasps, &mut pl);
                         c.reach_lookups += nl as u64;
                         let bl = pl.iter().copied().fold(0.0, f64::max);
-                        if bl <= 0.0 {
-                            return 0.0; // min(0, anything ≥ 0): the right hand need not look
+                        if bl <= 0.0 || bl <= floor {
+                            return bl; // min(bl, anything ≥ 0) ≤ bl
                         }
                         mr.probabilities(&(rinv * obj), query.right_grasps, &mut pr);
                         c.reach_lookups += nr as u64;
                         let br = pr.iter().copied().fold(0.0, f64::max);
                         bl.min(br)
                     };
-                    let s = best(&obj, &mut c);
+                    let s = best(&obj, f64::NEG_INFINITY, &mut c);
                     if s <= settings.threshold {
                         continue;
                     }
@@ -197,7 +200,7 @@ impl DualArmIk {
                             &obj,
                             &steps,
                             settings.gradient_max_steps,
-                            |o| best(o, &mut look),
+                            |o, floor| best(o, floor, &mut look),
                             |o| {
                                 checks += 1;
                                 object_free(o)

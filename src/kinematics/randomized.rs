@@ -447,18 +447,22 @@ fn pose_from6(v: &[f64; 6]) -> Pose {
 /// and move to the best one whose `score` is higher and that `free` accepts, until no neighbour is
 /// better (a local maximum of the discretized distribution) or `max_steps` moves were made.
 /// Returns the final pose, its score and the number of moves.
+///
+/// `score(pose, floor)` is asked only whether a pose beats `floor` (the current score; −∞ for the
+/// start): a score that cannot exceed `floor` may be cut short and returned as any value
+/// ≤ `floor`, since such a neighbour is never taken. Scores above `floor` must be exact.
 pub fn gradient_ascent(
     start: &Pose,
     steps: &[f64; 6],
     max_steps: u32,
-    mut score: impl FnMut(&Pose) -> f64,
+    mut score: impl FnMut(&Pose, f64) -> f64,
     mut free: impl FnMut(&Pose) -> bool,
 ) -> (Pose, f64, u32) {
     let t = start.translation.vector;
     let (r, p, y) = start.rotation.euler_angles();
     let mut cur = [t.x, t.y, t.z, r, p, y];
     let mut pose = *start;
-    let mut best = score(start);
+    let mut best = score(start, f64::NEG_INFINITY);
     let mut moves = 0;
     while moves < max_steps {
         let mut nb: [(f64, [f64; 6]); 12] = [(f64::NEG_INFINITY, [0.0; 6]); 12];
@@ -466,7 +470,7 @@ pub fn gradient_ascent(
             for (s, sign) in [(0, 1.0), (1, -1.0)] {
                 let mut v = cur;
                 v[k] += sign * steps[k];
-                nb[2 * k + s] = (score(&pose_from6(&v)), v);
+                nb[2 * k + s] = (score(&pose_from6(&v), best), v);
             }
         }
         nb.sort_by(|a, b| b.0.total_cmp(&a.0));

@@ -224,45 +224,50 @@ pub struct ReachabilityGrid {
     stats: BuildStats,
     max_entry: u8,
     inv_max: f64,
-    bins: AngleBins,
+    bins: CellBins,
     data: Vec<u8>,
 }
 
-/// The inner edges of the angle bins as sines and cosines, so a lookup bins roll, pitch and
-/// yaw by comparisons instead of `atan2` / `asin` (a bin is the number of edges at or below
-/// the angle).
+/// What a lookup needs to bin a pose without divisions or inverse trigonometry: the inner
+/// edges of the angle bins as sines and cosines, so roll, pitch and yaw are binned by
+/// comparisons instead of `atan2` / `asin` (a bin is the number of edges at or below the
+/// angle), and the inverse of the position resolution.
 #[derive(Debug, Clone)]
-struct AngleBins {
+struct CellBins {
     /// sin of the pitch edges −π/2 + k·π/b (ascending): sin is increasing on [−π/2, π/2].
     pitch_sin: Vec<f64>,
     /// Roll / yaw edges −π + k·2π/b in (−π, 0): their cosines (cos is increasing there).
     neg_cos: Vec<f64>,
     /// Roll / yaw edges in [0, π): their cosines (cos is decreasing there).
     pos_cos: Vec<f64>,
+    /// 1 / position resolution: a lookup multiplies instead of dividing.
+    inv_resolution: f64,
 }
 
-impl AngleBins {
-    fn new(bins: u32) -> AngleBins {
+impl CellBins {
+    fn new(bins: u32, resolution: f64) -> CellBins {
         let b = bins as f64;
         let edges = (1..bins).map(|k| -PI + k as f64 * 2.0 * PI / b);
-        AngleBins {
+        CellBins {
             pitch_sin: (1..bins)
                 .map(|k| (-0.5 * PI + k as f64 * PI / b).sin())
                 .collect(),
             neg_cos: edges.clone().filter(|&e| e < 0.0).map(f64::cos).collect(),
             pos_cos: edges.filter(|&e| e >= 0.0).map(f64::cos).collect(),
+            inv_resolution: 1.0 / resolution,
         }
     }
 
     /// Bin of `atan2(y, x)` over [−π, π) (y = ±0 with x < 0 counts as π).
     #[inline]
     fn full_turn(&self, y: f64, x: f64) -> usize {
+        // cos = x / h compared as x against edge · h (no division); h = 0 is angle 0.
         let h = (x * x + y * y).sqrt();
-        let c = if h > 0.0 { x / h } else { 1.0 };
+        let (x, h) = if h > 0.0 { (x, h) } else { (1.0, 1.0) };
         if y >= 0.0 {
-            self.neg_cos.len() + self.pos_cos.iter().filter(|&&e| c <= e).count()
+            self.neg_cos.len() + self.pos_cos.iter().filter(|&&e| x <= e * h).count()
         } else {
-            self.neg_cos.iter().filter(|&&e| c >= e).count()
+            self.neg_cos.iter().filter(|&&e| x >= e * h).count()
         }
     }
 
@@ -321,7 +326,7 @@ impl ReachabilityGrid {
             stats: BuildStats::default(),
             max_entry: 0,
             inv_max: 0.0,
-            bins: AngleBins::new(params.rot_bins),
+            bins: CellBins::new(params.rot_bins, params.resolution),
             data: vec![0; params.cells()],
         };
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
@@ -474,17 +479,16 @@ impl ReachabilityGrid {
     #[inline]
     pub fn cell_coords(&self, pose: &Pose) -> Option<[usize; 6]> {
         let t = &pose.translation.vector;
-        let r = self.params.resolution;
         let mut c = [0usize; 6];
         for k in 0..3 {
-            let f = (t[k] - self.params.min[k]) / r;
+            let f = (t[k] - self.params.min[k]) * self.bins.inv_resolution;
             if f.is_nan() || f < 0.0 || f >= self.dims[k] as f64 {
                 return None;
             }
             c[k] = f as usize;
         }
         // URDF roll-pitch-yaw (as nalgebra's `euler_angles`), from the needed entries of the
-        // rotation matrix only, binned by comparisons (see `AngleBins`).
+        // rotation matrix only, binned by comparisons (see `CellBins`).
         let q = pose.rotation.quaternion();
         let (w, x, y, z) = (q.w, q.i, q.j, q.k);
         let r20 = 2.0 * (x * z - w * y);
@@ -667,7 +671,7 @@ impl ReachabilityGrid {
             tip_link,
             hash,
             dims: params.dims(),
-            bins: AngleBins::new(params.rot_bins),
+            bins: CellBins::new(params.rot_bins, params.resolution),
             params,
             stats,
             max_entry: 0,
