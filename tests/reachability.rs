@@ -93,6 +93,55 @@ fn lookups_agree_with_fk_and_collision() {
     assert!(g.data().iter().any(|&e| e == g.max_entry()) && g.max_entry() > 0);
 }
 
+/// Single and batched lookups (which answer empty cells from the occupancy bitmap) give the
+/// raw entry of the pose's cell / the largest entry, at poses in filled, empty and outside cells.
+fn lookups_read_the_entries(g: &ReachabilityGrid) {
+    use manyhands::kinematics::randomized::ReachabilityMap;
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let p = g.params().clone();
+    let (mut filled, mut empty, mut outside) = (0, 0, 0);
+    let mut poses = Vec::new();
+    for i in 0..40_000 {
+        let pos = nalgebra::Vector3::from_fn(|k, _| {
+            // A margin beyond the extents gives poses outside.
+            rng.random_range(p.min[k] - 0.1..p.max[k] + 0.1)
+        });
+        let pose = Pose::from_parts(
+            pos.into(),
+            manyhands::kinematics::dual_arm::random_rotation(&mut rng),
+        );
+        let want = match g.cell_of(&pose) {
+            None => {
+                outside += 1;
+                0.0
+            }
+            Some(c) => {
+                let e = g.data()[c];
+                if e > 0 {
+                    filled += 1;
+                } else {
+                    empty += 1;
+                }
+                e as f64 / g.max_entry() as f64
+            }
+        };
+        assert_eq!(g.probability(&pose), want, "pose {i}");
+        poses.push((pose, want));
+    }
+    // The batched lookup, with the poses given relative to a frame.
+    let frame = Pose::translation(0.01, -0.02, 0.03);
+    let tcps: Vec<Pose> = poses.iter().map(|(q, _)| frame.inverse() * q).collect();
+    let mut out = vec![f64::NAN; tcps.len()];
+    ReachabilityMap::probabilities(g, &frame, &tcps, &mut out);
+    for (k, (t, o)) in tcps.iter().zip(&out).enumerate() {
+        assert_eq!(*o, g.probability(&(frame * t)), "batched lookup {k}");
+    }
+    assert!(
+        filled > 0 && empty > 0 && outside > 0,
+        "{filled} {empty} {outside}"
+    );
+}
+
 /// The lookup's angle bins are those of nalgebra's roll-pitch-yaw (URDF convention) binned
 /// over [−π, π) / [−π/2, π/2) (at gimbal lock the pitch bin only); away from bin edges they must
 /// agree exactly.
@@ -157,6 +206,8 @@ fn file_roundtrip_and_refusals() {
     assert_eq!(back.data(), g.data());
     assert_eq!(back.params(), g.params());
     assert_eq!(back.stats().free, g.stats().free);
+    lookups_read_the_entries(&g);
+    lookups_read_the_entries(&back);
 
     // Built with other parameters: refused with a clear error.
     let mut other = p.clone();

@@ -226,6 +226,10 @@ pub struct ReachabilityGrid {
     inv_max: f64,
     bins: CellBins,
     data: Vec<u8>,
+    /// One bit per cell, set where the entry is > 0 (an eighth of the entries' size). Most cells
+    /// are empty (3.7 % are filled in ARMAR's arm grids), so most lookups end in this bitmap,
+    /// which stays in cache, instead of missing on the entries.
+    occupied: Vec<u64>,
 }
 
 /// What a lookup needs to bin a pose without divisions or inverse trigonometry: the inner
@@ -328,6 +332,7 @@ impl ReachabilityGrid {
             inv_max: 0.0,
             bins: CellBins::new(params.rot_bins, params.resolution),
             data: vec![0; params.cells()],
+            occupied: Vec::new(),
         };
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
         let checker = FastChecker::new(&world);
@@ -420,6 +425,25 @@ impl ReachabilityGrid {
             0.0
         };
         self.stats.filled = self.data.iter().filter(|&&v| v > 0).count() as u64;
+        self.occupied = self
+            .data
+            .chunks(64)
+            .map(|c| {
+                c.iter()
+                    .enumerate()
+                    .fold(0u64, |m, (i, &v)| m | (((v > 0) as u64) << i))
+            })
+            .collect();
+    }
+
+    /// Entry of a flat cell index (0 for `usize::MAX`, the "outside" marker); the bitmap
+    /// answers for empty cells.
+    #[inline]
+    fn entry_at(&self, cell: usize) -> u8 {
+        match self.occupied.get(cell >> 6) {
+            Some(&w) if (w >> (cell & 63)) & 1 != 0 => self.data[cell],
+            _ => 0,
+        }
     }
 
     /// Robot name the grid was built for.
@@ -528,7 +552,7 @@ impl ReachabilityGrid {
     /// Raw entry at a pose (0 outside).
     #[inline]
     pub fn entry(&self, pose: &Pose) -> u8 {
-        self.cell_of(pose).map_or(0, |i| self.data[i])
+        self.cell_of(pose).map_or(0, |i| self.entry_at(i))
     }
 
     /// Probability that an IK query for `pose` (TCP in the chain-base frame) succeeds: entry of
@@ -677,6 +701,7 @@ impl ReachabilityGrid {
             max_entry: 0,
             inv_max: 0.0,
             data,
+            occupied: Vec::new(),
         };
         g.finish();
         Ok(g)
@@ -772,7 +797,7 @@ impl ReachabilityMap for ReachabilityGrid {
                 *c = self.cell_of(&(frame * t)).unwrap_or(usize::MAX);
             }
             for (o, &c) in os.iter_mut().zip(&cells) {
-                *o = self.data.get(c).map_or(0.0, |&e| e as f64 * self.inv_max);
+                *o = self.entry_at(c) as f64 * self.inv_max;
             }
         }
     }
