@@ -1,5 +1,6 @@
-//! The three forward-kinematics paths agree: `forward` (isometries), `FkModel` (frames) and the
-//! reduced `FkModel` (fixed joints folded, links mounted on the last moving link).
+//! The forward-kinematics paths agree: `forward` (isometries), `FkModel` (frames), the reduced
+//! `FkModel` (fixed joints folded, links mounted on the last moving link), and the single-link
+//! `link_pose` and `FkPath`.
 
 use std::path::PathBuf;
 
@@ -7,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use manyhands::geometry::Pose;
-use manyhands::kinematics::{forward, link_pose, FkModel, Frame};
+use manyhands::kinematics::{forward, link_pose, FkModel, FkPath, Frame};
 use manyhands::Robot;
 
 fn robots() -> Vec<Robot> {
@@ -51,6 +52,7 @@ fn all_fk_paths_agree() {
         let mut iso = vec![Pose::identity(); r.links.len()];
         let mut f1 = vec![Frame::identity(); r.links.len()];
         let mut f2 = vec![Frame::identity(); r.links.len()];
+        let paths: Vec<FkPath> = (0..r.links.len()).map(|l| FkPath::new(&r, l)).collect();
         for _ in 0..200 {
             let q: Vec<f64> = (0..r.dof())
                 .map(|v| {
@@ -84,6 +86,14 @@ fn all_fk_paths_agree() {
                 }
                 let single = base * link_pose(&r, &q, l);
                 assert!((single.translation.vector - iso[l].translation.vector).norm() < 1e-12);
+                let path = base * paths[l].pose(&q);
+                assert!(
+                    (path.translation.vector - iso[l].translation.vector).norm() < 1e-12
+                        && path.rotation.angle_to(&iso[l].rotation) < 1e-9,
+                    "{} link {}: FkPath",
+                    r.name,
+                    r.links[l].name
+                );
             }
         }
     }

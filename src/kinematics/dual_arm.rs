@@ -162,13 +162,12 @@ impl DualArmIk {
                 }
             });
             let mut obj = Pose::from_parts(Translation3::from(pos), random_rotation(rng));
-            let linv =
-                (query.robot_base * super::fk::link_pose(robot, &q, self.left.arm_base)).inverse();
+            let linv = (query.robot_base * self.left.base_path.pose(&q)).inverse();
             // Both arms usually hang off the same link (ARMAR's torso): one FK walk then.
             let rinv = if self.right.arm_base == self.left.arm_base {
                 linv
             } else {
-                (query.robot_base * super::fk::link_pose(robot, &q, self.right.arm_base)).inverse()
+                (query.robot_base * self.right.base_path.pose(&q)).inverse()
             };
             lc.clear();
             rc.clear();

@@ -263,28 +263,87 @@ impl FkModel {
     pub fn compute(&self, base: &Frame, q: &[f64], out: &mut [Frame]) {
         out[0] = *base;
         for j in &self.joints {
-            let p = out[j.parent as usize];
-            let mut t = p.rot * j.origin.t + p.t;
-            let r0 = if j.origin_rot_identity {
-                p.rot
-            } else {
-                p.rot * j.origin.rot
-            };
-            let rot = match j.kind {
-                JointKind::Fixed => r0,
-                JointKind::Prismatic => {
-                    let v = j.mul * q[j.var as usize] + j.off;
-                    t += r0 * (j.axis * v);
-                    r0
-                }
-                JointKind::Revolute | JointKind::Continuous => {
-                    let v = j.mul * q[j.var as usize] + j.off;
-                    let (s, c) = crate::geometry::sin_cos(v);
-                    rotate_about_axis(&r0, j.axis_kind, &j.axis, v, s, c)
-                }
-            };
-            out[j.child as usize] = Frame { rot, t };
+            out[j.child as usize] = j.apply(&out[j.parent as usize], q);
         }
+    }
+}
+
+impl FkJoint {
+    /// Frame of the child link given the parent's frame `p`.
+    #[inline(always)]
+    fn apply(&self, p: &Frame, q: &[f64]) -> Frame {
+        let j = self;
+        let mut t = p.rot * j.origin.t + p.t;
+        let r0 = if j.origin_rot_identity {
+            p.rot
+        } else {
+            p.rot * j.origin.rot
+        };
+        let rot = match j.kind {
+            JointKind::Fixed => r0,
+            JointKind::Prismatic => {
+                let v = j.mul * q[j.var as usize] + j.off;
+                t += r0 * (j.axis * v);
+                r0
+            }
+            JointKind::Revolute | JointKind::Continuous => {
+                let v = j.mul * q[j.var as usize] + j.off;
+                let (s, c) = crate::geometry::sin_cos(v);
+                rotate_about_axis(&r0, j.axis_kind, &j.axis, v, s, c)
+            }
+        };
+        Frame { rot, t }
+    }
+}
+
+/// The pose of one link alone, relative to the robot root: the movable joints on its path with
+/// the fixed ones folded in (as in [`FkModel::reduced`]), composed as matrices. Same result as
+/// [`link_pose`] to rounding, for hot loops that need one frame per sample (an arm's base under
+/// sampled hip joints, 000 §II-D). Allocation-free.
+#[derive(Debug, Clone)]
+pub struct FkPath {
+    /// Root to the link's computed ancestor, in order.
+    joints: Vec<FkJoint>,
+    /// Offset of the link from that ancestor.
+    tail: Option<Frame>,
+}
+
+impl FkPath {
+    pub fn new(robot: &Robot, link: usize) -> FkPath {
+        let model = FkModel::reduced(robot);
+        let (mut at, tail) = model.mount(link);
+        let mut joints = Vec::new();
+        while let Some(j) = model.joints.iter().find(|j| j.child as usize == at) {
+            joints.push(*j);
+            at = j.parent as usize;
+        }
+        joints.reverse();
+        FkPath { joints, tail }
+    }
+
+    /// Frame of the link: `T_root→link(q)`.
+    #[inline]
+    pub fn frame(&self, q: &[f64]) -> Frame {
+        let mut f = Frame::identity();
+        for j in &self.joints {
+            f = j.apply(&f, q);
+        }
+        match &self.tail {
+            Some(o) => f.mul(o),
+            None => f,
+        }
+    }
+
+    /// Pose of the link: `T_root→link(q)`.
+    #[inline]
+    pub fn pose(&self, q: &[f64]) -> Pose {
+        let f = self.frame(q);
+        Pose::from_parts(
+            Translation3::from(f.t),
+            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(
+                f.rot,
+            )),
+        )
     }
 }
 

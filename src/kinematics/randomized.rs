@@ -24,7 +24,7 @@ use rand::Rng;
 use thiserror::Error;
 
 use super::chain::Chain;
-use super::fk::link_pose;
+use super::fk::FkPath;
 use super::srs::{SrsArm, SrsError};
 use crate::geometry::Pose;
 use crate::model::Robot;
@@ -174,6 +174,8 @@ pub struct ArmChain {
     pub arm_base: usize,
     /// Variables of the chain before the arm (sampled).
     pub free_vars: Vec<usize>,
+    /// FK of `arm_base` alone (it moves with the free joints).
+    pub base_path: FkPath,
 }
 
 impl ArmChain {
@@ -219,6 +221,7 @@ impl ArmChain {
             arm,
             arm_base,
             free_vars,
+            base_path: FkPath::new(robot, arm_base),
         })
     }
 }
@@ -343,7 +346,7 @@ impl RandomizedIk {
     /// World pose of the arm base for a configuration.
     #[inline]
     pub fn arm_base_pose(&self, robot_base: &Pose, q: &[f64]) -> Pose {
-        robot_base * link_pose(&self.robot, q, self.split.arm_base)
+        robot_base * self.split.base_path.pose(q)
     }
 
     /// Searches a configuration that brings the TCP to one of the query's grasps and passes

@@ -473,7 +473,7 @@ impl GoalSampler for HandOffGoals {
             }
             let object = self.giver.tcp_pose(&self.world, &self.world_q) * self.held_inv;
             let rq = &self.world_q[roff..roff + rdof];
-            let inv = (rp.base * link_pose(&rp.robot, rq, self.receiver.arm.arm_base)).inverse();
+            let inv = (rp.base * self.receiver.arm.base_path.pose(rq)).inverse();
             self.cand.clear();
             match self.grid.as_deref() {
                 Some(map) if rng.random::<f64>() < self.settings.reach_probability => {

@@ -594,7 +594,7 @@ impl<C: SegmentChecker> Core<C> {
         if let Some(dims) = kin.arm_dims {
             let rq = &self.wq[kin.offset..kin.offset + kin.dof];
             let arm = &kin.arm.arm;
-            let base = kin.base * link_pose(&kin.robot, rq, kin.arm.arm_base);
+            let base = kin.base * kin.arm.base_path.pose(rq);
             let t = base.inverse() * target;
             let q7 = arm.from_config(rq);
             let psi = arm.arm_angle(&q7);
