@@ -200,3 +200,66 @@ fn shipped_scenes_start_free_and_objects_clear_of_obstacles() {
         }
     }
 }
+
+/// A checker frozen to the active variables of a group ([`FastChecker::for_active`]) answers
+/// exactly as the full checker: over many frozen configurations (some with the frozen part in
+/// collision, so every state collides), with only the group moving, and after a move of a
+/// frozen variable (the checker then rebuilds itself).
+#[test]
+fn checker_for_active_variables_agrees_with_the_full_checker() {
+    let lib = library();
+    for (name, group) in [("kitchen", "torso_right_arm"), ("handoff", "right_arm")] {
+        let s = scene(name, &lib);
+        let world = CollisionWorld::from_scene(&s);
+        let start = CollisionWorld::start_config(&s);
+        let p = &world.robots[0];
+        let active: Vec<usize> = p
+            .robot
+            .group(group)
+            .expect("group")
+            .vars
+            .iter()
+            .map(|v| p.offset + v)
+            .collect();
+        let mut full = FastChecker::new(&world);
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let (mut hits, mut free, mut always) = (0, 0, 0);
+        for _ in 0..150 {
+            let q0 = random_config_near(&world, &start, 0.3, 0.5, &mut rng);
+            let mut frozen = FastChecker::for_active(
+                &world,
+                manyhands::collision::FastModelSettings::default(),
+                &active,
+                &q0,
+            );
+            let mut n_hit = 0;
+            for k in 0..100 {
+                let mut q = random_config_near(&world, &start, 0.3, 0.5, &mut rng);
+                if k != 99 {
+                    // Only the group moves (the last sample moves everything).
+                    for (i, v) in q.iter_mut().enumerate() {
+                        if !active.contains(&i) {
+                            *v = q0[i];
+                        }
+                    }
+                }
+                let f = full.is_free(&q);
+                assert_eq!(frozen.is_free(&q), f, "{name}: q0 = {q0:?}, q = {q:?}");
+                if f {
+                    free += 1;
+                } else {
+                    hits += 1;
+                    n_hit += 1;
+                }
+            }
+            assert_eq!(frozen.checks(), 100);
+            if n_hit == 100 {
+                always += 1;
+            }
+        }
+        assert!(
+            hits > 1000 && free > 1000 && always > 0,
+            "{name}: {hits} collisions, {free} free, {always} always colliding"
+        );
+    }
+}

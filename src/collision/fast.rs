@@ -33,6 +33,10 @@ impl Default for FastModelSettings {
 /// Tolerance added to every primitive so rounding can never turn a touching pair free.
 const EPS: f64 = 1e-9;
 
+/// `prims_ready` mark of a body whose world primitives never change (a body that no active
+/// variable moves, see [`FastChecker::for_active`]).
+const PERMANENT: u32 = u32::MAX;
+
 #[derive(Debug, Clone, Copy)]
 enum Prim {
     Sphere {
@@ -386,9 +390,24 @@ pub struct FastChecker {
     body_bc: Vec<Vector3<f64>>,
     world_prims: Vec<Prim>,
     prims_ready: Vec<u32>,
+    /// Bodies whose frames each check recomputes (all, except those no active variable moves);
+    /// the box around the moving bodies covers these.
+    dynamic: Vec<u32>,
     epoch: u32,
     checks: u64,
     overapprox: f64,
+    settings: FastModelSettings,
+    /// For a checker of active variables ([`FastChecker::for_active`]): the active world
+    /// variables, the frozen ones with their values, and the first colliding pair among those
+    /// tested once at build time (it collides in every configuration).
+    frozen: Option<Frozen>,
+}
+
+#[derive(Debug, Clone)]
+struct Frozen {
+    active: Vec<usize>,
+    fixed: Vec<(usize, f64)>,
+    constant_hit: Option<Pair>,
 }
 
 impl FastChecker {
@@ -397,11 +416,46 @@ impl FastChecker {
     }
 
     pub fn with_settings(world: &CollisionWorld, settings: FastModelSettings) -> FastChecker {
-        // Reduced FK: links behind fixed joints ride on the last moving link.
+        FastChecker::build(world, settings, None)
+    }
+
+    /// A checker for configurations that move only the world variables `active` away from
+    /// `q0` (a full world configuration), e.g. a planner's joint space: joints of the other
+    /// variables are frozen at `q0` in the forward kinematics, and every pair whose relative
+    /// pose no active variable changes (two bodies on the same rigid part, or a body that does
+    /// not move against a fixed body) is tested once here instead of in every check. A
+    /// configuration that differs from `q0` outside `active` is still checked correctly: the
+    /// checker first rebuilds itself for it (slow, allocates; planners never do this).
+    pub fn for_active(
+        world: &CollisionWorld,
+        settings: FastModelSettings,
+        active: &[usize],
+        q0: &[f64],
+    ) -> FastChecker {
+        let mut c = FastChecker::build(world, settings, Some((active, q0)));
+        c.checks = 0;
+        c
+    }
+
+    fn build(
+        world: &CollisionWorld,
+        settings: FastModelSettings,
+        freeze: Option<(&[usize], &[f64])>,
+    ) -> FastChecker {
+        let freeze = freeze.filter(|(_, q0)| q0.len() == world.dof());
+        // Reduced FK: links behind fixed (or frozen) joints ride on the last moving link.
         let fk_models: Vec<FkModel> = world
             .robots
             .iter()
-            .map(|p| FkModel::reduced(&p.robot))
+            .map(|p| match freeze {
+                Some((active, q0)) => {
+                    let dof = p.robot.dof();
+                    let mask: Vec<bool> =
+                        (0..dof).map(|v| active.contains(&(p.offset + v))).collect();
+                    FkModel::frozen(&p.robot, &mask, &q0[p.offset..p.offset + dof])
+                }
+                None => FkModel::reduced(&p.robot),
+            })
             .collect();
         let mount_of = |robot: usize, link: usize, rel: Option<Frame>| -> (Mount, Option<Frame>) {
             let (rep, off) = fk_models[robot].mount(link);
@@ -538,18 +592,7 @@ impl FastChecker {
                 (1, p.a, p.b)
             }
         });
-        let mut static_groups: Vec<(u32, u32, u32)> = Vec::new();
-        let mut self_start = pairs.len();
-        for (i, p) in pairs.iter().enumerate() {
-            if !p.b_static {
-                self_start = i;
-                break;
-            }
-            match static_groups.last_mut() {
-                Some(g) if g.0 == p.b => g.2 = i as u32 + 1,
-                _ => static_groups.push((p.b, i as u32, i as u32 + 1)),
-            }
-        }
+        let (static_groups, self_start) = group_pairs(&pairs);
         let link_poses = world
             .robots
             .iter()
@@ -562,7 +605,7 @@ impl FastChecker {
             .map(|p| Frame::from_pose(&p.base))
             .collect();
         let nb = moving.len();
-        FastChecker {
+        let mut checker = FastChecker {
             world: world.clone(),
             moving,
             statics,
@@ -585,9 +628,79 @@ impl FastChecker {
                 start
             ],
             prims_ready: vec![0; nb],
+            dynamic: (0..nb as u32).collect(),
             epoch: 0,
             checks: 0,
             overapprox,
+            settings,
+            frozen: None,
+        };
+        if let Some((active, q0)) = freeze {
+            checker.split_constant_pairs(active, q0);
+        }
+        checker
+    }
+
+    /// Moves the pairs whose relative pose is constant out of the per-check list, after
+    /// testing them once at `q0`.
+    fn split_constant_pairs(&mut self, active: &[usize], q0: &[f64]) {
+        self.prepare(q0);
+        // A body on link 0 of its robot (in the frozen FK) does not move at all.
+        let still = |b: &MovingBody| b.mount.link == 0;
+        let mut constant_hit = None;
+        let mut kept = Vec::with_capacity(self.pairs.len());
+        for pi in 0..self.pairs.len() {
+            let p = self.pairs[pi];
+            let a = &self.moving[p.a as usize];
+            let constant = if p.b_static {
+                still(a)
+            } else {
+                let b = &self.moving[p.b as usize];
+                (still(a) && still(b))
+                    || (a.mount.robot == b.mount.robot && a.mount.link == b.mount.link)
+            };
+            if !constant {
+                kept.push(p);
+                continue;
+            }
+            if constant_hit.is_none() && self.pair_hits(pi) {
+                constant_hit = Some(p);
+            }
+        }
+        // Bodies that do not move keep their frames and world primitives from here on.
+        let mut dynamic = Vec::with_capacity(self.moving.len());
+        for i in 0..self.moving.len() {
+            if still(&self.moving[i]) {
+                self.ensure_prims(i);
+                self.prims_ready[i] = PERMANENT;
+            } else {
+                dynamic.push(i as u32);
+            }
+        }
+        self.dynamic = dynamic;
+        self.pairs = kept;
+        let (groups, self_start) = group_pairs(&self.pairs);
+        self.static_groups = groups;
+        self.self_start = self_start;
+        let active: Vec<usize> = active.to_vec();
+        let fixed = (0..q0.len())
+            .filter(|v| !active.contains(v))
+            .map(|v| (v, q0[v]))
+            .collect();
+        self.frozen = Some(Frozen {
+            active,
+            fixed,
+            constant_hit,
+        });
+    }
+
+    /// Whether pair `pi` collides in the prepared configuration.
+    fn pair_hits(&mut self, pi: usize) -> bool {
+        let p = self.pairs[pi];
+        if p.b_static {
+            self.static_pair_hits(pi)
+        } else {
+            self.moving_pair_hits(p.a as usize, p.b as usize)
         }
     }
 
@@ -619,7 +732,9 @@ impl FastChecker {
         }
         let mut lo = Vector3::repeat(f64::INFINITY);
         let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-        for (i, b) in self.moving.iter().enumerate() {
+        for &i in &self.dynamic {
+            let i = i as usize;
+            let b = &self.moving[i];
             let lp = &self.link_poses[b.mount.robot][b.mount.link];
             let f = match &b.rel {
                 Some(rel) => lp.mul(rel),
@@ -635,15 +750,18 @@ impl FastChecker {
         self.moving_lo = lo;
         self.moving_hi = hi;
         self.epoch = self.epoch.wrapping_add(1);
-        if self.epoch == 0 {
-            self.prims_ready.iter_mut().for_each(|e| *e = 0);
+        if self.epoch == 0 || self.epoch == PERMANENT {
+            self.prims_ready
+                .iter_mut()
+                .filter(|e| **e != PERMANENT)
+                .for_each(|e| *e = 0);
             self.epoch = 1;
         }
     }
 
     #[inline]
     fn ensure_prims(&mut self, i: usize) {
-        if self.prims_ready[i] == self.epoch {
+        if self.prims_ready[i] == self.epoch || self.prims_ready[i] == PERMANENT {
             return;
         }
         self.prims_ready[i] = self.epoch;
@@ -654,9 +772,21 @@ impl FastChecker {
         }
     }
 
-    /// Index of the first colliding pair, if any.
-    fn find(&mut self, q: &[f64]) -> Option<usize> {
+    /// The first colliding pair, if any.
+    fn find(&mut self, q: &[f64]) -> Option<Pair> {
         self.checks += 1;
+        if let Some(f) = &self.frozen {
+            if f.fixed.iter().any(|&(v, x)| q[v].to_bits() != x.to_bits()) {
+                // Moved outside the active variables: freeze at this configuration instead.
+                let active = f.active.clone();
+                let checks = self.checks;
+                *self = FastChecker::build(&self.world.clone(), self.settings, Some((&active, q)));
+                self.checks = checks;
+            }
+            if let Some(p) = self.frozen.as_ref().and_then(|f| f.constant_hit) {
+                return Some(p);
+            }
+        }
         self.prepare(q);
         for g in 0..self.static_groups.len() {
             let (sb, first, end) = self.static_groups[g];
@@ -666,27 +796,32 @@ impl FastChecker {
             }
             for pi in first as usize..end as usize {
                 if self.static_pair_hits(pi) {
-                    return Some(pi);
+                    return Some(self.pairs[pi]);
                 }
             }
         }
         for pi in self.self_start..self.pairs.len() {
             let p = self.pairs[pi];
-            let (a, b) = (p.a as usize, p.b as usize);
-            let rr = self.moving[a].br + self.moving[b].br;
-            if (self.body_bc[a] - self.body_bc[b]).norm_squared() > rr * rr {
-                continue;
-            }
-            self.ensure_prims(a);
-            self.ensure_prims(b);
-            let (ma, mb) = (&self.moving[a], &self.moving[b]);
-            let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
-            let pb = &self.world_prims[mb.start..mb.start + mb.local.len()];
-            if pa.iter().any(|x| pb.iter().any(|y| prims_hit(x, y))) {
-                return Some(pi);
+            if self.moving_pair_hits(p.a as usize, p.b as usize) {
+                return Some(p);
             }
         }
         None
+    }
+
+    /// Whether moving bodies `a` and `b` collide in the prepared configuration.
+    #[inline]
+    fn moving_pair_hits(&mut self, a: usize, b: usize) -> bool {
+        let rr = self.moving[a].br + self.moving[b].br;
+        if (self.body_bc[a] - self.body_bc[b]).norm_squared() > rr * rr {
+            return false;
+        }
+        self.ensure_prims(a);
+        self.ensure_prims(b);
+        let (ma, mb) = (&self.moving[a], &self.moving[b]);
+        let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
+        let pb = &self.world_prims[mb.start..mb.start + mb.local.len()];
+        pa.iter().any(|x| pb.iter().any(|y| prims_hit(x, y)))
     }
 
     #[inline]
@@ -712,6 +847,24 @@ impl FastChecker {
         }
         false
     }
+}
+
+/// The groups `(static body, first pair, end pair)` of the pairs against fixed bodies and the
+/// index of the first moving–moving pair, of a pair list sorted as the constructor sorts it.
+fn group_pairs(pairs: &[Pair]) -> (Vec<(u32, u32, u32)>, usize) {
+    let mut static_groups: Vec<(u32, u32, u32)> = Vec::new();
+    let mut self_start = pairs.len();
+    for (i, p) in pairs.iter().enumerate() {
+        if !p.b_static {
+            self_start = i;
+            break;
+        }
+        match static_groups.last_mut() {
+            Some(g) if g.0 == p.b => g.2 = i as u32 + 1,
+            _ => static_groups.push((p.b, i as u32, i as u32 + 1)),
+        }
+    }
+    (static_groups, self_start)
 }
 
 fn bounding_of(prims: &[Prim]) -> (Vector3<f64>, f64) {
@@ -743,8 +896,7 @@ impl CollisionChecker for FastChecker {
     }
 
     fn first_contact(&mut self, q: &[f64]) -> Option<Contact> {
-        let pi = self.find(q)?;
-        let p = self.pairs[pi];
+        let p = self.find(q)?;
         let a = self.moving[p.a as usize].id;
         let b = if p.b_static {
             self.statics[p.b as usize].id

@@ -215,12 +215,36 @@ impl FkModel {
 
     /// The reduced model: only links after movable joints are computed.
     pub fn reduced(robot: &Robot) -> FkModel {
+        FkModel::reduced_with(robot, None)
+    }
+
+    /// The reduced model for motions of the variables `active` only (`active[v]` for each
+    /// robot variable): every joint driven by another variable is frozen at its value in `q`
+    /// (a robot configuration) and folded in like a fixed joint. Links that no active variable
+    /// moves are then mounted on the root ([`FkModel::mount`] gives link 0); the frames of
+    /// this model equal those of [`FkModel::new`] for every configuration that agrees with `q`
+    /// outside `active`.
+    pub fn frozen(robot: &Robot, active: &[bool], q: &[f64]) -> FkModel {
+        FkModel::reduced_with(robot, Some((active, q)))
+    }
+
+    fn reduced_with(robot: &Robot, freeze: Option<(&[bool], &[f64])>) -> FkModel {
         let full = FkModel::new(robot);
         let n = robot.links.len();
         let mut rep: Vec<u32> = (0..n as u32).collect();
         let mut offset: Vec<Option<Frame>> = vec![None; n];
         let mut joints = Vec::new();
         for j in &full.joints {
+            let mut j = *j;
+            if let Some((active, q)) = freeze {
+                let v = j.var as usize;
+                if j.kind != JointKind::Fixed && !active.get(v).copied().unwrap_or(false) {
+                    // origin · motion(q[v]): the child frame under an identity parent.
+                    j.origin = j.apply(&Frame::identity(), q);
+                    j.kind = JointKind::Fixed;
+                }
+            }
+            let j = &j;
             let (p, c) = (j.parent as usize, j.child as usize);
             let (prep, poff) = (rep[p], offset[p]);
             let origin = match &poff {

@@ -19,6 +19,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::grasping::Hand;
 use super::ik_rrt::GoalSampler;
+use super::validity::space_checker;
 use super::{IkRrt, IkRrtSettings, JointSpace, PlanError, PlanResult, Termination};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::geometry::Pose;
@@ -291,7 +292,7 @@ impl BimanualProblem {
             n_right: self.right_grasps.len(),
             offset: p.offset,
             settings,
-            checker: FastChecker::new(&self.world),
+            checker: space_checker(&self.world, &self.space),
             space: self.space.clone(),
             world_q,
             counters: IkCounters::default(),

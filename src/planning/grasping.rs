@@ -20,6 +20,7 @@ use std::sync::Arc;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+use super::validity::space_checker;
 use super::{GoalSampler, JointSpace, PlanError};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::geometry::Pose;
@@ -251,7 +252,7 @@ impl ReachProblem {
             grasps: self.grasps.clone(),
             robot_q: world_q[p.offset..p.offset + p.robot.dof()].to_vec(),
             offset: p.offset,
-            checker: FastChecker::new(&self.world),
+            checker: space_checker(&self.world, &self.space),
             space: self.space.clone(),
             world_q,
             counters: IkCounters::default(),
@@ -413,7 +414,7 @@ impl HandOffProblem {
         }
         HandOffGoals {
             world: self.world.clone(),
-            checker: FastChecker::new(&self.world),
+            checker: space_checker(&self.world, &self.space),
             giver: self.giver.clone(),
             receiver: self.receiver.clone(),
             held_inv: self.held.inverse(),

@@ -21,7 +21,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::rrt_connect::{connect, extend, finish, join_trees, stopped, Extend};
-use super::validity::{SegmentChecker, SpaceValidator};
+use super::validity::{space_checker, SegmentChecker, SpaceValidator};
 use super::{
     JointSpace, PlanError, PlanResult, PlanStats, RrtConnectSettings, Termination, Tree, NO_PARENT,
 };
@@ -79,7 +79,8 @@ impl IkRrt<FastChecker> {
         world: &CollisionWorld,
         settings: IkRrtSettings,
     ) -> Result<Self, PlanError> {
-        IkRrt::with_checker(space, world, FastChecker::new(world), settings)
+        let checker = space_checker(world, &space);
+        IkRrt::with_checker(space, world, checker, settings)
     }
 }
 

@@ -63,7 +63,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::grasping::{Hand, HandOffProblem, ReachProblem};
 use super::rrt_connect::{extend, finish, stopped};
-use super::validity::{SegmentChecker, SpaceValidator};
+use super::validity::{space_checker, SegmentChecker, SpaceValidator};
 use super::{
     JointSpace, PlanError, PlanResult, PlanStats, RrtConnectSettings, Termination, Tree, NO_PARENT,
 };
@@ -720,14 +720,8 @@ impl JPlusRrt<FastChecker> {
         targets: Vec<Pose>,
         settings: JPlusRrtSettings,
     ) -> Result<Self, PlanError> {
-        JPlusRrt::with_checker(
-            space,
-            world,
-            FastChecker::new(world),
-            hand,
-            targets,
-            settings,
-        )
+        let checker = space_checker(world, &space);
+        JPlusRrt::with_checker(space, world, checker, hand, targets, settings)
     }
 
     /// The planner of a [`ReachProblem`]: its space, world, hand and grasp targets (so
@@ -902,7 +896,7 @@ impl DualArmJPlusRrt<FastChecker> {
         grasps: Vec<Pose>,
         settings: JPlusRrtSettings,
     ) -> Result<Self, PlanError> {
-        let checker = FastChecker::new(world);
+        let checker = space_checker(world, &space);
         DualArmJPlusRrt::with_checker(
             space, world, checker, giver, receiver, held, grasps, settings,
         )

@@ -33,4 +33,4 @@ pub use shortcut::{ShortcutSettings, ShortcutStats};
 pub use space::JointSpace;
 pub use termination::{StopReason, Termination};
 pub use tree::{Tree, NO_PARENT};
-pub use validity::{SegmentChecker, SpaceValidator};
+pub use validity::{space_checker, SegmentChecker, SpaceValidator};

@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::shortcut::{simplify, ShortcutSettings};
-use super::validity::{SegmentChecker, SpaceValidator};
+use super::validity::{space_checker, SegmentChecker, SpaceValidator};
 use super::{JointSpace, PlanError, PlanResult, PlanStats, Termination, Tree, NO_PARENT};
 use crate::collision::{CollisionWorld, FastChecker};
 
@@ -132,7 +132,7 @@ impl RrtConnect<FastChecker> {
         world: &CollisionWorld,
         settings: RrtConnectSettings,
     ) -> Result<Self, PlanError> {
-        let checker = FastChecker::new(world);
+        let checker = space_checker(world, &space);
         RrtConnect::with_checker(space, world, checker, settings)
     }
 }

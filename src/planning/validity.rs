@@ -61,6 +61,12 @@ impl SegmentChecker for AutoChecker {
     }
 }
 
+/// The fast checker for configurations of `space`: the variables outside it are frozen at
+/// the space's base configuration ([`FastChecker::for_active`]).
+pub fn space_checker(world: &CollisionWorld, space: &JointSpace) -> FastChecker {
+    FastChecker::for_active(world, Default::default(), space.vars(), space.base())
+}
+
 /// Checks states, segments and paths of a space with one collision checker. Owns the space and
 /// two world-configuration buffers, so no call allocates.
 pub struct SpaceValidator<C: SegmentChecker> {
