@@ -318,11 +318,9 @@ struct Mount {
 struct MovingBody {
     id: BodyId,
     mount: Mount,
-    /// Offset of the body frame in the link frame (`None` for links).
-    rel: Option<Frame>,
-    /// Primitives in the body frame.
+    /// Primitives in the frame of the mount link.
     local: Vec<Prim>,
-    /// Bounding sphere in the body frame.
+    /// Bounding sphere in the frame of the mount link.
     bc: Vector3<f64>,
     br: f64,
     /// Range of this body's primitives in the per-check world buffer.
@@ -385,8 +383,6 @@ pub struct FastChecker {
     bases: Vec<Frame>,
     // Per-check buffers.
     link_poses: Vec<Vec<Frame>>,
-    body_rot: Vec<Matrix3<f64>>,
-    body_t: Vec<Vector3<f64>>,
     body_bc: Vec<Vector3<f64>>,
     world_prims: Vec<Prim>,
     prims_ready: Vec<u32>,
@@ -475,9 +471,17 @@ impl FastChecker {
                              rel: Option<Frame>,
                              shapes: &[crate::geometry::Geometry],
                              moving: &mut Vec<MovingBody>| {
+            // Primitives in the mount link's frame (the body's offset folded in), so a check
+            // needs only the link frames.
             let local: Vec<Prim> = shapes
                 .iter()
-                .map(|g| Prim::from_shape(&g.origin, &g.shape, settings.padding))
+                .map(|g| {
+                    let p = Prim::from_shape(&g.origin, &g.shape, settings.padding);
+                    match &rel {
+                        Some(f) => p.transformed(&f.rot, &f.t),
+                        None => p,
+                    }
+                })
                 .collect();
             let (bc, br) = bounding_of(&local);
             index_of.insert(id, moving.len());
@@ -485,7 +489,6 @@ impl FastChecker {
             moving.push(MovingBody {
                 id,
                 mount,
-                rel,
                 local,
                 bc,
                 br,
@@ -617,8 +620,6 @@ impl FastChecker {
             fk,
             bases,
             link_poses,
-            body_rot: vec![Matrix3::identity(); nb],
-            body_t: vec![Vector3::zeros(); nb],
             body_bc: vec![Vector3::zeros(); nb],
             world_prims: vec![
                 Prim::Sphere {
@@ -735,17 +736,11 @@ impl FastChecker {
         for &i in &self.dynamic {
             let i = i as usize;
             let b = &self.moving[i];
-            let lp = &self.link_poses[b.mount.robot][b.mount.link];
-            let f = match &b.rel {
-                Some(rel) => lp.mul(rel),
-                None => *lp,
-            };
+            let f = &self.link_poses[b.mount.robot][b.mount.link];
             let c = f.rot * b.bc + f.t;
             lo = lo.inf(&c.add_scalar(-b.br));
             hi = hi.sup(&c.add_scalar(b.br));
             self.body_bc[i] = c;
-            self.body_rot[i] = f.rot;
-            self.body_t[i] = f.t;
         }
         self.moving_lo = lo;
         self.moving_hi = hi;
@@ -766,9 +761,9 @@ impl FastChecker {
         }
         self.prims_ready[i] = self.epoch;
         let b = &self.moving[i];
-        let (rot, t) = (&self.body_rot[i], &self.body_t[i]);
+        let f = &self.link_poses[b.mount.robot][b.mount.link];
         for (k, p) in b.local.iter().enumerate() {
-            self.world_prims[b.start + k] = p.transformed(rot, t);
+            self.world_prims[b.start + k] = p.transformed(&f.rot, &f.t);
         }
     }
 
