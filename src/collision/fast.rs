@@ -135,6 +135,17 @@ impl Prim {
         }
     }
 
+    /// Centre of the primitive (of its bounding sphere).
+    #[inline]
+    fn centre(&self) -> &Vector3<f64> {
+        match self {
+            Prim::Sphere { c, .. }
+            | Prim::Obb { c, .. }
+            | Prim::Cylinder { c, .. }
+            | Prim::Capsule { c, .. } => c,
+        }
+    }
+
     fn bounding(&self) -> (Vector3<f64>, f64) {
         match *self {
             Prim::Sphere { c, r } => (c, r),
@@ -363,6 +374,9 @@ struct Pair {
     a: u32,
     b: u32,
     b_static: bool,
+    /// Squared reach of the body bounding spheres: (r_a + r_b)² against a moving body, r_a²
+    /// against a fixed body's box, so the cull touches nothing but the pair and the centres.
+    reach2: f64,
 }
 
 /// Conservative checker used by planners. See the module documentation.
@@ -385,6 +399,8 @@ pub struct FastChecker {
     link_poses: Vec<Vec<Frame>>,
     body_bc: Vec<Vector3<f64>>,
     world_prims: Vec<Prim>,
+    /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
+    prim_radius: Vec<f64>,
     prims_ready: Vec<u32>,
     /// Bodies whose frames each check recomputes (all, except those no active variable moves);
     /// the box around the moving bodies covers these.
@@ -572,16 +588,19 @@ impl FastChecker {
                     a: ia as u32,
                     b: ib as u32,
                     b_static: false,
+                    reach2: (moving[ia].br + moving[ib].br).powi(2),
                 }),
                 (Some(&ia), None, Some(&sb), _) => pairs.push(Pair {
                     a: ia as u32,
                     b: sb as u32,
                     b_static: true,
+                    reach2: moving[ia].br.powi(2),
                 }),
                 (None, Some(&ib), _, Some(&sa)) => pairs.push(Pair {
                     a: ib as u32,
                     b: sa as u32,
                     b_static: true,
+                    reach2: moving[ib].br.powi(2),
                 }),
                 _ => {}
             }
@@ -608,6 +627,10 @@ impl FastChecker {
             .map(|p| Frame::from_pose(&p.base))
             .collect();
         let nb = moving.len();
+        let prim_radius = moving
+            .iter()
+            .flat_map(|b| b.local.iter().map(|p| p.bounding().1))
+            .collect();
         let mut checker = FastChecker {
             world: world.clone(),
             moving,
@@ -628,6 +651,7 @@ impl FastChecker {
                 };
                 start
             ],
+            prim_radius,
             prims_ready: vec![0; nb],
             dynamic: (0..nb as u32).collect(),
             epoch: 0,
@@ -701,7 +725,7 @@ impl FastChecker {
         if p.b_static {
             self.static_pair_hits(pi)
         } else {
-            self.moving_pair_hits(p.a as usize, p.b as usize)
+            self.moving_pair_hits(p)
         }
     }
 
@@ -797,45 +821,54 @@ impl FastChecker {
         }
         for pi in self.self_start..self.pairs.len() {
             let p = self.pairs[pi];
-            if self.moving_pair_hits(p.a as usize, p.b as usize) {
+            if self.moving_pair_hits(p) {
                 return Some(p);
             }
         }
         None
     }
 
-    /// Whether moving bodies `a` and `b` collide in the prepared configuration.
+    /// Whether the moving bodies of pair `p` collide in the prepared configuration.
     #[inline]
-    fn moving_pair_hits(&mut self, a: usize, b: usize) -> bool {
-        let rr = self.moving[a].br + self.moving[b].br;
-        if (self.body_bc[a] - self.body_bc[b]).norm_squared() > rr * rr {
+    fn moving_pair_hits(&mut self, p: Pair) -> bool {
+        let (a, b) = (p.a as usize, p.b as usize);
+        if (self.body_bc[a] - self.body_bc[b]).norm_squared() > p.reach2 {
             return false;
         }
         self.ensure_prims(a);
         self.ensure_prims(b);
         let (ma, mb) = (&self.moving[a], &self.moving[b]);
-        let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
-        let pb = &self.world_prims[mb.start..mb.start + mb.local.len()];
-        pa.iter().any(|x| pb.iter().any(|y| prims_hit(x, y)))
+        let (ra, rb) = (
+            ma.start..ma.start + ma.local.len(),
+            mb.start..mb.start + mb.local.len(),
+        );
+        let (pa, pb) = (&self.world_prims[ra.clone()], &self.world_prims[rb.clone()]);
+        let (rad_a, rad_b) = (&self.prim_radius[ra], &self.prim_radius[rb]);
+        // Primitive bounding spheres first: most primitive pairs of two nearby bodies are apart.
+        pa.iter().zip(rad_a).any(|(x, &xr)| {
+            pb.iter().zip(rad_b).any(|(y, &yr)| {
+                (x.centre() - y.centre()).norm_squared() <= (xr + yr) * (xr + yr) && prims_hit(x, y)
+            })
+        })
     }
 
     #[inline]
     fn static_pair_hits(&mut self, pi: usize) -> bool {
         let p = self.pairs[pi];
         let (a, b) = (p.a as usize, p.b as usize);
-        let ra = self.moving[a].br;
         let s = &self.statics[b];
-        if dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) > ra * ra {
+        if dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) > p.reach2 {
             return false;
         }
         self.ensure_prims(a);
         let ma = &self.moving[a];
-        let pa = &self.world_prims[ma.start..ma.start + ma.local.len()];
+        let range = ma.start..ma.start + ma.local.len();
+        let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
         let s = &self.statics[b];
-        for x in pa {
-            let (xc, xr) = x.bounding();
+        for (x, &xr) in pa.iter().zip(rad) {
+            let xc = x.centre();
             for (y, lo, hi) in &s.prims {
-                if dist2_point_aabb(&xc, lo, hi) <= xr * xr && prims_hit(x, y) {
+                if dist2_point_aabb(xc, lo, hi) <= xr * xr && prims_hit(x, y) {
                     return true;
                 }
             }
