@@ -821,7 +821,11 @@ impl FastChecker {
         }
         for pi in self.self_start..self.pairs.len() {
             let p = self.pairs[pi];
-            if self.moving_pair_hits(p) {
+            let (a, b) = (p.a as usize, p.b as usize);
+            if (self.body_bc[a] - self.body_bc[b]).norm_squared() > p.reach2 {
+                continue;
+            }
+            if self.moving_prims_hit(a, b) {
                 return Some(p);
             }
         }
@@ -832,9 +836,12 @@ impl FastChecker {
     #[inline]
     fn moving_pair_hits(&mut self, p: Pair) -> bool {
         let (a, b) = (p.a as usize, p.b as usize);
-        if (self.body_bc[a] - self.body_bc[b]).norm_squared() > p.reach2 {
-            return false;
-        }
+        (self.body_bc[a] - self.body_bc[b]).norm_squared() <= p.reach2
+            && self.moving_prims_hit(a, b)
+    }
+
+    /// Whether the primitives of moving bodies `a` and `b` collide (bounding spheres overlap).
+    fn moving_prims_hit(&mut self, a: usize, b: usize) -> bool {
         self.ensure_prims(a);
         self.ensure_prims(b);
         let (ma, mb) = (&self.moving[a], &self.moving[b]);
