@@ -813,9 +813,14 @@ impl FastChecker {
             if (0..3).any(|k| s.lo[k] > self.moving_hi[k] || s.hi[k] < self.moving_lo[k]) {
                 continue;
             }
+            let (lo, hi) = (s.lo, s.hi);
             for pi in first as usize..end as usize {
-                if self.static_pair_hits(pi) {
-                    return Some(self.pairs[pi]);
+                let p = self.pairs[pi];
+                if dist2_point_aabb(&self.body_bc[p.a as usize], &lo, &hi) > p.reach2 {
+                    continue;
+                }
+                if self.static_prims_hit(p.a as usize, p.b as usize) {
+                    return Some(p);
                 }
             }
         }
@@ -864,9 +869,11 @@ impl FastChecker {
         let p = self.pairs[pi];
         let (a, b) = (p.a as usize, p.b as usize);
         let s = &self.statics[b];
-        if dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) > p.reach2 {
-            return false;
-        }
+        dist2_point_aabb(&self.body_bc[a], &s.lo, &s.hi) <= p.reach2 && self.static_prims_hit(a, b)
+    }
+
+    /// Whether the primitives of moving body `a` and fixed body `b` collide.
+    fn static_prims_hit(&mut self, a: usize, b: usize) -> bool {
         self.ensure_prims(a);
         let ma = &self.moving[a];
         let range = ma.start..ma.start + ma.local.len();
