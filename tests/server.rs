@@ -573,6 +573,23 @@ async fn plans_wait_events_and_cancel() {
     assert_eq!(s, StatusCode::OK);
     assert_eq!(v["state"], "succeeded", "{v}");
     assert_eq!(v["result"]["samples"], 3000);
+    // Counts add up; the most frequent colliding pairs are named bodies, most frequent first.
+    let (free, colliding) = (
+        v["result"]["free"].as_u64().unwrap_or(0),
+        v["result"]["colliding"].as_u64().unwrap_or(0),
+    );
+    assert!(free + colliding == 3000 && colliding > 0, "{v}");
+    let top = v["result"]["top_pairs"].as_array().expect("top_pairs");
+    let counts: Vec<u64> = top.iter().filter_map(|p| p["count"].as_u64()).collect();
+    assert!(!top.is_empty() && counts.len() == top.len(), "{v}");
+    assert!(counts.windows(2).all(|w| w[0] >= w[1]) && counts.iter().sum::<u64>() <= colliding);
+    for p in top {
+        assert!(
+            p["a"].as_str().is_some_and(|a| !a.is_empty())
+                && p["b"].as_str().is_some_and(|b| !b.is_empty()),
+            "{p}"
+        );
+    }
     let (_, list) = h.get("/v1/plans").await;
     assert!(list["jobs"].as_array().map(|a| a.len()).unwrap_or(0) >= 2);
 

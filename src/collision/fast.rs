@@ -719,6 +719,19 @@ impl FastChecker {
         });
     }
 
+    /// The bodies of the first colliding pair, if any: [`CollisionChecker::first_contact`]
+    /// without building names (allocation-free).
+    pub fn first_contact_ids(&mut self, q: &[f64]) -> Option<(BodyId, BodyId)> {
+        let p = self.find(q)?;
+        let a = self.moving[p.a as usize].id;
+        let b = if p.b_static {
+            self.statics[p.b as usize].id
+        } else {
+            self.moving[p.b as usize].id
+        };
+        Some((a, b))
+    }
+
     /// Whether pair `pi` collides in the prepared configuration.
     fn pair_hits(&mut self, pi: usize) -> bool {
         let p = self.pairs[pi];
@@ -938,13 +951,7 @@ impl CollisionChecker for FastChecker {
     }
 
     fn first_contact(&mut self, q: &[f64]) -> Option<Contact> {
-        let p = self.find(q)?;
-        let a = self.moving[p.a as usize].id;
-        let b = if p.b_static {
-            self.statics[p.b as usize].id
-        } else {
-            self.moving[p.b as usize].id
-        };
+        let (a, b) = self.first_contact_ids(q)?;
         Some(Contact {
             a: self.world.body_name(a),
             b: self.world.body_name(b),

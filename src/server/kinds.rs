@@ -13,7 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
-use crate::collision::{AutoChecker, CollisionChecker, CollisionWorld, FastChecker};
+use crate::collision::{AutoChecker, BodyId, CollisionWorld, FastChecker};
 use crate::planning::{
     JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, ShortcutSettings, Termination,
 };
@@ -366,17 +366,22 @@ impl JobWork for SweepWork {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         let mut q = self.base.clone();
         let (mut free, mut colliding) = (0u64, 0u64);
-        let mut pairs: HashMap<(String, String), u64> = HashMap::new();
+        // Counted by body ids (no allocation per sample), named in the summary.
+        let mut pairs: HashMap<(BodyId, BodyId), u64> = HashMap::new();
         let t0 = Instant::now();
         let mut last = t0;
         let mut truncated = false;
+        let world = &self.world;
         let summary = |free: u64,
                        colliding: u64,
-                       pairs: &HashMap<(String, String), u64>,
+                       pairs: &HashMap<(BodyId, BodyId), u64>,
                        truncated: bool| {
             let n = free + colliding;
-            let mut top: Vec<_> = pairs.iter().collect();
-            top.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+            let mut top: Vec<((String, String), u64)> = pairs
+                .iter()
+                .map(|(&(a, b), &c)| ((world.body_name(a), world.body_name(b)), c))
+                .collect();
+            top.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
             json!({
                 "samples": n,
                 "free": free,
@@ -411,11 +416,11 @@ impl JobWork for SweepWork {
             for (k, &v) in self.vars.iter().enumerate() {
                 q[v] = self.lower[k] + (self.upper[k] - self.lower[k]) * rng.random::<f64>();
             }
-            match checker.first_contact(&q) {
+            match checker.first_contact_ids(&q) {
                 None => free += 1,
-                Some(c) => {
+                Some(ids) => {
                     colliding += 1;
-                    *pairs.entry((c.a, c.b)).or_insert(0) += 1;
+                    *pairs.entry(ids).or_insert(0) += 1;
                 }
             }
         }
