@@ -74,7 +74,7 @@ fn check(p: &BimanualProblem, r: &PlanResult) {
         pose_close(&p.right.tcp_pose(&p.world, &last), &tr, 1e-6),
         "right TCP"
     );
-    let wpath: Vec<Vec<f64>> = r.path.iter().map(|q| p.space.to_world(q)).collect();
+    let wpath = p.space.path_to_world(&r.path);
     let mut mv = MotionValidator::new(
         &p.world,
         ExactChecker::new(&p.world),

@@ -249,6 +249,11 @@ impl JointSpace {
         w
     }
 
+    /// The world configurations of a path of states.
+    pub fn path_to_world(&self, path: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        path.iter().map(|q| self.to_world(q)).collect()
+    }
+
     /// The space's variables of a world configuration.
     pub fn from_world(&self, world_q: &[f64]) -> Vec<f64> {
         self.vars.iter().map(|&w| world_q[w]).collect()

@@ -321,7 +321,7 @@ pub fn kitchen_task(
         .map_err(|e| tagged("grasp", e))?;
     let q1 = p1.space.to_world(r1.path.last().map_or(&p1.start, |v| v));
     let held1 = p1.grasps[r1.goal_index];
-    let path: Vec<Vec<f64>> = r1.path.iter().map(|q| p1.space.to_world(q)).collect();
+    let path = p1.space.path_to_world(&r1.path);
     plan.append("grasp", "ik_rrt", path, r1.stats, &p1.world);
     let name1 = &p1.grasp_names[r1.goal_index];
     plan.event(
@@ -418,7 +418,7 @@ pub fn kitchen_task(
             }
             Err(e) => return Err(tagged("retreat", e)),
         };
-        let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
+        let path = p2.space.path_to_world(&r2.path);
         plan.append("regrasp", "dual_arm_ik_rrt", path, r2.stats, &p2.world);
         let name2 = &p2.grasp_names[r2.goal_index];
         plan.event(
@@ -450,7 +450,7 @@ pub fn kitchen_task(
     let r4 = planner
         .plan(&p4.start, &mut goals, term, seed.wrapping_add(3))
         .map_err(|e| tagged("place", e))?;
-    let path: Vec<Vec<f64>> = r4.path.iter().map(|q| p4.space.to_world(q)).collect();
+    let path = p4.space.path_to_world(&r4.path);
     plan.append("place", "ik_rrt", path, r4.stats, &p4.world);
     let place = p4.grasp_names[r4.goal_index].clone();
     plan.event(
@@ -572,7 +572,7 @@ pub fn regrasp_task(
                     .plan_reach(&p1, task.grid.clone(), task.planner, task.ik, term, seed)
                     .map_err(|e| tagged("grasp", e))?;
                 let q1 = p1.space.to_world(r1.path.last().map_or(&p1.start, |v| v));
-                let path: Vec<Vec<f64>> = r1.path.iter().map(|q| p1.space.to_world(q)).collect();
+                let path = p1.space.path_to_world(&r1.path);
                 plan.waypoints.clear();
                 plan.append(
                     "grasp",
@@ -614,7 +614,7 @@ pub fn regrasp_task(
             seed.wrapping_add(1),
         )
         .map_err(|e| tagged("regrasp", e))?;
-    let path: Vec<Vec<f64>> = r2.path.iter().map(|q| p2.space.to_world(q)).collect();
+    let path = p2.space.path_to_world(&r2.path);
     if plan.phases.is_empty() {
         plan.waypoints.clear();
     }
@@ -713,7 +713,7 @@ pub fn reach_task(
         events: Vec::new(),
         time: Duration::ZERO,
     };
-    let path: Vec<Vec<f64>> = r.path.iter().map(|q| p.space.to_world(q)).collect();
+    let path = p.space.path_to_world(&r.path);
     plan.append("grasp", algorithm.reach_name(), path, r.stats, &p.world);
     plan.event(
         EventKind::Grasp,
@@ -743,7 +743,7 @@ pub fn bimanual_task(
         events: Vec::new(),
         time: Duration::ZERO,
     };
-    let path: Vec<Vec<f64>> = r.path.iter().map(|q| p.space.to_world(q)).collect();
+    let path = p.space.path_to_world(&r.path);
     plan.append("grasp", "bimanual_ik_rrt", path, r.stats, &p.world);
     let (l, rr) = p.decode(r.goal_index);
     let robot = p.world.robots[p.left.robot].name.clone();

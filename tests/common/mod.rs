@@ -31,7 +31,7 @@ pub fn assert_exactly_free(world: &CollisionWorld, space: &JointSpace, path: &[V
             space.bounds_violation(q)
         );
     }
-    let wpath: Vec<Vec<f64>> = path.iter().map(|q| space.to_world(q)).collect();
+    let wpath = space.path_to_world(path);
     let mut mv = MotionValidator::new(world, ExactChecker::new(world), 0.5f64.to_radians(), 0.005);
     assert!(
         mv.is_path_valid(&wpath),
