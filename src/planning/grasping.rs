@@ -412,6 +412,18 @@ impl HandOffProblem {
                 sampled.push(v + roff);
             }
         }
+        // (world variable, index in the space); a variable outside the space is not sampled.
+        let sampled = sampled
+            .into_iter()
+            .filter_map(|w| {
+                self.space
+                    .vars()
+                    .iter()
+                    .position(|&v| v == w)
+                    .map(|i| (w, i))
+            })
+            .collect();
+        let rdof = self.world.robots[self.receiver.robot].robot.dof();
         HandOffGoals {
             world: self.world.clone(),
             checker: space_checker(&self.world, &self.space),
@@ -426,6 +438,7 @@ impl HandOffProblem {
             world_q,
             cand: Vec::new(),
             probs: Vec::new(),
+            rq: vec![0.0; rdof],
             counters: IkCounters::default(),
         }
     }
@@ -444,12 +457,14 @@ pub struct HandOffGoals {
     grasps: Vec<Pose>,
     grid: Option<Arc<ReachabilityGrid>>,
     settings: RandomizedIkSettings,
-    /// World variables sampled per try.
-    sampled: Vec<usize>,
+    /// World variables sampled per try, with their index in the space.
+    sampled: Vec<(usize, usize)>,
     space: JointSpace,
     world_q: Vec<f64>,
     cand: Vec<(f64, usize)>,
     probs: Vec<f64>,
+    /// The receiver's configuration while its arm is solved (reused per try).
+    rq: Vec<f64>,
     counters: IkCounters,
 }
 
@@ -465,11 +480,8 @@ impl GoalSampler for HandOffGoals {
         let (roff, rdof) = (rp.offset, rp.robot.dof());
         for _ in 0..self.settings.max_tries {
             self.counters.tries += 1;
-            for &w in &self.sampled {
-                let (lo, hi) = (self.space.lower(), self.space.upper());
-                let Some(i) = self.space.vars().iter().position(|&v| v == w) else {
-                    continue;
-                };
+            let (lo, hi) = (self.space.lower(), self.space.upper());
+            for &(w, i) in &self.sampled {
                 self.world_q[w] = lo[i] + (hi[i] - lo[i]) * rng.random::<f64>();
             }
             let object = self.giver.tcp_pose(&self.world, &self.world_q) * self.held_inv;
@@ -492,7 +504,7 @@ impl GoalSampler for HandOffGoals {
                     .cand
                     .push((0.0, rng.random_range(0..self.grasps.len()))),
             }
-            let mut rqv = self.world_q[roff..roff + rdof].to_vec();
+            self.rq.copy_from_slice(&self.world_q[roff..roff + rdof]);
             for k in 0..self.cand.len() {
                 let g = self.cand[k].1;
                 let target = inv * object * self.grasps[g];
@@ -501,7 +513,7 @@ impl GoalSampler for HandOffGoals {
                     &self.receiver.arm.arm,
                     &target,
                     self.settings.psi_samples,
-                    &mut rqv,
+                    &mut self.rq,
                     &mut self.counters,
                     rng,
                     |q| {
@@ -510,7 +522,7 @@ impl GoalSampler for HandOffGoals {
                     },
                 );
                 if ok {
-                    self.world_q[roff..roff + rdof].copy_from_slice(&rqv);
+                    self.world_q[roff..roff + rdof].copy_from_slice(&self.rq);
                     for (o, &v) in out.iter_mut().zip(self.space.vars()) {
                         *o = self.world_q[v];
                     }
