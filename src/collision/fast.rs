@@ -826,32 +826,24 @@ impl FastChecker {
             if (0..3).any(|k| s.lo[k] > self.moving_hi[k] || s.hi[k] < self.moving_lo[k]) {
                 continue;
             }
-            let (lo, hi) = (s.lo, s.hi);
             for pi in first as usize..end as usize {
-                let p = self.pairs[pi];
-                if dist2_point_aabb(&self.body_bc[p.a as usize], &lo, &hi) > p.reach2 {
-                    continue;
-                }
-                if self.static_prims_hit(p.a as usize, p.b as usize) {
-                    return Some(p);
+                if self.static_pair_hits(pi) {
+                    return Some(self.pairs[pi]);
                 }
             }
         }
         for pi in self.self_start..self.pairs.len() {
             let p = self.pairs[pi];
-            let (a, b) = (p.a as usize, p.b as usize);
-            if (self.body_bc[a] - self.body_bc[b]).norm_squared() > p.reach2 {
-                continue;
-            }
-            if self.moving_prims_hit(a, b) {
+            if self.moving_pair_hits(p) {
                 return Some(p);
             }
         }
         None
     }
 
-    /// Whether the moving bodies of pair `p` collide in the prepared configuration.
-    #[inline]
+    /// Whether the moving bodies of pair `p` collide in the prepared configuration. The
+    /// bounding-sphere cull is inlined into the check loop; only pairs that pass call out.
+    #[inline(always)]
     fn moving_pair_hits(&mut self, p: Pair) -> bool {
         let (a, b) = (p.a as usize, p.b as usize);
         (self.body_bc[a] - self.body_bc[b]).norm_squared() <= p.reach2
@@ -877,7 +869,9 @@ impl FastChecker {
         })
     }
 
-    #[inline]
+    /// Whether pair `pi` (a moving body against a fixed one) collides; the box cull is
+    /// inlined into the check loop.
+    #[inline(always)]
     fn static_pair_hits(&mut self, pi: usize) -> bool {
         let p = self.pairs[pi];
         let (a, b) = (p.a as usize, p.b as usize);

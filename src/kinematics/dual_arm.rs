@@ -118,6 +118,19 @@ impl DualArmIk {
         &self.free_vars
     }
 
+    /// The inverses of the left and right arm-base world poses for configuration `q`, the
+    /// robot's root at `robot_base`: what maps world TCP targets into each arm's frame. Both
+    /// arms usually hang off the same link (ARMAR's torso): one FK walk then.
+    pub fn base_inverses(&self, robot_base: &Pose, q: &[f64]) -> (Pose, Pose) {
+        let linv = (robot_base * self.left.base_path.pose(q)).inverse();
+        let rinv = if self.right.arm_base == self.left.arm_base {
+            linv
+        } else {
+            (robot_base * self.right.base_path.pose(q)).inverse()
+        };
+        (linv, rinv)
+    }
+
     /// Variant (a), object pose free (000 §III). `object_free(pose)` says whether the object may
     /// be at a pose (environment collision); `valid(left, right, q)` checks a full configuration
     /// with the object held (self- and environment collision).
@@ -162,13 +175,7 @@ impl DualArmIk {
                 }
             });
             let mut obj = Pose::from_parts(Translation3::from(pos), random_rotation(rng));
-            let linv = (query.robot_base * self.left.base_path.pose(&q)).inverse();
-            // Both arms usually hang off the same link (ARMAR's torso): one FK walk then.
-            let rinv = if self.right.arm_base == self.left.arm_base {
-                linv
-            } else {
-                (query.robot_base * self.right.base_path.pose(&q)).inverse()
-            };
+            let (linv, rinv) = self.base_inverses(&query.robot_base, &q);
             lc.clear();
             rc.clear();
             let filtered = match reach {

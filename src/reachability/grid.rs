@@ -424,7 +424,6 @@ impl ReachabilityGrid {
         } else {
             0.0
         };
-        self.stats.filled = self.data.iter().filter(|&&v| v > 0).count() as u64;
         self.occupied = self
             .data
             .chunks(64)
@@ -434,6 +433,7 @@ impl ReachabilityGrid {
                     .fold(0u64, |m, (i, &v)| m | (((v > 0) as u64) << i))
             })
             .collect();
+        self.stats.filled = self.occupied.iter().map(|w| w.count_ones() as u64).sum();
     }
 
     /// Entry of a flat cell index (0 for `usize::MAX`, the "outside" marker); the bitmap

@@ -242,12 +242,7 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
         q[base_vars[1]] = y + rng.random_range(-0.5..0.5) * bi.cell;
         q[base_vars[2]] = w + rng.random_range(-0.5..0.5) * wbin;
         robot.sample_vars(ik.free_vars(), &mut q, rng);
-        let linv = (robot_base * ik.left().base_path.pose(&q)).inverse();
-        let rinv = if ik.right().arm_base == ik.left().arm_base {
-            linv
-        } else {
-            (robot_base * ik.right().base_path.pose(&q)).inverse()
-        };
+        let (linv, rinv) = ik.base_inverses(robot_base, &q);
         for &gl in &bi.grasps[k] {
             let Some(tl) = targets_left.get(gl as usize) else {
                 continue;
