@@ -25,6 +25,10 @@ pub struct ServeArgs {
     /// Threads for synchronous queries (FK, IK, check; default: number of cores).
     #[arg(long, env = "MANYHANDS_QUERY_THREADS")]
     pub query_threads: Option<usize>,
+    /// Nice value 0–19 of the planner threads (Linux), so synchronous queries keep their
+    /// latency while jobs run; 0 runs jobs at the queries' priority.
+    #[arg(long, env = "MANYHANDS_PLANNER_NICE", default_value_t = 10)]
+    pub planner_nice: i32,
     /// Jobs waiting for a worker before POST /v1/plans answers 429.
     #[arg(long, env = "MANYHANDS_MAX_QUEUE", default_value_t = 64)]
     pub max_queue: usize,
@@ -97,6 +101,7 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     if let Some(q) = a.query_threads {
         cfg.query_threads = q;
     }
+    cfg.planner_nice = a.planner_nice;
     cfg.max_queue = a.max_queue;
     cfg.max_plan_seconds = a.max_plan_seconds;
     cfg.token = a.token.clone().filter(|t| !t.is_empty());

@@ -29,6 +29,33 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
+/// Raises the calling thread's nice value to `nice` (Linux: the nice value is per thread), so
+/// planner threads yield the CPU to the synchronous-query pool and the I/O threads. Threads it
+/// spawns inherit it. A failure only costs the priority, so it is logged, not fatal.
+fn lower_thread_priority(nice: i32) {
+    if nice <= 0 {
+        return;
+    }
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: gettid and setpriority take no pointers; raising one's own nice value needs
+        // no privilege.
+        let r = unsafe {
+            let tid = libc::gettid();
+            libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, nice)
+        };
+        if r != 0 {
+            tracing::warn!(
+                nice,
+                error = %std::io::Error::last_os_error(),
+                "cannot lower the planner thread's priority"
+            );
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    tracing::debug!(nice, "planner thread priority is left as it is on this OS");
+}
+
 /// One job: its record (published through a watch channel to SSE and `?wait` readers), its
 /// stop flag and, until a worker takes it, its work.
 pub struct JobEntry {
@@ -75,6 +102,8 @@ struct Queue {
 #[derive(Debug, Clone)]
 pub struct RunnerConfig {
     pub workers: usize,
+    /// Nice value of the planner threads (see `Config::planner_nice`).
+    pub planner_nice: i32,
     pub max_queue: usize,
     pub retention: Duration,
 }
@@ -142,9 +171,13 @@ impl Jobs {
         let mut threads = lock(&jobs.threads);
         for i in 0..cfg.workers.max(1) {
             let j = jobs.clone();
+            let nice = cfg.planner_nice;
             let h = std::thread::Builder::new()
                 .name(format!("manyhands-planner-{i}"))
-                .spawn(move || j.worker())
+                .spawn(move || {
+                    lower_thread_priority(nice);
+                    j.worker()
+                })
                 .map_err(|e| StoreError(format!("cannot start a planner thread: {e}")))?;
             threads.push(h);
         }

@@ -63,6 +63,9 @@ pub struct Config {
     pub workers: usize,
     /// Threads of the synchronous-query pool.
     pub query_threads: usize,
+    /// Nice value (0–19) of the planner threads: jobs are background work, so on a busy
+    /// machine the synchronous queries (IK, FK, checks) get the CPU first. 0 = same priority.
+    pub planner_nice: i32,
     /// Jobs waiting for a worker before 429.
     pub max_queue: usize,
     /// Cap of any job's time limit, seconds.
@@ -91,6 +94,7 @@ impl Config {
             scenes_dir: root.join("scenes"),
             workers: cores,
             query_threads: cores,
+            planner_nice: 10,
             max_queue: 64,
             max_plan_seconds: 60.0,
             token: None,
@@ -111,6 +115,12 @@ impl Config {
             return Err(ServerError::Config(
                 "workers, query threads and max queue must be ≥ 1".into(),
             ));
+        }
+        if !(0..=19).contains(&self.planner_nice) {
+            return Err(ServerError::Config(format!(
+                "planner nice {} is outside 0..=19",
+                self.planner_nice
+            )));
         }
         if !(self.max_plan_seconds.is_finite() && self.max_plan_seconds > 0.0) {
             return Err(ServerError::Config(
@@ -343,6 +353,7 @@ impl Server {
         let jobs = Jobs::start(
             RunnerConfig {
                 workers: cfg.workers,
+                planner_nice: cfg.planner_nice,
                 max_queue: cfg.max_queue,
                 retention: cfg.retention,
             },

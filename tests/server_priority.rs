@@ -1,0 +1,80 @@
+//! Planner threads run at a lower scheduling priority than the query pool, so synchronous
+//! queries keep their latency while jobs run (Linux: the nice value is per thread).
+
+mod common;
+
+use manyhands::server::Config;
+
+/// `(thread name, nice value)` of every thread of this process.
+#[cfg(target_os = "linux")]
+fn thread_nice_values() -> Vec<(String, i64)> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc/self/task").expect("task dir") {
+        let dir = entry.expect("task").path();
+        let (Ok(comm), Ok(stat)) = (
+            std::fs::read_to_string(dir.join("comm")),
+            std::fs::read_to_string(dir.join("stat")),
+        ) else {
+            continue; // the thread ended meanwhile
+        };
+        // Fields after the parenthesised name: state is field 3, nice is field 19.
+        let rest = &stat[stat.rfind(')').expect("stat name") + 2..];
+        let nice: i64 = rest
+            .split_whitespace()
+            .nth(16)
+            .expect("nice field")
+            .parse()
+            .expect("nice value");
+        out.push((comm.trim().to_string(), nice));
+    }
+    out
+}
+
+#[cfg(target_os = "linux")]
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn planner_threads_yield_to_queries() {
+    let h = common::server::start("priority").await;
+    let threads = thread_nice_values();
+    let planners: Vec<i64> = threads
+        .iter()
+        .filter(|(n, _)| n.starts_with("manyhands-plann"))
+        .map(|(_, v)| *v)
+        .collect();
+    let queries: Vec<i64> = threads
+        .iter()
+        .filter(|(n, _)| n.starts_with("manyhands-query"))
+        .map(|(_, v)| *v)
+        .collect();
+    assert_eq!(planners.len(), 2, "two planner workers: {threads:?}");
+    assert!(planners.iter().all(|&n| n == 10), "{threads:?}");
+    assert!(
+        !queries.is_empty() && queries.iter().all(|&n| n == 0),
+        "{threads:?}"
+    );
+    // A job still runs to its end at the lower priority.
+    let (s, v) = h
+        .post(
+            "/v1/plans?wait=30",
+            &serde_json::json!({"kind": "collision_sweep", "scene": "kitchen", "samples": 200}),
+        )
+        .await;
+    assert_eq!(s, 200, "{v}");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    h.server.shutdown().await.expect("shutdown");
+}
+
+#[test]
+fn planner_nice_outside_0_to_19_is_refused() {
+    let dir = std::env::temp_dir();
+    for bad in [-1, 20, 40] {
+        let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir.clone());
+        cfg.planner_nice = bad;
+        let e = cfg.validate().expect_err("refused");
+        assert!(e.to_string().contains("planner nice"), "{e}");
+    }
+    let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir);
+    for ok in [0, 10, 19] {
+        cfg.planner_nice = ok;
+        cfg.validate().expect("accepted");
+    }
+}
