@@ -389,3 +389,70 @@ fn base_placement_dual_arm_ik_on_the_kitchen_wok() {
         assert!(sol.config[bv[0]].abs() <= 5.0 && sol.config[bv[1]].abs() <= 5.0);
     }
 }
+
+/// The inverse reachability map (002 §III-A) equals plain lookups of every base pose and
+/// grasp: skipping targets the grid cannot reach at any yaw (distance to the yaw axis, height)
+/// and positions in empty voxels changes no value and no grasp list.
+#[test]
+fn inverse_map_equals_a_lookup_of_every_base_pose() {
+    use manyhands::kinematics::randomized::ReachabilityMap;
+    use manyhands::kinematics::FkPath;
+    use manyhands::reachability::inverse::inverse_map;
+    use manyhands::reachability::queries::grasp_set;
+
+    let sc = scene("kitchen");
+    let robot = sc.robots[0].robot.clone();
+    let base = sc.robots[0].base_pose;
+    let start = sc.robots[0].start_config();
+    let chain = Chain::from_group(&robot, "torso_right_arm").expect("chain");
+    let p = GridParams::auto(&robot, &chain, 0.1, 8, 200_000, 5).expect("params");
+    let grid = ReachabilityGrid::build(&robot, "torso_right_arm", &p, &|_| {}).expect("build");
+    let platform = robot.link(grid.base_link()).expect("platform");
+    let path = FkPath::new(&robot, platform);
+    let bv = ["base_x", "base_y", "base_yaw"].map(|n| robot.var(n).expect("base var"));
+    let mut pruned_some = false;
+    for (object, threshold) in [("wok", 0.0), ("table", 0.0), ("table", 0.3)] {
+        let pose = sc.object(object).expect("object").body.pose;
+        let set = grasp_set(&sc, object, "right_hand").expect("grasps");
+        let targets: Vec<Pose> = set.tcps.iter().map(|g| pose * g).collect();
+        let c = [pose.translation.x, pose.translation.y];
+        let m = inverse_map(
+            &robot, &base, &start, &bv, &grid, &targets, c, 0.1, 1.5, 16, threshold,
+        )
+        .expect("map");
+        let mut q = start.clone();
+        let mut probs = vec![0.0; targets.len()];
+        let mut far = 0usize;
+        for ix in 0..m.dims[0] {
+            for iy in 0..m.dims[1] {
+                for iw in 0..m.yaw_bins {
+                    let (x, y, w) = m.cell_pose(ix, iy, iw);
+                    q[bv[0]] = x;
+                    q[bv[1]] = y;
+                    q[bv[2]] = w;
+                    let inv = (base * path.pose(&q)).inverse();
+                    let mut value = 0.0f32;
+                    let mut list = Vec::new();
+                    for (g, t) in targets.iter().enumerate() {
+                        probs[g] = grid.probability(&(inv * t));
+                        if probs[g] > threshold {
+                            value = value.max(probs[g] as f32);
+                            list.push(g as u16);
+                        }
+                    }
+                    // The batched lookup agrees with the single one.
+                    let mut batch = vec![f64::NAN; targets.len()];
+                    ReachabilityMap::probabilities(&grid, &inv, &targets, &mut batch);
+                    assert_eq!(batch, probs);
+                    let k = (ix * m.dims[1] + iy) * m.yaw_bins + iw;
+                    assert_eq!(m.value[k], value, "{object}: cell ({ix}, {iy}) yaw {iw}");
+                    assert_eq!(m.grasps[k], list, "{object}: cell ({ix}, {iy}) yaw {iw}");
+                    far += probs.iter().filter(|&&p| p == 0.0).count();
+                }
+            }
+        }
+        pruned_some |= far > 0;
+        assert!(m.max() > 0.0, "{object}: some base pose reaches a grasp");
+    }
+    assert!(pruned_some);
+}

@@ -230,6 +230,9 @@ pub struct ReachabilityGrid {
     /// are empty (3.7 % are filled in ARMAR's arm grids), so most lookups end in this bitmap,
     /// which stays in cache, instead of missing on the entries.
     occupied: Vec<u64>,
+    /// One bit per position voxel, set where any of its orientation cells is filled: a lookup
+    /// whose position falls in an empty voxel (most of them) skips the orientation binning.
+    positions: Vec<u64>,
 }
 
 /// What a lookup needs to bin a pose without divisions or inverse trigonometry: the inner
@@ -333,6 +336,7 @@ impl ReachabilityGrid {
             bins: CellBins::new(params.rot_bins, params.resolution),
             data: vec![0; params.cells()],
             occupied: Vec::new(),
+            positions: Vec::new(),
         };
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
         let checker = FastChecker::new(&world);
@@ -434,6 +438,15 @@ impl ReachabilityGrid {
             })
             .collect();
         self.stats.filled = self.occupied.iter().map(|w| w.count_ones() as u64).sum();
+        let per = (self.params.rot_bins as usize).pow(3);
+        let voxels = self.dims[0] * self.dims[1] * self.dims[2];
+        let mut positions = vec![0u64; voxels.div_ceil(64)];
+        for v in 0..voxels {
+            if self.any_occupied(v * per, (v + 1) * per) {
+                positions[v >> 6] |= 1 << (v & 63);
+            }
+        }
+        self.positions = positions;
     }
 
     /// Entry of a flat cell index (0 for `usize::MAX`, the "outside" marker); the bitmap
@@ -444,6 +457,49 @@ impl ReachabilityGrid {
             Some(&w) if (w >> (cell & 63)) & 1 != 0 => self.data[cell],
             _ => 0,
         }
+    }
+
+    /// Centres (chain-base frame) of the position voxels with at least one filled orientation
+    /// cell. Every pose with a non-zero entry lies in the cube of one of them (side: the
+    /// resolution).
+    pub fn filled_positions(&self) -> Vec<nalgebra::Vector3<f64>> {
+        let [nx, ny, nz] = self.dims;
+        let mut out = Vec::new();
+        for ix in 0..nx {
+            for iy in 0..ny {
+                for iz in 0..nz {
+                    let v = (ix * ny + iy) * nz + iz;
+                    if (self.positions[v >> 6] >> (v & 63)) & 1 != 0 {
+                        out.push(nalgebra::Vector3::new(
+                            self.cell_centre(0, ix),
+                            self.cell_centre(1, iy),
+                            self.cell_centre(2, iz),
+                        ));
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Whether any cell in `start..end` is filled (bitmap words at a time).
+    fn any_occupied(&self, start: usize, end: usize) -> bool {
+        let mut i = start;
+        while i < end {
+            let w = self.occupied.get(i >> 6).copied().unwrap_or(0);
+            let lo = i & 63;
+            let hi = (end - (i - lo)).min(64);
+            let mask = if hi - lo == 64 {
+                u64::MAX
+            } else {
+                ((1u64 << (hi - lo)) - 1) << lo
+            };
+            if w & mask != 0 {
+                return true;
+            }
+            i += hi - lo;
+        }
+        false
     }
 
     /// Robot name the grid was built for.
@@ -502,8 +558,16 @@ impl ReachabilityGrid {
     /// `None` outside the position extents.
     #[inline]
     pub fn cell_coords(&self, pose: &Pose) -> Option<[usize; 6]> {
-        let t = &pose.translation.vector;
         let mut c = [0usize; 6];
+        c[..3].copy_from_slice(&self.voxel_of(&pose.translation.vector)?);
+        self.bin_rotation(&pose.rotation, &mut c);
+        Some(c)
+    }
+
+    /// Position voxel indices of a point (chain-base frame); `None` outside the extents.
+    #[inline]
+    fn voxel_of(&self, t: &nalgebra::Vector3<f64>) -> Option<[usize; 3]> {
+        let mut c = [0usize; 3];
         for k in 0..3 {
             let f = (t[k] - self.params.min[k]) * self.bins.inv_resolution;
             if f.is_nan() || f < 0.0 || f >= self.dims[k] as f64 {
@@ -511,9 +575,41 @@ impl ReachabilityGrid {
             }
             c[k] = f as usize;
         }
+        Some(c)
+    }
+
+    /// Whether any orientation cell of a position voxel is filled.
+    #[inline]
+    fn voxel_filled(&self, c: &[usize; 3]) -> bool {
+        let v = (c[0] * self.dims[1] + c[1]) * self.dims[2] + c[2];
+        (self.positions[v >> 6] >> (v & 63)) & 1 != 0
+    }
+
+    /// Raw entry of a pose given as its position and rotation: empty position voxels answer
+    /// before the rotation is composed or binned.
+    #[inline]
+    fn entry_parts(
+        &self,
+        t: &nalgebra::Vector3<f64>,
+        rotation: impl FnOnce() -> nalgebra::UnitQuaternion<f64>,
+    ) -> u8 {
+        let Some(v) = self.voxel_of(t) else {
+            return 0;
+        };
+        if !self.voxel_filled(&v) {
+            return 0;
+        }
+        let mut c = [v[0], v[1], v[2], 0, 0, 0];
+        self.bin_rotation(&rotation(), &mut c);
+        self.entry_at(self.index(&c))
+    }
+
+    /// Roll, pitch and yaw bins of a rotation into `c[3..6]`.
+    #[inline]
+    fn bin_rotation(&self, rotation: &nalgebra::UnitQuaternion<f64>, c: &mut [usize; 6]) {
         // URDF roll-pitch-yaw (as nalgebra's `euler_angles`), from the needed entries of the
         // rotation matrix only, binned by comparisons (see `CellBins`).
-        let q = pose.rotation.quaternion();
+        let q = rotation.quaternion();
         let (w, x, y, z) = (q.w, q.i, q.j, q.k);
         let r20 = 2.0 * (x * z - w * y);
         if r20.abs() < 1.0 {
@@ -533,7 +629,6 @@ impl ReachabilityGrid {
             c[4] = self.angle_bin(pitch, -0.5 * PI, PI);
             c[5] = self.angle_bin(0.0, -PI, 2.0 * PI);
         }
-        Some(c)
     }
 
     /// Flat index of cell coordinates.
@@ -552,7 +647,7 @@ impl ReachabilityGrid {
     /// Raw entry at a pose (0 outside).
     #[inline]
     pub fn entry(&self, pose: &Pose) -> u8 {
-        self.cell_of(pose).map_or(0, |i| self.entry_at(i))
+        self.entry_parts(&pose.translation.vector, || pose.rotation)
     }
 
     /// Probability that an IK query for `pose` (TCP in the chain-base frame) succeeds: entry of
@@ -702,6 +797,7 @@ impl ReachabilityGrid {
             inv_max: 0.0,
             data,
             occupied: Vec::new(),
+            positions: Vec::new(),
         };
         g.finish();
         Ok(g)
@@ -789,16 +885,11 @@ impl ReachabilityMap for ReachabilityGrid {
     }
 
     fn probabilities(&self, frame: &Pose, tcps: &[Pose], out: &mut [f64]) {
-        // Cells first, loads after: the loads are independent, so their cache misses overlap.
-        const CHUNK: usize = 32;
-        let mut cells = [usize::MAX; CHUNK];
-        for (ts, os) in tcps.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            for (c, t) in cells.iter_mut().zip(ts) {
-                *c = self.cell_of(&(frame * t)).unwrap_or(usize::MAX);
-            }
-            for (o, &c) in os.iter_mut().zip(&cells) {
-                *o = self.entry_at(c) as f64 * self.inv_max;
-            }
+        // Positions first: most fall in empty voxels, and only the others need their rotation
+        // composed and binned.
+        for (t, o) in tcps.iter().zip(out.iter_mut()) {
+            let p = frame.transform_point(&t.translation.vector.into()).coords;
+            *o = self.entry_parts(&p, || frame.rotation * t.rotation) as f64 * self.inv_max;
         }
     }
 

@@ -12,17 +12,18 @@
 
 use std::f64::consts::PI;
 
+use nalgebra::{UnitQuaternion, Vector3};
 use rand::Rng;
 use rayon::prelude::*;
 
 use super::grid::ReachabilityGrid;
 use crate::geometry::Pose;
 use crate::kinematics::dual_arm::DualArmIk;
-use crate::kinematics::link_pose;
 use crate::kinematics::randomized::ReachabilityMap;
 use crate::kinematics::randomized::{
     solve_psi, IkCounters, RandomizedIkError, RandomizedIkSettings,
 };
+use crate::kinematics::FkPath;
 use crate::model::Robot;
 
 /// A 2-D map over base positions (x, y) and base yaw: per (cell, yaw bin) the best probability and
@@ -78,17 +79,98 @@ impl InverseMap {
 
 /// Platform pose in the world for base (x, y, yaw): the robot's base joints set, through FK.
 fn platform_pose(
-    robot: &Robot,
+    path: &FkPath,
     robot_base: &Pose,
     q: &mut [f64],
     base_vars: &[usize; 3],
-    platform: usize,
     (x, y, w): (f64, f64, f64),
 ) -> Pose {
     q[base_vars[0]] = x;
     q[base_vars[1]] = y;
     q[base_vars[2]] = w;
-    robot_base * link_pose(robot, q, platform)
+    robot_base * path.pose(q)
+}
+
+/// Where a grid can reach about the base's yaw axis: the axis in the platform frame (point,
+/// unit direction) and, over the grid's filled position voxels, the range of their distance to
+/// the axis (`rho`) and of their coordinate along it (`h`), widened by half a voxel diagonal.
+/// Both are unchanged by the base yaw, so a target outside them has entry 0 at every yaw of a
+/// base position (002 §III-A, the yaw loop of [`inverse_map`]).
+struct YawReach {
+    a: Vector3<f64>,
+    u: Vector3<f64>,
+    rho: (f64, f64),
+    h: (f64, f64),
+}
+
+impl YawReach {
+    /// `None` when the base yaw does not turn the platform about one fixed line (then every
+    /// base pose is looked up).
+    fn new(
+        path: &FkPath,
+        robot_base: &Pose,
+        q: &mut [f64],
+        base_vars: &[usize; 3],
+        grid: &ReachabilityGrid,
+    ) -> Option<YawReach> {
+        let at =
+            |q: &mut [f64], w: f64| platform_pose(path, robot_base, q, base_vars, (0.0, 0.0, w));
+        let p0 = at(q, 0.0);
+        // A quarter turn is a rotation by π/2 about the axis; Chasles: the axis passes through
+        // (t + u × t) / 2 for a translation t normal to it.
+        let t01 = p0.inverse() * at(q, 0.5 * PI);
+        let (u, angle) = t01.rotation.axis_angle()?;
+        let t = t01.translation.vector;
+        if (angle - 0.5 * PI).abs() > 1e-9 || t.dot(&u).abs() > 1e-9 {
+            return None;
+        }
+        let a = 0.5 * (t + u.cross(&t));
+        // The same line for other yaws, or no pruning.
+        for w in [1.0, -2.5, 3.0] {
+            let about = Pose::from_parts(a.into(), UnitQuaternion::identity());
+            let turn = Pose::from_parts(
+                Vector3::zeros().into(),
+                UnitQuaternion::from_axis_angle(&u, w),
+            );
+            let expect = p0 * about * turn * about.inverse();
+            let got = at(q, w);
+            if (expect.translation.vector - got.translation.vector).norm() > 1e-9
+                || expect.rotation.angle_to(&got.rotation) > 1e-9
+            {
+                return None;
+            }
+        }
+        let u = u.into_inner();
+        let slack = 0.5 * 3f64.sqrt() * grid.params().resolution + 1e-9;
+        let mut rho = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut h = rho;
+        for c in grid.filled_positions() {
+            let d = c - a;
+            let along = d.dot(&u);
+            let r = (d - u * along).norm();
+            rho = (rho.0.min(r), rho.1.max(r));
+            h = (h.0.min(along), h.1.max(along));
+        }
+        Some(YawReach {
+            a,
+            u,
+            rho: (rho.0 - slack, rho.1 + slack),
+            h: (h.0 - slack, h.1 + slack),
+        })
+    }
+
+    /// Whether a point, given in the frame of the platform at yaw 0, can fall in a filled
+    /// position voxel at some yaw.
+    #[inline]
+    fn may_reach(&self, p: &Vector3<f64>) -> bool {
+        let d = p - self.a;
+        let along = d.dot(&self.u);
+        if along < self.h.0 || along > self.h.1 {
+            return false;
+        }
+        let r2 = (d - self.u * along).norm_squared();
+        r2 <= self.rho.1 * self.rho.1 && (self.rho.0 <= 0.0 || r2 >= self.rho.0 * self.rho.0)
+    }
 }
 
 /// Inverse reachability map of a grasp set (002 §III-A): grasp poses `targets` (world), the
@@ -128,6 +210,8 @@ pub fn inverse_map(
     // not depend on the thread count.
     let row = n * yaw_bins;
     let layout = map.clone_layout();
+    let path = FkPath::new(robot, platform);
+    let reach = YawReach::new(&path, robot_base, &mut start.to_vec(), base_vars, grid);
     map.value
         .par_chunks_mut(row)
         .zip(map.grasps.par_chunks_mut(row))
@@ -135,17 +219,35 @@ pub fn inverse_map(
         .for_each(|(ix, (values, lists))| {
             let mut q = start.to_vec();
             let mut probs = vec![0.0; targets.len()];
+            // The targets that may be reachable from a base position at some yaw.
+            let mut near: Vec<Pose> = Vec::with_capacity(targets.len());
+            let mut index: Vec<u16> = Vec::with_capacity(targets.len());
             for iy in 0..n {
+                near.clear();
+                index.clear();
+                let (x, y, _) = layout.cell_pose(ix, iy, 0);
+                let inv0 =
+                    platform_pose(&path, robot_base, &mut q, base_vars, (x, y, 0.0)).inverse();
+                for (g, t) in targets.iter().enumerate() {
+                    let p = inv0.transform_point(&t.translation.vector.into()).coords;
+                    if reach.as_ref().is_none_or(|r| r.may_reach(&p)) {
+                        near.push(*t);
+                        index.push(g as u16);
+                    }
+                }
+                if near.is_empty() {
+                    continue;
+                }
                 for iw in 0..yaw_bins {
                     let xyw = layout.cell_pose(ix, iy, iw);
-                    let inv = platform_pose(robot, robot_base, &mut q, base_vars, platform, xyw)
-                        .inverse();
+                    let inv = platform_pose(&path, robot_base, &mut q, base_vars, xyw).inverse();
                     let k = iy * yaw_bins + iw;
-                    grid.probabilities(&inv, targets, &mut probs);
-                    for (g, &p) in probs.iter().enumerate() {
+                    let probs = &mut probs[..near.len()];
+                    grid.probabilities(&inv, &near, probs);
+                    for (&g, &p) in index.iter().zip(probs.iter()) {
                         if p > threshold {
                             values[k] = values[k].max(p as f32);
-                            lists[k].push(g as u16);
+                            lists[k].push(g);
                         }
                     }
                 }
