@@ -24,7 +24,7 @@ use super::validity::space_checker;
 use super::{GoalSampler, JointSpace, PlanError};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::geometry::Pose;
-use crate::kinematics::link_pose;
+use crate::kinematics::FkPath;
 use crate::kinematics::randomized::{
     try_arm, ArmChain, GraspQuery, IkCounters, RandomizedIk, RandomizedIkSettings, ReachabilityMap,
 };
@@ -42,6 +42,8 @@ pub struct Hand {
     pub end_effector: String,
     /// Links of the end effector (and its parent link).
     pub touch: Vec<usize>,
+    /// The TCP link's pose alone (for [`Hand::tcp_pose`] in hot loops).
+    tcp_path: FkPath,
 }
 
 impl Hand {
@@ -64,6 +66,7 @@ impl Hand {
             arm,
             end_effector,
             touch,
+            tcp_path: FkPath::new(model, tip),
         })
     }
 
@@ -80,12 +83,7 @@ impl Hand {
     /// World pose of the TCP for world configuration `world_q`.
     pub fn tcp_pose(&self, world: &CollisionWorld, world_q: &[f64]) -> Pose {
         let p = &world.robots[self.robot];
-        p.base
-            * link_pose(
-                &p.robot,
-                world.robot_config(self.robot, world_q),
-                self.tcp_link(),
-            )
+        p.base * self.tcp_path.pose(world.robot_config(self.robot, world_q))
     }
 }
 
