@@ -70,7 +70,7 @@ use super::{
 use crate::collision::{CollisionWorld, FastChecker};
 use crate::geometry::Pose;
 use crate::kinematics::randomized::ArmChain;
-use crate::kinematics::{link_pose, pose_error, Chain};
+use crate::kinematics::{pose_error, Chain, FkPath};
 use crate::model::Robot;
 
 /// Settings of [`JPlusRrt`] and [`DualArmJPlusRrt`].
@@ -194,7 +194,8 @@ struct HandKin {
     base: Pose,
     offset: usize,
     dof: usize,
-    tip: usize,
+    /// The TCP link's pose alone.
+    tip_path: FkPath,
     /// Robot root → TCP.
     chain: Chain,
     /// (Jacobian column, space dimension) of every variable a step may move.
@@ -259,8 +260,8 @@ impl HandKin {
             base: placed.base,
             offset: placed.offset,
             dof: robot.dof(),
+            tip_path: FkPath::new(&robot, tip),
             robot,
-            tip,
             chain,
             cols,
             arm: hand.arm.clone(),
@@ -271,12 +272,7 @@ impl HandKin {
     /// World pose of the TCP for world configuration `wq`.
     #[inline]
     fn tcp(&self, wq: &[f64]) -> Pose {
-        self.base
-            * link_pose(
-                &self.robot,
-                &wq[self.offset..self.offset + self.dof],
-                self.tip,
-            )
+        self.base * self.tip_path.pose(&wq[self.offset..self.offset + self.dof])
     }
 
     /// One damped-least-squares step (000 Alg. 2 line 7, Alg. 5 line 4): writes into `dq` (space
