@@ -263,3 +263,59 @@ fn checker_for_active_variables_agrees_with_the_full_checker() {
         );
     }
 }
+
+/// Pairs the checkers drop as out of reach (no configuration within the joint limits brings
+/// them together) must never be the ones that collide: over the whole joint range of a group
+/// (not only near the start), the frozen and the full fast checker report every collision the
+/// exact checker finds.
+#[test]
+fn pairs_dropped_as_out_of_reach_never_collide() {
+    let lib = library();
+    for (name, group) in [
+        ("kitchen", "torso_right_arm"),
+        ("kitchen", "torso_left_arm"),
+        ("handoff", "right_arm"),
+    ] {
+        let s = scene(name, &lib);
+        let world = CollisionWorld::from_scene(&s);
+        let start = CollisionWorld::start_config(&s);
+        let p = &world.robots[0];
+        let active: Vec<usize> = p
+            .robot
+            .group(group)
+            .expect("group")
+            .vars
+            .iter()
+            .map(|v| p.offset + v)
+            .collect();
+        let mut frozen = FastChecker::for_active(
+            &world,
+            manyhands::collision::FastModelSettings::default(),
+            &active,
+            &start,
+        );
+        let mut full = FastChecker::new(&world);
+        assert!(
+            frozen.pair_count() < full.pair_count(),
+            "{name}/{group}: pairs dropped"
+        );
+        let mut exact = ExactChecker::new(&world);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut hits = 0;
+        for k in 0..20_000 {
+            let mut q = start.clone();
+            for &v in &active {
+                q[v] = p.robot.var_limits(v - p.offset).sample(&mut rng);
+            }
+            if !exact.is_free(&q) {
+                hits += 1;
+                assert!(
+                    !frozen.is_free(&q) && !full.is_free(&q),
+                    "{name}/{group} sample {k}: exact finds {:?}, a fast checker says free",
+                    exact.first_contact(&q)
+                );
+            }
+        }
+        assert!(hits > 2_000, "{name}/{group}: {hits} collisions");
+    }
+}

@@ -98,3 +98,53 @@ fn all_fk_paths_agree() {
         }
     }
 }
+
+/// `FkModel::reach_ball`: a sphere riding on a (computed) link stays inside the ball the model gives for
+/// each of the link's ancestors, in every configuration within the limits (here 300 random
+/// ones per robot, all links, all ancestors), and the ball is fixed in the ancestor's frame.
+#[test]
+fn reach_balls_hold_their_link_in_every_configuration() {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    for r in robots() {
+        let reduced = FkModel::reduced(&r);
+        let mut f = vec![Frame::identity(); r.links.len()];
+        let (centre, radius) = (nalgebra::Vector3::new(0.05, -0.03, 0.02), 0.04);
+        let mut balls = Vec::new();
+        for l in 0..r.links.len() {
+            for a in reduced.ancestors(l) {
+                if let Some(b) = reduced.reach_ball(&r, l, &centre, radius, a) {
+                    balls.push((l, a, b));
+                }
+            }
+        }
+        assert!(
+            balls.len() > r.links.len(),
+            "{}: balls for links and ancestors",
+            r.name
+        );
+        for _ in 0..300 {
+            let q: Vec<f64> = (0..r.dof())
+                .map(|v| {
+                    let l = r.var_limits(v);
+                    rng.random_range(l.lower..=l.upper)
+                })
+                .collect();
+            reduced.compute(&Frame::identity(), &q, &mut f);
+            for &(l, a, (c, rad)) in &balls {
+                // The sphere is given in the frame of the computed link the link rides on.
+                let frame = f[reduced.mount(l).0];
+                // The sphere's centre in the ancestor's frame.
+                let inv = f[a].to_pose().inverse();
+                let p = inv * nalgebra::Point3::from(frame.transform_point(&centre));
+                assert!(
+                    (p.coords - c).norm() + radius <= rad + 1e-9,
+                    "{}: link {} about ancestor {}: {} + {radius} > {rad}",
+                    r.name,
+                    r.links[l].name,
+                    r.links[a].name,
+                    (p.coords - c).norm()
+                );
+            }
+        }
+    }
+}

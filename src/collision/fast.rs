@@ -5,7 +5,9 @@
 //! spheres, boolean GJK against boxes and each other); meshes become the box around their
 //! vertices (a conservative superset). Each body (link, attached object, fixed body) has a
 //! bounding sphere, fixed bodies a world-aligned box; these are tested first, and the pair list
-//! is precomputed from [`CollisionWorld::pairs`]. Every primitive is inflated by 1e-9 m, so
+//! is precomputed from [`CollisionWorld::pairs`], without the pairs that no configuration within
+//! the joint limits brings together (reach balls about their first common ancestor, see
+//! `pair_can_touch`). Every primitive is inflated by 1e-9 m, so
 //! whenever [`super::ExactChecker`] reports a collision this checker does too; the largest
 //! over-approximation is reported by [`FastChecker::max_overapproximation`] (≈ 0 without meshes).
 
@@ -605,6 +607,13 @@ impl FastChecker {
                 _ => {}
             }
         }
+        // Pairs that no configuration within the joint limits brings into contact are dropped.
+        let bases: Vec<Frame> = world
+            .robots
+            .iter()
+            .map(|p| Frame::from_pose(&p.base))
+            .collect();
+        pairs.retain(|p| pair_can_touch(world, &fk_models, &bases, &moving, &statics, p));
         // Pairs against fixed bodies grouped per fixed body (a whole group is skipped when the
         // body's box misses the box around all moving bodies), then moving–moving pairs.
         pairs.sort_by_key(|p| {
@@ -621,11 +630,6 @@ impl FastChecker {
             .map(|p: &PlacedRobot| vec![Frame::identity(); p.robot.links.len()])
             .collect();
         let fk = fk_models;
-        let bases = world
-            .robots
-            .iter()
-            .map(|p| Frame::from_pose(&p.base))
-            .collect();
         let nb = moving.len();
         let prim_radius = moving
             .iter()
@@ -895,6 +899,53 @@ impl FastChecker {
             }
         }
         false
+    }
+}
+
+/// Whether pair `p` may touch in some configuration within the joint limits (a conservative
+/// test: false only when it can never touch). Each body's bounding sphere is bounded by a ball
+/// fixed in the frame of the two bodies' first common computed ancestor — the world for two
+/// robots or a fixed body — ([`FkModel::reach_ball`]); balls that cannot meet prove the pair
+/// apart.
+fn pair_can_touch(
+    world: &CollisionWorld,
+    fk: &[FkModel],
+    bases: &[Frame],
+    moving: &[MovingBody],
+    statics: &[StaticBodyModel],
+    p: &Pair,
+) -> bool {
+    let ball = |b: &MovingBody, ancestor: usize| {
+        let r = b.mount.robot;
+        fk[r].reach_ball(&world.robots[r].robot, b.mount.link, &b.bc, b.br, ancestor)
+    };
+    let in_world = |b: &MovingBody| {
+        let root = *fk[b.mount.robot].ancestors(b.mount.link).last()?;
+        let (c, r) = ball(b, root)?;
+        Some((bases[b.mount.robot].transform_point(&c), r))
+    };
+    let a = &moving[p.a as usize];
+    if p.b_static {
+        let s = &statics[p.b as usize];
+        return match in_world(a) {
+            Some((c, r)) => dist2_point_aabb(&c, &s.lo, &s.hi) <= r * r,
+            None => true,
+        };
+    }
+    let b = &moving[p.b as usize];
+    let balls = if a.mount.robot == b.mount.robot {
+        let fa = fk[a.mount.robot].ancestors(a.mount.link);
+        let fb = fk[b.mount.robot].ancestors(b.mount.link);
+        match fa.iter().find(|l| fb.contains(l)) {
+            Some(&c) => ball(a, c).zip(ball(b, c)),
+            None => None,
+        }
+    } else {
+        in_world(a).zip(in_world(b))
+    };
+    match balls {
+        Some(((ca, ra), (cb, rb))) => (ca - cb).norm() <= ra + rb,
+        None => true,
     }
 }
 

@@ -277,6 +277,59 @@ impl FkModel {
         (self.rep[link] as usize, self.offset[link])
     }
 
+    /// The computed links from `link`'s computed link up to the root, in order.
+    pub fn ancestors(&self, link: usize) -> Vec<usize> {
+        let mut out = vec![self.rep[link] as usize];
+        let mut k = self.rep[link];
+        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+            k = j.parent;
+            out.push(k as usize);
+        }
+        out
+    }
+
+    /// A ball, in the frame of the computed link `ancestor`, that holds the sphere (`centre` in
+    /// the frame of computed link `link`, `radius`) in every configuration within the joint
+    /// limits: the sphere itself when `link` is `ancestor`; otherwise a ball about the origin of
+    /// the first joint below `ancestor` (fixed in its frame) that covers the offsets and
+    /// prismatic travel of the joints in between. `None` when `ancestor` is not an ancestor of
+    /// `link` or a prismatic joint on the way has unbounded travel.
+    pub fn reach_ball(
+        &self,
+        robot: &Robot,
+        link: usize,
+        centre: &nalgebra::Vector3<f64>,
+        radius: f64,
+        ancestor: usize,
+    ) -> Option<(nalgebra::Vector3<f64>, f64)> {
+        let mut k = self.rep[link];
+        if k as usize == ancestor {
+            return Some((*centre, radius));
+        }
+        let mut d = centre.norm() + radius;
+        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+            let travel = match j.kind {
+                JointKind::Prismatic => {
+                    let lim = robot.var_limits(j.var as usize);
+                    if !lim.bounded {
+                        return None;
+                    }
+                    (j.mul * lim.lower + j.off)
+                        .abs()
+                        .max((j.mul * lim.upper + j.off).abs())
+                }
+                _ => 0.0,
+            };
+            if j.parent as usize == ancestor {
+                let r = d + travel;
+                return r.is_finite().then_some((j.origin.t, r));
+            }
+            d += j.origin.t.norm() + travel;
+            k = j.parent;
+        }
+        None
+    }
+
     /// Number of links (length of the output slice).
     pub fn links(&self) -> usize {
         self.links

@@ -24,10 +24,10 @@ use super::validity::space_checker;
 use super::{GoalSampler, JointSpace, PlanError};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::geometry::Pose;
-use crate::kinematics::FkPath;
 use crate::kinematics::randomized::{
     try_arm, ArmChain, GraspQuery, IkCounters, RandomizedIk, RandomizedIkSettings, ReachabilityMap,
 };
+use crate::kinematics::FkPath;
 use crate::model::Scene;
 use crate::reachability::queries::{end_effector_at, grasp_set, GraspSet};
 use crate::reachability::{hand_links, ReachabilityGrid};
