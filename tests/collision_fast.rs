@@ -25,6 +25,13 @@ fn scene(name: &str, lib: &RobotLibrary) -> Scene {
     Scene::from_file(&root().join(format!("scenes/{name}.json")), lib).unwrap()
 }
 
+/// World variables of SRDF group `group` of the world's first robot.
+fn group_world_vars(world: &CollisionWorld, group: &str) -> Vec<usize> {
+    let p = &world.robots[0];
+    let g = p.robot.group(group).expect("group");
+    g.vars.iter().map(|v| p.offset + v).collect()
+}
+
 /// Compares both checkers on `n` random configurations; returns (collisions, free-with-margin).
 fn compare(scene: &Scene, world: &CollisionWorld, n: usize, seed: u64) -> (usize, usize) {
     let mut fast = FastChecker::new(world);
@@ -212,15 +219,7 @@ fn checker_for_active_variables_agrees_with_the_full_checker() {
         let s = scene(name, &lib);
         let world = CollisionWorld::from_scene(&s);
         let start = CollisionWorld::start_config(&s);
-        let p = &world.robots[0];
-        let active: Vec<usize> = p
-            .robot
-            .group(group)
-            .expect("group")
-            .vars
-            .iter()
-            .map(|v| p.offset + v)
-            .collect();
+        let active = group_world_vars(&world, group);
         let mut full = FastChecker::new(&world);
         let mut rng = ChaCha8Rng::seed_from_u64(21);
         let (mut hits, mut free, mut always) = (0, 0, 0);
@@ -280,14 +279,7 @@ fn pairs_dropped_as_out_of_reach_never_collide() {
         let world = CollisionWorld::from_scene(&s);
         let start = CollisionWorld::start_config(&s);
         let p = &world.robots[0];
-        let active: Vec<usize> = p
-            .robot
-            .group(group)
-            .expect("group")
-            .vars
-            .iter()
-            .map(|v| p.offset + v)
-            .collect();
+        let active = group_world_vars(&world, group);
         let mut frozen = FastChecker::for_active(
             &world,
             manyhands::collision::FastModelSettings::default(),

@@ -305,6 +305,18 @@ fn gradient_ascent_climbs_to_a_local_maximum() {
     assert_eq!(m, 3);
 }
 
+/// A platform-frame grid (10 cm, 8 angle bins) of chain group `group`.
+fn platform_grid(
+    robot: &Arc<manyhands::Robot>,
+    group: &str,
+    samples: u64,
+    seed: u64,
+) -> ReachabilityGrid {
+    let chain = Chain::from_group(robot, group).expect("chain");
+    let p = GridParams::auto(robot, &chain, 0.1, 8, samples, seed).expect("params");
+    ReachabilityGrid::build(robot, group, &p, &|_| {}).expect("build")
+}
+
 #[test]
 fn base_placement_dual_arm_ik_on_the_kitchen_wok() {
     use manyhands::collision::{BodyId, FastChecker};
@@ -316,11 +328,7 @@ fn base_placement_dual_arm_ik_on_the_kitchen_wok() {
     let robot = sc.robots[0].robot.clone();
     let base = sc.robots[0].base_pose;
     let start = sc.robots[0].start_config();
-    let grid = |group: &str| {
-        let chain = Chain::from_group(&robot, group).expect("chain");
-        let p = GridParams::auto(&robot, &chain, 0.1, 8, 400_000, 11).expect("params");
-        ReachabilityGrid::build(&robot, group, &p, &|_| {}).expect("build")
-    };
+    let grid = |group: &str| platform_grid(&robot, group, 400_000, 11);
     let (gl, gr) = (grid("torso_left_arm"), grid("torso_right_arm"));
     let wok = sc.object("wok").expect("wok").body.pose;
     let lg = grasp_set(&sc, "wok", "left_hand").expect("left");
@@ -404,9 +412,7 @@ fn inverse_map_equals_a_lookup_of_every_base_pose() {
     let robot = sc.robots[0].robot.clone();
     let base = sc.robots[0].base_pose;
     let start = sc.robots[0].start_config();
-    let chain = Chain::from_group(&robot, "torso_right_arm").expect("chain");
-    let p = GridParams::auto(&robot, &chain, 0.1, 8, 200_000, 5).expect("params");
-    let grid = ReachabilityGrid::build(&robot, "torso_right_arm", &p, &|_| {}).expect("build");
+    let grid = platform_grid(&robot, "torso_right_arm", 200_000, 5);
     let platform = robot.link(grid.base_link()).expect("platform");
     let path = FkPath::new(&robot, platform);
     let bv = ["base_x", "base_y", "base_yaw"].map(|n| robot.var(n).expect("base var"));
