@@ -919,9 +919,9 @@ fn pair_can_touch(
         let r = b.mount.robot;
         fk[r].reach_ball(&world.robots[r].robot, b.mount.link, &b.bc, b.br, ancestor)
     };
+    // About the robot's root link (link 0, placed at the robot's base pose).
     let in_world = |b: &MovingBody| {
-        let root = *fk[b.mount.robot].ancestors(b.mount.link).last()?;
-        let (c, r) = ball(b, root)?;
+        let (c, r) = ball(b, 0)?;
         Some((bases[b.mount.robot].transform_point(&c), r))
     };
     let a = &moving[p.a as usize];
