@@ -42,6 +42,16 @@ fn robots() -> Vec<Robot> {
     v
 }
 
+/// A configuration drawn uniformly within the joint limits.
+fn random_config(r: &Robot, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    (0..r.dof())
+        .map(|v| {
+            let l = r.var_limits(v);
+            rng.random_range(l.lower..=l.upper)
+        })
+        .collect()
+}
+
 #[test]
 fn all_fk_paths_agree() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
@@ -54,12 +64,7 @@ fn all_fk_paths_agree() {
         let mut f2 = vec![Frame::identity(); r.links.len()];
         let paths: Vec<FkPath> = (0..r.links.len()).map(|l| FkPath::new(&r, l)).collect();
         for _ in 0..200 {
-            let q: Vec<f64> = (0..r.dof())
-                .map(|v| {
-                    let l = r.var_limits(v);
-                    rng.random_range(l.lower..=l.upper)
-                })
-                .collect();
+            let q = random_config(&r, &mut rng);
             forward(&r, &base, &q, &mut iso);
             full.compute(&Frame::from_pose(&base), &q, &mut f1);
             reduced.compute(&Frame::from_pose(&base), &q, &mut f2);
@@ -123,12 +128,7 @@ fn reach_balls_hold_their_link_in_every_configuration() {
             r.name
         );
         for _ in 0..300 {
-            let q: Vec<f64> = (0..r.dof())
-                .map(|v| {
-                    let l = r.var_limits(v);
-                    rng.random_range(l.lower..=l.upper)
-                })
-                .collect();
+            let q = random_config(&r, &mut rng);
             reduced.compute(&Frame::identity(), &q, &mut f);
             for &(l, a, (c, rad)) in &balls {
                 // The sphere is given in the frame of the computed link the link rides on.

@@ -468,8 +468,7 @@ impl ReachabilityGrid {
         for ix in 0..nx {
             for iy in 0..ny {
                 for iz in 0..nz {
-                    let v = (ix * ny + iy) * nz + iz;
-                    if (self.positions[v >> 6] >> (v & 63)) & 1 != 0 {
+                    if self.voxel_filled(&[ix, iy, iz]) {
                         out.push(nalgebra::Vector3::new(
                             self.cell_centre(0, ix),
                             self.cell_centre(1, iy),
