@@ -262,6 +262,13 @@ fn conservative_at_the_contact_boundary(name: &str) {
                     p.set,
                     p.index
                 );
+                // The 8-lane path (AVX2 + FMA when the CPU has it) is as conservative.
+                assert!(
+                    sc.any_collides(&[q.as_slice(); 8]),
+                    "{}[{}]: exact contact at t = {hi}, 8-lane spheres free; q = {q:?}",
+                    p.set,
+                    p.index
+                );
                 boundaries += 1;
             }
         }

@@ -135,9 +135,10 @@ pub struct SphereChecker {
     obstacles: Vec<Obs>,
     /// Static body index of each obstacle.
     obstacle_static: Vec<u32>,
-    /// Bounding sphere of each obstacle (centre, radius with a rounding allowance).
-    obstacle_sphere: Vec<[f32; 4]>,
     body_obstacles: Vec<u32>,
+    /// Bounding sphere of each entry of `body_obstacles` (centre, radius with a rounding
+    /// allowance; stored alongside, read in the same loop).
+    body_obstacle_sphere: Vec<[f32; 4]>,
     self_pairs: Vec<(u32, u32)>,
     // Per-call lane buffers.
     qv: Vec<Lane>,
@@ -599,7 +600,10 @@ impl SphereChecker {
             spheres,
             obstacles,
             obstacle_static,
-            obstacle_sphere,
+            body_obstacle_sphere: body_obstacles
+                .iter()
+                .map(|&oi| obstacle_sphere[oi as usize])
+                .collect(),
             body_obstacles,
             self_pairs,
             epoch: 0,
@@ -895,9 +899,18 @@ impl SphereChecker {
             self.epoch = 1;
         }
         for si in 0..self.steps.len() {
-            self.step::<N>(si);
+            self.step::<N, AVX>(si);
             let (b0, b1) = self.steps[si].bodies;
             for b in b0..b1 {
+                #[cfg(target_arch = "x86_64")]
+                if AVX && N == LANES {
+                    // SAFETY: `AVX` is true only inside `run8_avx2` (AVX2 + FMA checked at
+                    // construction), and the lanes are all LANES wide.
+                    if let Some(h) = unsafe { self.body_env_avx(b as usize) } {
+                        return Some(h);
+                    }
+                    continue;
+                }
                 if let Some(h) = self.body_env::<N, AVX>(b as usize) {
                     return Some(h);
                 }
@@ -905,6 +918,14 @@ impl SphereChecker {
         }
         for pi in 0..self.self_pairs.len() {
             let (a, b) = self.self_pairs[pi];
+            #[cfg(target_arch = "x86_64")]
+            if AVX && N == LANES {
+                // SAFETY: as above.
+                if unsafe { self.pair_hits_avx(pi, a as usize, b as usize) } {
+                    return Some(Hit::SelfPair(a, b));
+                }
+                continue;
+            }
             if self.pair_hits::<N, AVX>(pi, a as usize, b as usize) {
                 return Some(Hit::SelfPair(a, b));
             }
@@ -913,7 +934,7 @@ impl SphereChecker {
     }
 
     #[inline(always)]
-    fn step<const N: usize>(&mut self, si: usize) {
+    fn step<const N: usize, const AVX: bool>(&mut self, si: usize) {
         let s = &self.steps[si];
         if s.kind == StepKind::Root {
             let f = &mut self.frames[si];
@@ -933,7 +954,7 @@ impl SphereChecker {
         let mut m = [[0.0f32; N]; 9];
         let mut t = [[0.0f32; N]; 3];
         for r in 0..3 {
-            t[r] = lin4::<N>(&p[r], &p[3 + r], &p[6 + r], &p[9 + r], s.t);
+            t[r] = lin4::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], &p[9 + r], s.t);
         }
         if s.rot_identity {
             for k in 0..9 {
@@ -943,7 +964,7 @@ impl SphereChecker {
             for c in 0..3 {
                 let o = [s.rot[c * 3], s.rot[c * 3 + 1], s.rot[c * 3 + 2]];
                 for r in 0..3 {
-                    m[c * 3 + r] = lin3::<N>(&p[r], &p[3 + r], &p[6 + r], o);
+                    m[c * 3 + r] = lin3::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], o);
                 }
             }
         }
@@ -964,7 +985,7 @@ impl SphereChecker {
                 }
             }
             StepKind::Revolute(ax) => {
-                let (sn, cs) = sincos_lanes::<N>(&v);
+                let (sn, cs) = sincos_lanes::<N, AVX>(&v);
                 let (i, j) = match ax {
                     Axis::Z => (0, 3),
                     Axis::X => (3, 6),
@@ -976,8 +997,8 @@ impl SphereChecker {
                     for r in 0..3 {
                         let (a, b) = (m[i + r], m[j + r]);
                         for l in 0..N {
-                            m[i + r][l] = a[l] * cs[l] + b[l] * sn[l];
-                            m[j + r][l] = b[l] * cs[l] - a[l] * sn[l];
+                            m[i + r][l] = fmadd::<AVX>(a[l], cs[l], b[l] * sn[l]);
+                            m[j + r][l] = fmadd::<AVX>(b[l], cs[l], -(a[l] * sn[l]));
                         }
                     }
                 } else {
@@ -1021,15 +1042,15 @@ impl SphereChecker {
 
     /// World position of a point of a node frame, all lanes.
     #[inline(always)]
-    fn place<const N: usize>(f: &[Lane; 12], p: &[f32; 3]) -> [[f32; N]; 3] {
+    fn place<const N: usize, const AVX: bool>(f: &[Lane; 12], p: &[f32; 3]) -> [[f32; N]; 3] {
         [
-            lin4::<N>(&f[0], &f[3], &f[6], &f[9], *p),
-            lin4::<N>(&f[1], &f[4], &f[7], &f[10], *p),
-            lin4::<N>(&f[2], &f[5], &f[8], &f[11], *p),
+            lin4::<N, AVX>(&f[0], &f[3], &f[6], &f[9], *p),
+            lin4::<N, AVX>(&f[1], &f[4], &f[7], &f[10], *p),
+            lin4::<N, AVX>(&f[2], &f[5], &f[8], &f[11], *p),
         ]
     }
     #[inline(always)]
-    fn ensure_spheres<const N: usize>(&mut self, b: usize) {
+    fn ensure_spheres<const N: usize, const AVX: bool>(&mut self, b: usize) {
         if self.sw_epoch[b] == self.epoch {
             return;
         }
@@ -1038,7 +1059,7 @@ impl SphereChecker {
         let f = &self.frames[body.node as usize];
         for si in body.spheres.0 as usize..body.spheres.1 as usize {
             let s = self.spheres[si];
-            let w = Self::place::<N>(f, &[s[0], s[1], s[2]]);
+            let w = Self::place::<N, AVX>(f, &[s[0], s[1], s[2]]);
             for r in 0..3 {
                 self.sw[si][r][..N].copy_from_slice(&w[r]);
             }
@@ -1050,29 +1071,19 @@ impl SphereChecker {
     #[inline(always)]
     fn body_env<const N: usize, const AVX: bool>(&mut self, b: usize) -> Option<Hit> {
         let body = &self.bodies[b];
-        let c = Self::place::<N>(&self.frames[body.node as usize], &body.bc);
+        let c = Self::place::<N, AVX>(&self.frames[body.node as usize], &body.bc);
         for r in 0..3 {
             self.bcw[b][r][..N].copy_from_slice(&c[r]);
         }
         let infl = self.infl[b];
         let br = body.br + infl;
-        // One sphere around every lane's bounding sphere: obstacles whose bounding sphere it
-        // misses are skipped with one scalar test.
-        let (c0x, c0y, c0z) = (c[0][0], c[1][0], c[2][0]);
-        let mut spread2 = 0.0f32;
-        for l in 1..N {
-            let (dx, dy, dz) = (c[0][l] - c0x, c[1][l] - c0y, c[2][l] - c0z);
-            spread2 = spread2.max(dx * dx + dy * dy + dz * dz);
-        }
-        let reach = br + spread2.sqrt() * (1.0 + 1e-6) + 1e-6;
         let (o0, o1) = body.obstacles;
         let mut spheres_ready = false;
         for k in o0 as usize..o1 as usize {
             let oi = self.body_obstacles[k] as usize;
-            let ob = self.obstacle_sphere[oi];
-            let (dx, dy, dz) = (ob[0] - c0x, ob[1] - c0y, ob[2] - c0z);
-            let rr = reach + ob[3];
-            if dx * dx + dy * dy + dz * dz > rr * rr {
+            // Obstacles whose bounding sphere no lane's bounding sphere touches are skipped.
+            let ob = self.body_obstacle_sphere[k];
+            if point_near_mask::<N, AVX>(&c, [ob[0], ob[1], ob[2]], br + ob[3]) == 0 {
                 continue;
             }
             let o = self.obstacles[oi];
@@ -1080,7 +1091,7 @@ impl SphereChecker {
                 continue;
             }
             if !spheres_ready {
-                self.ensure_spheres::<N>(b);
+                self.ensure_spheres::<N, AVX>(b);
                 spheres_ready = true;
             }
             let body = &self.bodies[b];
@@ -1117,8 +1128,8 @@ impl SphereChecker {
         if near_mask::<N, AVX>(&self.bcw[a], &self.bcw[b], rr) == 0 {
             return false;
         }
-        self.ensure_spheres::<N>(a);
-        self.ensure_spheres::<N>(b);
+        self.ensure_spheres::<N, AVX>(a);
+        self.ensure_spheres::<N, AVX>(b);
         let (sa, sb) = (self.bodies[a].spheres, self.bodies[b].spheres);
         let (bb, rb) = (&self.bcw[b], self.bodies[b].br);
         for i in sa.0 as usize..sa.1 as usize {
@@ -1132,6 +1143,110 @@ impl SphereChecker {
                 let m = near_mask::<N, AVX>(wi, &self.sw[j], rij + ex);
                 if m != 0 {
                     if ex == 0.0 || near_mask::<N, AVX>(wi, &self.sw[j], rij) != 0 {
+                        return true;
+                    }
+                    self.tight |= m;
+                }
+            }
+        }
+        false
+    }
+
+    /// [`Self::body_env`] for 8 lanes in AVX2 + FMA registers: the same tests in the same
+    /// order (the generic version is the reference; results differ only by FMA rounding, far
+    /// below [`Self::ROUNDING_MARGIN`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn body_env_avx(&mut self, b: usize) -> Option<Hit> {
+        use avx8::*;
+        let SphereChecker {
+            bodies,
+            frames,
+            bcw,
+            infl,
+            body_obstacles,
+            body_obstacle_sphere,
+            obstacles,
+            sw,
+            sw_epoch,
+            epoch,
+            spheres,
+            tight,
+            ..
+        } = self;
+        let body = &bodies[b];
+        let f = &frames[body.node as usize];
+        let c = place(f, &body.bc);
+        store3(&mut bcw[b], c);
+        let infl = infl[b];
+        let br = body.br + infl;
+        let (o0, o1) = (body.obstacles.0 as usize, body.obstacles.1 as usize);
+        let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
+        let mut placed = sw_epoch[b] == *epoch;
+        for (&oi, ob) in body_obstacles[o0..o1]
+            .iter()
+            .zip(&body_obstacle_sphere[o0..o1])
+        {
+            // Obstacles whose bounding sphere no lane's bounding sphere touches are skipped.
+            if point_near(c, ob, br + ob[3]) == 0 {
+                continue;
+            }
+            let o = &obstacles[oi as usize];
+            if obs(o, c, br) == 0 {
+                continue;
+            }
+            if !placed {
+                placed = true;
+                sw_epoch[b] = *epoch;
+                for (sp, w) in spheres[s0..s1].iter().zip(&mut sw[s0..s1]) {
+                    store3(w, place(f, &[sp[0], sp[1], sp[2]]));
+                }
+            }
+            for (sp, w) in spheres[s0..s1].iter().zip(&sw[s0..s1]) {
+                let p = load3(w);
+                let m = obs(o, p, sp[3] + infl);
+                if m != 0 {
+                    if infl == 0.0 || obs(o, p, sp[3]) != 0 {
+                        return Some(Hit::Obstacle(b as u32, oi));
+                    }
+                    *tight |= m;
+                }
+            }
+        }
+        None
+    }
+
+    /// [`Self::pair_hits`] for 8 lanes in AVX2 + FMA registers (see [`Self::body_env_avx`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn pair_hits_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
+        use avx8::*;
+        let ex = self.infl_pair[pi];
+        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
+        let (ca, cb) = (load3(&self.bcw[a]), load3(&self.bcw[b]));
+        if near(ca, cb, ba.br + bb.br + ex) == 0 {
+            return false;
+        }
+        self.ensure_spheres::<LANES, true>(a);
+        self.ensure_spheres::<LANES, true>(b);
+        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
+        let (sa0, sa1) = (ba.spheres.0 as usize, ba.spheres.1 as usize);
+        let (sb0, sb1) = (bb.spheres.0 as usize, bb.spheres.1 as usize);
+        let rb = bb.br;
+        for (si, wi) in self.spheres[sa0..sa1].iter().zip(&self.sw[sa0..sa1]) {
+            let (pi_, ri) = (load3(wi), si[3]);
+            // The sphere against b's bounding sphere first.
+            if near(pi_, cb, ri + rb + ex) == 0 {
+                continue;
+            }
+            for (sj, wj) in self.spheres[sb0..sb1].iter().zip(&self.sw[sb0..sb1]) {
+                let pj = load3(wj);
+                let rij = ri + sj[3];
+                let m = near(pi_, pj, rij + ex);
+                if m != 0 {
+                    if ex == 0.0 || near(pi_, pj, rij) != 0 {
                         return true;
                     }
                     self.tight |= m;
@@ -1156,22 +1271,221 @@ impl SphereChecker {
     }
 }
 
+/// The 8-lane tests of [`SphereChecker::body_env_avx`] and [`SphereChecker::pair_hits_avx`] in
+/// AVX2 + FMA intrinsics; each mirrors the generic function of the same name (`obs_mask`,
+/// `near_mask`, `point_near_mask`, `lin4`).
+#[cfg(target_arch = "x86_64")]
+mod avx8 {
+    use super::{Lane, Obs};
+    use std::arch::x86_64::*;
+
+    type V = __m256;
+
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn load3(w: &[Lane; 3]) -> [V; 3] {
+        // SAFETY: each lane array holds 8 f32 (unaligned loads).
+        unsafe {
+            [
+                _mm256_loadu_ps(w[0].as_ptr()),
+                _mm256_loadu_ps(w[1].as_ptr()),
+                _mm256_loadu_ps(w[2].as_ptr()),
+            ]
+        }
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn store3(w: &mut [Lane; 3], v: [V; 3]) {
+        // SAFETY: each lane array holds 8 f32 (unaligned stores).
+        unsafe {
+            _mm256_storeu_ps(w[0].as_mut_ptr(), v[0]);
+            _mm256_storeu_ps(w[1].as_mut_ptr(), v[1]);
+            _mm256_storeu_ps(w[2].as_mut_ptr(), v[2]);
+        }
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn load(l: &Lane) -> V {
+        // SAFETY: 8 f32.
+        unsafe { _mm256_loadu_ps(l.as_ptr()) }
+    }
+
+    /// World position of the point `p` of frame `f`, all lanes.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn place(f: &[Lane; 12], p: &[f32; 3]) -> [V; 3] {
+        let (x, y, z) = (
+            _mm256_set1_ps(p[0]),
+            _mm256_set1_ps(p[1]),
+            _mm256_set1_ps(p[2]),
+        );
+        let row = |r: usize| {
+            _mm256_fmadd_ps(
+                load(&f[6 + r]),
+                z,
+                _mm256_fmadd_ps(
+                    load(&f[3 + r]),
+                    y,
+                    _mm256_fmadd_ps(load(&f[r]), x, load(&f[9 + r])),
+                ),
+            )
+        };
+        [row(0), row(1), row(2)]
+    }
+
+    /// Lanes whose `d` is ≤ 0 (NaN: not set).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn le_zero(d: V) -> u32 {
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(d, _mm256_setzero_ps())) as u32
+    }
+
+    /// |d|² − r² per lane.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn dist2_minus(dx: V, dy: V, dz: V, r2: f32) -> V {
+        _mm256_fmadd_ps(
+            dz,
+            dz,
+            _mm256_fmadd_ps(dy, dy, _mm256_fmsub_ps(dx, dx, _mm256_set1_ps(r2))),
+        )
+    }
+
+    /// Lanes whose two points are at most `r` apart.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn near(a: [V; 3], b: [V; 3], r: f32) -> u32 {
+        let d = dist2_minus(
+            _mm256_sub_ps(a[0], b[0]),
+            _mm256_sub_ps(a[1], b[1]),
+            _mm256_sub_ps(a[2], b[2]),
+            r * r,
+        );
+        le_zero(d)
+    }
+
+    /// Lanes whose point is at most `r` from the fixed point `p` (first three values).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn point_near(a: [V; 3], p: &[f32; 4], r: f32) -> u32 {
+        let d = dist2_minus(
+            _mm256_sub_ps(a[0], _mm256_set1_ps(p[0])),
+            _mm256_sub_ps(a[1], _mm256_set1_ps(p[1])),
+            _mm256_sub_ps(a[2], _mm256_set1_ps(p[2])),
+            r * r,
+        );
+        le_zero(d)
+    }
+
+    /// Lanes whose sphere (centre `p`, radius `r`) touches the obstacle.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn obs(o: &Obs, p: [V; 3], r: f32) -> u32 {
+        let zero = _mm256_setzero_ps();
+        let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+        let rel = |c: &[f32; 3]| {
+            [
+                _mm256_sub_ps(p[0], _mm256_set1_ps(c[0])),
+                _mm256_sub_ps(p[1], _mm256_set1_ps(c[1])),
+                _mm256_sub_ps(p[2], _mm256_set1_ps(c[2])),
+            ]
+        };
+        let dot = |a: &[f32; 3], d: &[V; 3]| {
+            _mm256_fmadd_ps(
+                _mm256_set1_ps(a[2]),
+                d[2],
+                _mm256_fmadd_ps(
+                    _mm256_set1_ps(a[1]),
+                    d[1],
+                    _mm256_mul_ps(_mm256_set1_ps(a[0]), d[0]),
+                ),
+            )
+        };
+        let d = match o {
+            Obs::Sphere { c, r: ro } => {
+                let d = rel(c);
+                dist2_minus(d[0], d[1], d[2], (r + ro) * (r + ro))
+            }
+            Obs::Box { c, rt, half } => {
+                let d = rel(c);
+                let mut acc = _mm256_set1_ps(-(r * r));
+                for k in 0..3 {
+                    let q = _mm256_and_ps(dot(&rt[k], &d), abs_mask);
+                    let e = _mm256_max_ps(_mm256_sub_ps(q, _mm256_set1_ps(half[k])), zero);
+                    acc = _mm256_fmadd_ps(e, e, acc);
+                }
+                acc
+            }
+            Obs::Cylinder { c, axis, r: rc, h } => {
+                let d = rel(c);
+                let pz = dot(axis, &d);
+                let all = dist2_minus(d[0], d[1], d[2], 0.0);
+                let rad2 = _mm256_max_ps(_mm256_fnmadd_ps(pz, pz, all), zero);
+                let dr = _mm256_max_ps(
+                    _mm256_sub_ps(_mm256_sqrt_ps(rad2), _mm256_set1_ps(*rc)),
+                    zero,
+                );
+                let ez = _mm256_max_ps(
+                    _mm256_sub_ps(_mm256_and_ps(pz, abs_mask), _mm256_set1_ps(*h)),
+                    zero,
+                );
+                _mm256_fmadd_ps(dr, dr, _mm256_fmsub_ps(ez, ez, _mm256_set1_ps(r * r)))
+            }
+            Obs::Capsule { c, axis, r: rc, h } => {
+                let d = rel(c);
+                let pz = dot(axis, &d);
+                let t = _mm256_min_ps(_mm256_max_ps(pz, _mm256_set1_ps(-h)), _mm256_set1_ps(*h));
+                let e = [
+                    _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[0]), d[0]),
+                    _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[1]), d[1]),
+                    _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[2]), d[2]),
+                ];
+                dist2_minus(e[0], e[1], e[2], (r + rc) * (r + rc))
+            }
+        };
+        le_zero(d)
+    }
+}
+
+/// `a·b + c`: one fused multiply-add when `AVX` (the caller runs compiled with FMA, see
+/// [`SphereChecker::run8_avx2`]), else a product and a sum (a software `mul_add` would be slow).
+#[inline(always)]
+fn fmadd<const AVX: bool>(a: f32, b: f32, c: f32) -> f32 {
+    if AVX {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
 /// `a·s0 + b·s1 + c·s2` per lane.
 #[inline(always)]
-fn lin3<const N: usize>(a: &Lane, b: &Lane, c: &Lane, s: [f32; 3]) -> [f32; N] {
+fn lin3<const N: usize, const AVX: bool>(a: &Lane, b: &Lane, c: &Lane, s: [f32; 3]) -> [f32; N] {
     let mut o = [0.0f32; N];
     for l in 0..N {
-        o[l] = a[l] * s[0] + b[l] * s[1] + c[l] * s[2];
+        o[l] = fmadd::<AVX>(c[l], s[2], fmadd::<AVX>(b[l], s[1], a[l] * s[0]));
     }
     o
 }
 
 /// `a·s0 + b·s1 + c·s2 + d` per lane.
 #[inline(always)]
-fn lin4<const N: usize>(a: &Lane, b: &Lane, c: &Lane, d: &Lane, s: [f32; 3]) -> [f32; N] {
+fn lin4<const N: usize, const AVX: bool>(
+    a: &Lane,
+    b: &Lane,
+    c: &Lane,
+    d: &Lane,
+    s: [f32; 3],
+) -> [f32; N] {
     let mut o = [0.0f32; N];
     for l in 0..N {
-        o[l] = a[l] * s[0] + b[l] * s[1] + c[l] * s[2] + d[l];
+        o[l] = fmadd::<AVX>(
+            c[l],
+            s[2],
+            fmadd::<AVX>(b[l], s[1], fmadd::<AVX>(a[l], s[0], d[l])),
+        );
     }
     o
 }
@@ -1207,7 +1521,21 @@ fn near_mask<const N: usize, const AVX: bool>(a: &[Lane; 3], b: &[Lane; 3], r: f
         let dx = a[0][l] - b[0][l];
         let dy = a[1][l] - b[1][l];
         let dz = a[2][l] - b[2][l];
-        d[l] = dx * dx + dy * dy + dz * dz - r2;
+        d[l] = fmadd::<AVX>(dz, dz, fmadd::<AVX>(dy, dy, fmadd::<AVX>(dx, dx, -r2)));
+    }
+    le_zero_mask::<N, AVX>(&d)
+}
+
+/// Lanes (bit l) whose point is at most `r` from the fixed point `p`.
+#[inline(always)]
+fn point_near_mask<const N: usize, const AVX: bool>(a: &[[f32; N]; 3], p: [f32; 3], r: f32) -> u32 {
+    let r2 = r * r;
+    let mut d = [0.0f32; N];
+    for l in 0..N {
+        let dx = a[0][l] - p[0];
+        let dy = a[1][l] - p[1];
+        let dz = a[2][l] - p[2];
+        d[l] = fmadd::<AVX>(dz, dz, fmadd::<AVX>(dy, dy, fmadd::<AVX>(dx, dx, -r2)));
     }
     le_zero_mask::<N, AVX>(&d)
 }
@@ -1229,7 +1557,7 @@ fn obs_mask<const N: usize, const AVX: bool>(
                 let dx = x[l] - c[0];
                 let dy = y[l] - c[1];
                 let dz = z[l] - c[2];
-                d[l] = dx * dx + dy * dy + dz * dz - rr;
+                d[l] = fmadd::<AVX>(dz, dz, fmadd::<AVX>(dy, dy, fmadd::<AVX>(dx, dx, -rr)));
             }
         }
         Obs::Box { c, rt, half } => {
@@ -1239,9 +1567,9 @@ fn obs_mask<const N: usize, const AVX: bool>(
                 let dz = z[l] - c[2];
                 let mut d2 = 0.0f32;
                 for k in 0..3 {
-                    let p = rt[k][0] * dx + rt[k][1] * dy + rt[k][2] * dz;
+                    let p = fmadd::<AVX>(rt[k][2], dz, fmadd::<AVX>(rt[k][1], dy, rt[k][0] * dx));
                     let e = (p.abs() - half[k]).max(0.0);
-                    d2 += e * e;
+                    d2 = fmadd::<AVX>(e, e, d2);
                 }
                 d[l] = d2 - r * r;
             }
@@ -1279,7 +1607,7 @@ fn obs_mask<const N: usize, const AVX: bool>(
 /// `(sin x, cos x)` of every lane in f32 (Cephes' sinf/cosf kernels after a three-constant
 /// reduction by π/2); absolute error ≈ 1e-7 for |x| ≤ 100, branch-free so lanes vectorise.
 #[inline(always)]
-fn sincos_lanes<const N: usize>(v: &[f32; N]) -> ([f32; N], [f32; N]) {
+fn sincos_lanes<const N: usize, const AVX: bool>(v: &[f32; N]) -> ([f32; N], [f32; N]) {
     const MAGIC: f32 = 12_582_912.0;
     const DP1: f32 = 1.570_312_5;
     const DP2: f32 = 4.837_513e-4;
@@ -1290,12 +1618,21 @@ fn sincos_lanes<const N: usize>(v: &[f32; N]) -> ([f32; N], [f32; N]) {
         // NaN-free and bounded, so the integer conversion below is exact.
         #[allow(clippy::manual_clamp)] // max/min map NaN to a bound; clamp would keep NaN
         let x = v[l].max(-1.0e5).min(1.0e5);
-        let k = (x * std::f32::consts::FRAC_2_PI + MAGIC) - MAGIC;
-        let r = ((x - k * DP1) - k * DP2) - k * DP3;
+        let k = fmadd::<AVX>(x, std::f32::consts::FRAC_2_PI, MAGIC) - MAGIC;
+        let r = fmadd::<AVX>(-k, DP3, fmadd::<AVX>(-k, DP2, fmadd::<AVX>(-k, DP1, x)));
         let z = r * r;
-        let s = r + r * z * (-1.666_665_5e-1 + z * (8.332_161e-3 + z * -1.951_529_6e-4));
-        let c =
-            1.0 - 0.5 * z + z * z * (4.166_664_6e-2 + z * (-1.388_731_6e-3 + z * 2.443_315_7e-5));
+        let ps = fmadd::<AVX>(
+            fmadd::<AVX>(z, -1.951_529_6e-4, 8.332_161e-3),
+            z,
+            -1.666_665_5e-1,
+        );
+        let s = fmadd::<AVX>(r * z, ps, r);
+        let pc = fmadd::<AVX>(
+            fmadd::<AVX>(z, 2.443_315_7e-5, -1.388_731_6e-3),
+            z,
+            4.166_664_6e-2,
+        );
+        let c = fmadd::<AVX>(z * z, pc, fmadd::<AVX>(-0.5, z, 1.0));
         // SAFETY: |k| ≤ 1e5 · 2/π + 1 fits an i32.
         let q: i32 = unsafe { k.to_int_unchecked() };
         let swap = q & 1 != 0;
@@ -1389,7 +1726,7 @@ mod tests {
         let mut worst: f64 = 0.0;
         for i in 0..=200_000 {
             let x = -10.0 + 20.0 * i as f64 / 200_000.0;
-            let (s, c) = super::sincos_lanes::<1>(&[x as f32]);
+            let (s, c) = super::sincos_lanes::<1, false>(&[x as f32]);
             let (s, c) = (s[0], c[0]);
             let xr = x as f32 as f64;
             worst = worst
