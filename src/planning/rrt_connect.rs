@@ -7,11 +7,12 @@
 use std::time::Instant;
 
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 use super::shortcut::{simplify, ShortcutSettings};
 use super::validity::{space_checker, SegmentChecker, SpaceValidator};
-use super::{JointSpace, PlanError, PlanResult, PlanStats, Termination, Tree, NO_PARENT};
+use super::{
+    JointSpace, PlanError, PlanResult, PlanStats, PlannerRng, Termination, Tree, NO_PARENT,
+};
 use crate::collision::{CollisionWorld, FastChecker};
 
 /// Settings of [`RrtConnect`].
@@ -199,7 +200,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
         let t0 = Instant::now();
         let checks0 = self.validator.checks();
         let segments0 = self.validator.segments();
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut rng = PlannerRng::seed_from_u64(seed);
         let mut stats = PlanStats::default();
 
         if let Some(why) = self.validator.invalidity(start) {
@@ -342,7 +343,7 @@ pub(super) fn finish<C: SegmentChecker>(
     settings: &RrtConnectSettings,
     mut stats: PlanStats,
     (t0, checks0, segments0): (Instant, u64, u64),
-    rng: &mut ChaCha8Rng,
+    rng: &mut impl rand::Rng,
     term: &mut Termination,
 ) -> Result<(Vec<Vec<f64>>, PlanStats), PlanError> {
     // The returned path is re-validated at the resolution: a simplified path by `simplify`
