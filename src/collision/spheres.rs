@@ -4,8 +4,9 @@
 //!
 //! - float32 structure of arrays; every quantity is a *lane array* holding up to
 //!   [`LANES`] different configurations, so one call checks 8 states of a segment at once
-//!   (plain loops over the lanes that the compiler vectorises; AVX2 + FMA is used when the CPU
-//!   has it, detected at run time);
+//!   (generic loops over the lanes, the reference; when the CPU has AVX2 + FMA, detected at
+//!   run time, the kinematics use fused multiply-adds and the body–obstacle and self-pair tests
+//!   run as explicit intrinsics in `avx8`);
 //! - forward kinematics fused with checking: the reduced kinematic tree (fixed joints folded
 //!   into the next movable one) is walked in tree order and each link is tested against the
 //!   obstacles as soon as its frame is known, so a colliding configuration usually stops after
