@@ -34,12 +34,26 @@ fn thread_nice_values() -> Vec<(String, i64)> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn planner_threads_yield_to_queries() {
     let h = common::server::start("priority").await;
-    let threads = thread_nice_values();
-    let planners: Vec<i64> = threads
-        .iter()
-        .filter(|(n, _)| n.starts_with("manyhands-plann"))
-        .map(|(_, v)| *v)
-        .collect();
+    // The pools start their threads asynchronously, and each planner thread sets its own
+    // nice value once running: wait (bounded) until both workers show it.
+    let planners_of = |threads: &[(String, i64)]| -> Vec<i64> {
+        threads
+            .iter()
+            .filter(|(n, _)| n.starts_with("manyhands-plann"))
+            .map(|(_, v)| *v)
+            .collect()
+    };
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+    let mut threads = thread_nice_values();
+    while std::time::Instant::now() < deadline {
+        let p = planners_of(&threads);
+        if p.len() >= 2 && p.iter().all(|&n| n == 10) {
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        threads = thread_nice_values();
+    }
+    let planners = planners_of(&threads);
     let queries: Vec<i64> = threads
         .iter()
         .filter(|(n, _)| n.starts_with("manyhands-query"))
