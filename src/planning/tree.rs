@@ -2,8 +2,9 @@
 //! exact nearest-neighbour query in the space's weighted metric: an incremental k-d tree
 //! (Bentley 1975; buckets of [`BUCKET`] states split at the median of their widest weighted
 //! coordinate) whose leaves also keep their states coordinate-major, so a leaf is scanned with
-//! vector arithmetic (AVX when the CPU has it). Small trees scan every leaf; larger ones descend
-//! with pruning, for trees of 10⁴–10⁵ states (14-DoF bimanual problems). Allocation-free per query;
+//! vector arithmetic (AVX when the CPU has it). Small trees (up to `LINEAR_SCAN_MAX` states) are
+//! scanned whole from a packed copy in insertion order; larger ones descend with pruning, for
+//! trees of 10⁴–10⁵ states (14-DoF bimanual problems). Allocation-free per query;
 //! insertion only grows flat arrays. Each state also carries a dynamic-domain radius
 //! (Yershova et al., ICRA 2005) for planners that use one.
 
@@ -67,6 +68,10 @@ pub struct Tree {
     kd: Vec<KdNode>,
     kd_overflow: Vec<u32>,
     leaf_data: Vec<f64>,
+    /// While the tree has at most [`LINEAR_SCAN_MAX`] states: all of them coordinate-major in
+    /// insertion order, blocks of [`BUCKET`] (unused slots +∞), so small trees are scanned
+    /// without the half-empty slots of split leaves. Not kept beyond that size.
+    scan_data: Vec<f64>,
     /// The CPU has AVX (leaf scans use it).
     avx: bool,
 }
@@ -87,6 +92,7 @@ impl Tree {
             }],
             kd_overflow: Vec::new(),
             leaf_data: vec![f64::INFINITY; weights.len() * BUCKET],
+            scan_data: Vec::with_capacity(weights.len() * LINEAR_SCAN_MAX),
             #[cfg(target_arch = "x86_64")]
             avx: std::is_x86_feature_detected!("avx"),
             #[cfg(not(target_arch = "x86_64"))]
@@ -108,6 +114,7 @@ impl Tree {
         });
         self.leaf_data.clear();
         self.leaf_data.resize(self.dim * BUCKET, f64::INFINITY);
+        self.scan_data.clear();
     }
 
     /// Writes state `i` into slot `slot` of leaf block `block`.
@@ -158,6 +165,17 @@ impl Tree {
         self.parents.push(parent);
         self.radii.push(f64::INFINITY);
         let i = (self.parents.len() - 1) as u32;
+        if (i as usize) < LINEAR_SCAN_MAX {
+            let slot = i as usize % BUCKET;
+            if slot == 0 {
+                self.scan_data
+                    .resize(self.scan_data.len() + self.dim * BUCKET, f64::INFINITY);
+            }
+            let b = (i as usize / BUCKET) * self.dim * BUCKET;
+            for (k, &v) in q.iter().enumerate() {
+                self.scan_data[b + k * BUCKET + slot] = v;
+            }
+        }
         self.kd_insert(i);
         i
     }
@@ -286,15 +304,21 @@ impl Tree {
     pub fn nearest(&self, q: &[f64]) -> Option<(u32, f64)> {
         let mut best = (u32::MAX, f64::INFINITY);
         if self.len() <= LINEAR_SCAN_MAX {
-            // Every leaf block in storage order: a vectorised linear scan, no descent.
-            for n in 0..self.kd.len() {
-                if let KdNode::Leaf { len, items, block } = &self.kd[n] {
-                    self.scan_leaf(*block, &items[..*len as usize], q, &mut best);
+            // Every state in insertion order, a block at a time: a vectorised linear scan, no
+            // descent; ties go to the lowest index, as in `nearest_linear`.
+            let n = self.len();
+            for (blk, data) in self.scan_data.chunks_exact(self.dim * BUCKET).enumerate() {
+                let d = self.block_distances(data, q);
+                let first = blk * BUCKET;
+                for (s, &ds) in d.iter().enumerate().take(n - first) {
+                    if ds < best.1 {
+                        best = ((first + s) as u32, ds);
+                    }
                 }
             }
-        } else {
-            self.kd_search(0, q, &mut best);
+            return (best.0 != u32::MAX).then_some(best);
         }
+        self.kd_search(0, q, &mut best);
         for &i in &self.kd_overflow {
             let d = self.dist_sq(i, q);
             if d < best.1 {
@@ -315,20 +339,22 @@ impl Tree {
         d
     }
 
+    /// [`block_distances`] of a coordinate-major block, with AVX when the CPU has it.
+    #[inline]
+    fn block_distances(&self, data: &[f64], q: &[f64]) -> [f64; BUCKET] {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only when the CPU has AVX (checked in `Tree::new`).
+            return unsafe { block_distances_avx(data, &self.weights, q) };
+        }
+        block_distances(data, &self.weights, q)
+    }
+
     /// Offers the states of a leaf block to `best` (distances from `q`).
     #[inline]
     fn scan_leaf(&self, block: u32, items: &[u32], q: &[f64], best: &mut (u32, f64)) {
         let b = block as usize * self.dim * BUCKET;
-        let data = &self.leaf_data[b..b + self.dim * BUCKET];
-        #[cfg(target_arch = "x86_64")]
-        let d = if self.avx {
-            // SAFETY: `avx` is set only when the CPU has AVX (checked in `Tree::new`).
-            unsafe { block_distances_avx(data, &self.weights, q) }
-        } else {
-            block_distances(data, &self.weights, q)
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let d = block_distances(data, &self.weights, q);
+        let d = self.block_distances(&self.leaf_data[b..b + self.dim * BUCKET], q);
         for (s, &i) in items.iter().enumerate() {
             if d[s] < best.1 {
                 *best = (i, d[s]);
@@ -430,6 +456,10 @@ mod tests {
                 let a = t.nearest(&q).expect("non-empty");
                 let b = t.nearest_linear(&q).expect("non-empty");
                 assert_eq!(a.1, b.1, "after {n} states");
+                if t.len() <= LINEAR_SCAN_MAX {
+                    // The small-tree scan runs in index order: the same state, ties included.
+                    assert_eq!(a.0, b.0, "after {n} states");
+                }
                 if n >= 7 {
                     let p = [0.5; 7];
                     assert_eq!(t.nearest(&p).map(|x| x.1), Some(0.0));
@@ -438,5 +468,11 @@ mod tests {
         }
         t.clear();
         assert!(t.nearest(&q).is_none());
+        // After a clear the small-tree scan starts over.
+        for k in 0..40 {
+            t.add(&[k as f64 * 0.1; 7], NO_PARENT);
+        }
+        assert_eq!(t.nearest(&[1.04; 7]), t.nearest_linear(&[1.04; 7]));
+        assert_eq!(t.nearest(&[1.04; 7]).map(|x| x.0), Some(10));
     }
 }
