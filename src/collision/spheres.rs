@@ -912,7 +912,7 @@ impl SphereChecker {
                     }
                     continue;
                 }
-                if let Some(h) = self.body_env::<N, AVX>(b as usize) {
+                if let Some(h) = self.body_env::<N>(b as usize) {
                     return Some(h);
                 }
             }
@@ -927,7 +927,7 @@ impl SphereChecker {
                 }
                 continue;
             }
-            if self.pair_hits::<N, AVX>(pi, a as usize, b as usize) {
+            if self.pair_hits::<N>(pi, a as usize, b as usize) {
                 return Some(Hit::SelfPair(a, b));
             }
         }
@@ -1070,9 +1070,9 @@ impl SphereChecker {
     /// The body's spheres against its obstacles. With an inflation, a lane whose inflated
     /// spheres touch but whose plain spheres do not is marked in `tight`; a plain touch is a hit.
     #[inline(always)]
-    fn body_env<const N: usize, const AVX: bool>(&mut self, b: usize) -> Option<Hit> {
+    fn body_env<const N: usize>(&mut self, b: usize) -> Option<Hit> {
         let body = &self.bodies[b];
-        let c = Self::place::<N, AVX>(&self.frames[body.node as usize], &body.bc);
+        let c = Self::place::<N, false>(&self.frames[body.node as usize], &body.bc);
         for r in 0..3 {
             self.bcw[b][r][..N].copy_from_slice(&c[r]);
         }
@@ -1084,15 +1084,15 @@ impl SphereChecker {
             let oi = self.body_obstacles[k] as usize;
             // Obstacles whose bounding sphere no lane's bounding sphere touches are skipped.
             let ob = self.body_obstacle_sphere[k];
-            if point_near_mask::<N, AVX>(&c, [ob[0], ob[1], ob[2]], br + ob[3]) == 0 {
+            if point_near_mask::<N>(&c, [ob[0], ob[1], ob[2]], br + ob[3]) == 0 {
                 continue;
             }
             let o = self.obstacles[oi];
-            if obs_mask::<N, AVX>(&o, &c[0], &c[1], &c[2], br) == 0 {
+            if obs_mask::<N>(&o, &c[0], &c[1], &c[2], br) == 0 {
                 continue;
             }
             if !spheres_ready {
-                self.ensure_spheres::<N, AVX>(b);
+                self.ensure_spheres::<N, false>(b);
                 spheres_ready = true;
             }
             let body = &self.bodies[b];
@@ -1105,9 +1105,9 @@ impl SphereChecker {
                 y.copy_from_slice(&w[1][..N]);
                 z.copy_from_slice(&w[2][..N]);
                 let r = self.spheres[si][3];
-                let m = obs_mask::<N, AVX>(&o, &x, &y, &z, r + infl);
+                let m = obs_mask::<N>(&o, &x, &y, &z, r + infl);
                 if m != 0 {
-                    if infl == 0.0 || obs_mask::<N, AVX>(&o, &x, &y, &z, r) != 0 {
+                    if infl == 0.0 || obs_mask::<N>(&o, &x, &y, &z, r) != 0 {
                         return Some(Hit::Obstacle(b as u32, oi as u32));
                     }
                     self.tight |= m;
@@ -1118,32 +1118,27 @@ impl SphereChecker {
     }
 
     #[inline(always)]
-    fn pair_hits<const N: usize, const AVX: bool>(
-        &mut self,
-        pi: usize,
-        a: usize,
-        b: usize,
-    ) -> bool {
+    fn pair_hits<const N: usize>(&mut self, pi: usize, a: usize, b: usize) -> bool {
         let ex = self.infl_pair[pi];
         let rr = self.bodies[a].br + self.bodies[b].br + ex;
-        if near_mask::<N, AVX>(&self.bcw[a], &self.bcw[b], rr) == 0 {
+        if near_mask::<N>(&self.bcw[a], &self.bcw[b], rr) == 0 {
             return false;
         }
-        self.ensure_spheres::<N, AVX>(a);
-        self.ensure_spheres::<N, AVX>(b);
+        self.ensure_spheres::<N, false>(a);
+        self.ensure_spheres::<N, false>(b);
         let (sa, sb) = (self.bodies[a].spheres, self.bodies[b].spheres);
         let (bb, rb) = (&self.bcw[b], self.bodies[b].br);
         for i in sa.0 as usize..sa.1 as usize {
             let (wi, ri) = (&self.sw[i], self.spheres[i][3]);
             // The sphere against b's bounding sphere first.
-            if near_mask::<N, AVX>(wi, bb, ri + rb + ex) == 0 {
+            if near_mask::<N>(wi, bb, ri + rb + ex) == 0 {
                 continue;
             }
             for j in sb.0 as usize..sb.1 as usize {
                 let rij = ri + self.spheres[j][3];
-                let m = near_mask::<N, AVX>(wi, &self.sw[j], rij + ex);
+                let m = near_mask::<N>(wi, &self.sw[j], rij + ex);
                 if m != 0 {
-                    if ex == 0.0 || near_mask::<N, AVX>(wi, &self.sw[j], rij) != 0 {
+                    if ex == 0.0 || near_mask::<N>(wi, &self.sw[j], rij) != 0 {
                         return true;
                     }
                     self.tight |= m;
@@ -1491,21 +1486,10 @@ fn lin4<const N: usize, const AVX: bool>(
     o
 }
 
-/// Lanes (bit l) whose value is ≤ 0 (NaN: not set). `AVX`: the caller runs compiled for
-/// and on an AVX2 CPU ([`SphereChecker::run8_avx2`]), so one compare and a `movemask` do it.
+/// Lanes (bit l) whose value is ≤ 0 (NaN: not set). The generic (reference) path; the AVX2
+/// path tests in `avx8`.
 #[inline(always)]
-fn le_zero_mask<const N: usize, const AVX: bool>(v: &[f32; N]) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    if AVX && N == 8 {
-        use std::arch::x86_64::{_mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps};
-        use std::arch::x86_64::{_mm256_setzero_ps, _CMP_LE_OQ};
-        // SAFETY: `AVX` is true only inside `run8_avx2`, which runs on CPUs with AVX2 (checked
-        // at construction); `v` holds 8 f32.
-        return unsafe {
-            let x = _mm256_loadu_ps(v.as_ptr());
-            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(x, _mm256_setzero_ps())) as u32
-        };
-    }
+fn le_zero_mask<const N: usize>(v: &[f32; N]) -> u32 {
     let mut m = 0u32;
     for l in 0..N {
         m |= u32::from(v[l] <= 0.0) << l;
@@ -1515,41 +1499,35 @@ fn le_zero_mask<const N: usize, const AVX: bool>(v: &[f32; N]) -> u32 {
 
 /// Lanes (bit l) whose distance between the two points is at most `r`.
 #[inline(always)]
-fn near_mask<const N: usize, const AVX: bool>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> u32 {
+fn near_mask<const N: usize>(a: &[Lane; 3], b: &[Lane; 3], r: f32) -> u32 {
     let r2 = r * r;
     let mut d = [0.0f32; N];
     for l in 0..N {
         let dx = a[0][l] - b[0][l];
         let dy = a[1][l] - b[1][l];
         let dz = a[2][l] - b[2][l];
-        d[l] = fmadd::<AVX>(dz, dz, fmadd::<AVX>(dy, dy, fmadd::<AVX>(dx, dx, -r2)));
+        d[l] = dx * dx + dy * dy + dz * dz - r2;
     }
-    le_zero_mask::<N, AVX>(&d)
+    le_zero_mask::<N>(&d)
 }
 
 /// Lanes (bit l) whose point is at most `r` from the fixed point `p`.
 #[inline(always)]
-fn point_near_mask<const N: usize, const AVX: bool>(a: &[[f32; N]; 3], p: [f32; 3], r: f32) -> u32 {
+fn point_near_mask<const N: usize>(a: &[[f32; N]; 3], p: [f32; 3], r: f32) -> u32 {
     let r2 = r * r;
     let mut d = [0.0f32; N];
     for l in 0..N {
         let dx = a[0][l] - p[0];
         let dy = a[1][l] - p[1];
         let dz = a[2][l] - p[2];
-        d[l] = fmadd::<AVX>(dz, dz, fmadd::<AVX>(dy, dy, fmadd::<AVX>(dx, dx, -r2)));
+        d[l] = dx * dx + dy * dy + dz * dz - r2;
     }
-    le_zero_mask::<N, AVX>(&d)
+    le_zero_mask::<N>(&d)
 }
 
 /// Lanes (bit l) whose sphere (x, y, z, r) touches the obstacle.
 #[inline(always)]
-fn obs_mask<const N: usize, const AVX: bool>(
-    o: &Obs,
-    x: &[f32; N],
-    y: &[f32; N],
-    z: &[f32; N],
-    r: f32,
-) -> u32 {
+fn obs_mask<const N: usize>(o: &Obs, x: &[f32; N], y: &[f32; N], z: &[f32; N], r: f32) -> u32 {
     let mut d = [0.0f32; N];
     match *o {
         Obs::Sphere { c, r: ro } => {
@@ -1558,7 +1536,7 @@ fn obs_mask<const N: usize, const AVX: bool>(
                 let dx = x[l] - c[0];
                 let dy = y[l] - c[1];
                 let dz = z[l] - c[2];
-                d[l] = fmadd::<AVX>(dz, dz, fmadd::<AVX>(dy, dy, fmadd::<AVX>(dx, dx, -rr)));
+                d[l] = dx * dx + dy * dy + dz * dz - rr;
             }
         }
         Obs::Box { c, rt, half } => {
@@ -1568,9 +1546,9 @@ fn obs_mask<const N: usize, const AVX: bool>(
                 let dz = z[l] - c[2];
                 let mut d2 = 0.0f32;
                 for k in 0..3 {
-                    let p = fmadd::<AVX>(rt[k][2], dz, fmadd::<AVX>(rt[k][1], dy, rt[k][0] * dx));
+                    let p = rt[k][0] * dx + rt[k][1] * dy + rt[k][2] * dz;
                     let e = (p.abs() - half[k]).max(0.0);
-                    d2 = fmadd::<AVX>(e, e, d2);
+                    d2 += e * e;
                 }
                 d[l] = d2 - r * r;
             }
@@ -1602,7 +1580,7 @@ fn obs_mask<const N: usize, const AVX: bool>(
             }
         }
     }
-    le_zero_mask::<N, AVX>(&d)
+    le_zero_mask::<N>(&d)
 }
 
 /// `(sin x, cos x)` of every lane in f32 (Cephes' sinf/cosf kernels after a three-constant
