@@ -267,7 +267,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 return Err(stopped(validator, stats, (t0, checks0, segments0), term));
             }
             iterations += 1;
-            validator.space().sample_uniform(&mut rng, q_rand);
+            validator.space().sample_uniform_fast(&mut rng, q_rand);
             if settings.balance {
                 start_side = ts.len() <= tg.len();
             }
@@ -433,6 +433,9 @@ fn extend_dynamic_domain<C: SegmentChecker>(
     target: &[f64],
     q_new: &mut [f64],
 ) -> Extend {
+    if tree.outside_every_domain(target) {
+        return Extend::Trapped;
+    }
     let Some((near, d2)) = tree.nearest(target) else {
         return Extend::Trapped;
     };

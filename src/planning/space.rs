@@ -207,6 +207,16 @@ impl JointSpace {
         }
     }
 
+    /// [`Self::sample_uniform`] with the planners' vectorised generator: [`PlannerRng::fill_unit`]
+    /// draws the unit values a vector at a time.
+    #[inline]
+    pub fn sample_uniform_fast(&self, rng: &mut super::PlannerRng, out: &mut [f64]) {
+        rng.fill_unit(out);
+        for ((o, lo), hi) in out.iter_mut().zip(&self.lower).zip(&self.upper) {
+            *o = lo + (hi - lo) * *o;
+        }
+    }
+
     /// True when `q` has `dim()` finite values within the bounds.
     pub fn satisfies_bounds(&self, q: &[f64]) -> bool {
         q.len() == self.dim()
