@@ -170,9 +170,12 @@ pub struct SphereChecker {
     seg_len: Vec<f64>,
     /// Per body: extra radius of its spheres in the current check (0 outside certification).
     infl: Vec<f32>,
-    seg_pair_len: Vec<f64>,
-    /// Per self pair: extra distance required between its spheres in the current check.
-    infl_pair: Vec<f32>,
+    /// Half the sub-interval length of the current check (0 outside certification): a self
+    /// pair's spheres must keep `pair_scale · (cum[pa] + cum[pb])` apart (see
+    /// [`SphereChecker::pair_inflation`]).
+    pair_scale: f64,
+    /// Per world variable: |b − a| of the segment being certified.
+    seg_dq: Vec<f64>,
     /// Lanes of the last check that are free with the plain spheres but not with `infl`.
     tight: u32,
     tight_ks: Vec<usize>,
@@ -577,7 +580,6 @@ impl SphereChecker {
             }
             cum_off[a] + n
         };
-        let npairs = self_pairs.len();
         let pair_cum: Vec<(u32, u32)> = self_pairs
             .iter()
             .map(|&(a, b)| {
@@ -619,8 +621,8 @@ impl SphereChecker {
             certifiable,
             seg_len: vec![0.0; nb],
             infl: vec![0.0; nb],
-            seg_pair_len: vec![0.0; npairs],
-            infl_pair: vec![0.0; npairs],
+            pair_scale: 0.0,
+            seg_dq: vec![0.0; world.dof()],
             tight: 0,
             tight_ks: Vec::new(),
             refine: Vec::new(),
@@ -725,9 +727,20 @@ impl SphereChecker {
         for (i, l) in self.infl.iter_mut().zip(&self.seg_len) {
             *i = (0.5 * l * h) as f32;
         }
-        for (i, l) in self.infl_pair.iter_mut().zip(&self.seg_pair_len) {
-            *i = (0.5 * l * h) as f32;
+        self.pair_scale = 0.5 * h;
+    }
+
+    /// Extra distance self pair `pi`'s spheres must keep in the current check: half what
+    /// both bodies can travel along a sub-interval, counting only the joints below their common
+    /// ancestor (those above move both rigidly). At most `infl[a] + infl[b]`, which the
+    /// body-level test uses instead, so this is computed only for pairs that pass it.
+    #[inline(always)]
+    fn pair_inflation(&self, pi: usize) -> f32 {
+        if self.pair_scale == 0.0 {
+            return 0.0;
         }
+        let (pa, pb) = self.pair_cum[pi];
+        (self.pair_scale * (self.cum[pa as usize] + self.cum[pb as usize])) as f32
     }
 
     /// Certified motion check: true only when the whole continuous straight segment `a → b`
@@ -746,20 +759,27 @@ impl SphereChecker {
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
         debug_assert!(self.certifiable && max_inflation > 0.0);
         let mut lmax = 0.0f64;
-        for (bi, len) in self.seg_len.iter_mut().enumerate() {
-            let (c0, c1) = self.chain_range[bi];
-            let o = self.cum_off[bi] as usize;
+        for ((d, &x), &y) in self.seg_dq.iter_mut().zip(a).zip(b) {
+            *d = (y - x).abs();
+        }
+        let dq = &self.seg_dq;
+        for ((len, &(c0, c1)), &o) in self
+            .seg_len
+            .iter_mut()
+            .zip(&self.chain_range)
+            .zip(&self.cum_off)
+        {
+            let chain = &self.chain[c0 as usize..c1 as usize];
+            let o = o as usize;
+            let cum = &mut self.cum[o..o + chain.len() + 1];
+            cum[0] = 0.0;
             let mut l = 0.0;
-            self.cum[o] = 0.0;
-            for (j, &(v, w)) in self.chain[c0 as usize..c1 as usize].iter().enumerate() {
-                l += (b[v as usize] - a[v as usize]).abs() * w;
-                self.cum[o + j + 1] = l;
+            for (&(v, w), c) in chain.iter().zip(&mut cum[1..]) {
+                l += dq[v as usize] * w;
+                *c = l;
             }
             *len = l;
             lmax = lmax.max(l);
-        }
-        for (len, &(pa, pb)) in self.seg_pair_len.iter_mut().zip(&self.pair_cum) {
-            *len = self.cum[pa as usize] + self.cum[pb as usize];
         }
         let n = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, Self::CERTIFY_MAX_STATES);
         // The n + 1 states fill whole 8-lane calls: the spare lanes make sub-intervals shorter
@@ -767,7 +787,7 @@ impl SphereChecker {
         let n = (n + 1).div_ceil(LANES) * LANES - 1;
         let ok = self.certify(a, b, n);
         self.infl.iter_mut().for_each(|i| *i = 0.0);
-        self.infl_pair.iter_mut().for_each(|i| *i = 0.0);
+        self.pair_scale = 0.0;
         ok
     }
 
@@ -1119,11 +1139,11 @@ impl SphereChecker {
 
     #[inline(always)]
     fn pair_hits<const N: usize>(&mut self, pi: usize, a: usize, b: usize) -> bool {
-        let ex = self.infl_pair[pi];
-        let rr = self.bodies[a].br + self.bodies[b].br + ex;
+        let rr = self.bodies[a].br + self.bodies[b].br + (self.infl[a] + self.infl[b]);
         if near_mask::<N>(&self.bcw[a], &self.bcw[b], rr) == 0 {
             return false;
         }
+        let ex = self.pair_inflation(pi);
         self.ensure_spheres::<N, false>(a);
         self.ensure_spheres::<N, false>(b);
         let (sa, sb) = (self.bodies[a].spheres, self.bodies[b].spheres);
@@ -1219,12 +1239,12 @@ impl SphereChecker {
     #[inline]
     fn pair_hits_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
         use avx8::*;
-        let ex = self.infl_pair[pi];
         let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
         let (ca, cb) = (load3(&self.bcw[a]), load3(&self.bcw[b]));
-        if near(ca, cb, ba.br + bb.br + ex) == 0 {
+        if near(ca, cb, ba.br + bb.br + (self.infl[a] + self.infl[b])) == 0 {
             return false;
         }
+        let ex = self.pair_inflation(pi);
         self.ensure_spheres::<LANES, true>(a);
         self.ensure_spheres::<LANES, true>(b);
         let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
