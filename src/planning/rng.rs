@@ -12,9 +12,10 @@ use rand::{RngCore, SeedableRng};
 const LANES: usize = 4;
 
 /// xoshiro256++ (see the module documentation), [`LANES`] independent generators stepped
-/// together so that one vector step yields [`LANES`] draws. The stream is lane 0's first
-/// output, lane 1's first, …, lane 3's first, lane 0's second, and so on, however it is
-/// consumed (`next_u64` or [`PlannerRng::fill_unit`]).
+/// together so that one vector step yields [`LANES`] draws. `next_u64` returns lane 0's first
+/// output, lane 1's first, …, lane 3's first, lane 0's second, and so on;
+/// [`PlannerRng::fill_uniform`] starts at a fresh step (draws still buffered are dropped), so
+/// its vectors line up with the output slice.
 #[derive(Debug, Clone)]
 pub struct PlannerRng {
     /// `s[k][lane]`: word `k` of each lane's state.
@@ -61,15 +62,10 @@ fn unit(v: u64) -> f64 {
     f64::from_bits((v >> 12) | 0x3FF0_0000_0000_0000) - 1.0
 }
 
-/// Fills `out` (a multiple of [`LANES`] long) with one vector step per [`LANES`] values.
+/// `lo + (hi − lo)·u` for `u` a uniform value in [0, 1) (the arithmetic of every path).
 #[inline(always)]
-fn fill_blocks(s: &mut [[u64; LANES]; 4], out: &mut [f64]) {
-    for chunk in out.chunks_exact_mut(LANES) {
-        let v = step(s);
-        for (o, &x) in chunk.iter_mut().zip(&v) {
-            *o = unit(x);
-        }
-    }
+fn scale(lo: f64, hi: f64, u: f64) -> f64 {
+    lo + (hi - lo) * u
 }
 
 /// The vector step with AVX2 intrinsics (the compiler does not vectorise [`step`] by itself):
@@ -109,6 +105,13 @@ mod avx2 {
     }
 
     #[inline(always)]
+    unsafe fn store(v: &[__m256i; 4], s: &mut [[u64; LANES]; 4]) {
+        for k in 0..4 {
+            _mm256_storeu_si256(s[k].as_mut_ptr().cast(), v[k]);
+        }
+    }
+
+    #[inline(always)]
     unsafe fn unit(x: __m256i) -> __m256d {
         let m = _mm256_or_si256(
             _mm256_srli_epi64::<12>(x),
@@ -117,39 +120,42 @@ mod avx2 {
         _mm256_sub_pd(_mm256_castsi256_pd(m), _mm256_set1_pd(1.0))
     }
 
-    /// [`super::PlannerRng::fill_unit`] after the buffered values: whole vectors into `out`,
-    /// then one more step into `buf` for the tail (`buf[..tail]` written to `out`'s end).
+    /// [`super::PlannerRng::fill_uniform`]: whole vectors into `out`, then one more step into
+    /// `buf` for the tail; returns how many of `buf` were used. The three slices have equal
+    /// lengths.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn fill_rest(
+    pub(super) unsafe fn fill_uniform(
         s: &mut [[u64; LANES]; 4],
         buf: &mut [u64; LANES],
+        lo: &[f64],
+        hi: &[f64],
         out: &mut [f64],
     ) -> usize {
         let mut v = load(s);
-        let mut chunks = out.chunks_exact_mut(LANES);
-        for chunk in &mut chunks {
-            _mm256_storeu_pd(chunk.as_mut_ptr(), unit(step(&mut v)));
+        let n = out.len().min(lo.len()).min(hi.len());
+        let mut k = 0;
+        while k + LANES <= n {
+            // SAFETY: k + LANES <= n, within all three slices. The same arithmetic as
+            // `super::scale` (separate multiply and add, no fused rounding).
+            let l = _mm256_loadu_pd(lo.as_ptr().add(k));
+            let h = _mm256_loadu_pd(hi.as_ptr().add(k));
+            let u = unit(step(&mut v));
+            let x = _mm256_add_pd(l, _mm256_mul_pd(_mm256_sub_pd(h, l), u));
+            _mm256_storeu_pd(out.as_mut_ptr().add(k), x);
+            k += LANES;
         }
-        let tail = chunks.into_remainder();
-        let used = if tail.is_empty() {
-            LANES
-        } else {
+        let used = if k < n {
             let x = step(&mut v);
             _mm256_storeu_si256(buf.as_mut_ptr().cast(), x);
-            for (o, &b) in tail.iter_mut().zip(buf.iter()) {
-                *o = super::unit(b);
+            for (j, &b) in buf.iter().enumerate().take(n - k) {
+                out[k + j] = super::scale(lo[k + j], hi[k + j], super::unit(b));
             }
-            tail.len()
+            n - k
+        } else {
+            LANES
         };
         store(&v, s);
         used
-    }
-
-    #[inline(always)]
-    unsafe fn store(v: &[__m256i; 4], s: &mut [[u64; LANES]; 4]) {
-        for k in 0..4 {
-            _mm256_storeu_si256(s[k].as_mut_ptr().cast(), v[k]);
-        }
     }
 
     /// [`super::step`] with AVX2.
@@ -165,34 +171,24 @@ mod avx2 {
 }
 
 impl PlannerRng {
-    /// Fills `out` with uniform values in [0, 1) (52 random bits each), consuming one draw of
-    /// the stream per value.
+    /// Fills `out[i]` with a uniform value in [`lo[i]`, `hi[i]`) (52 random bits each; the
+    /// three slices have equal lengths), a vector of [`LANES`] values per step, starting at a
+    /// fresh step (draws still buffered are dropped).
     #[inline]
-    pub fn fill_unit(&mut self, out: &mut [f64]) {
-        let mut rest = out;
-        // Values still buffered from the last step come first.
-        while self.pos < LANES {
-            let Some((first, tail)) = rest.split_first_mut() else {
-                return;
-            };
-            *first = unit(self.buf[self.pos]);
-            self.pos += 1;
-            rest = tail;
-        }
-        if rest.is_empty() {
+    pub fn fill_uniform(&mut self, lo: &[f64], hi: &[f64], out: &mut [f64]) {
+        debug_assert!(lo.len() == out.len() && hi.len() == out.len());
+        if out.is_empty() {
             return;
         }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU has AVX2 (checked at seeding).
-            self.pos = unsafe { avx2::fill_rest(&mut self.s, &mut self.buf, rest) };
+            self.pos = unsafe { avx2::fill_uniform(&mut self.s, &mut self.buf, lo, hi, out) };
             return;
         }
-        let whole = rest.len() - rest.len() % LANES;
-        let (blocks, tail) = rest.split_at_mut(whole);
-        fill_blocks(&mut self.s, blocks);
-        for o in tail {
-            *o = unit(self.next_u64());
+        self.pos = LANES;
+        for ((o, &l), &h) in out.iter_mut().zip(lo).zip(hi) {
+            *o = scale(l, h, unit(self.next_u64()));
         }
     }
 
@@ -309,10 +305,11 @@ mod tests {
         assert_ne!(got[1], got[0]);
     }
 
-    /// `fill_unit` consumes the same stream as `next_u64`, whatever the buffer position and
-    /// length, and every value is in [0, 1).
+    /// `fill_uniform` draws from a fresh step whatever the buffer position, one draw per value
+    /// in stream order, and leaves the rest of its last step to `next_u64`; values stay in
+    /// [lo, hi).
     #[test]
-    fn fill_unit_follows_the_stream() {
+    fn fill_uniform_follows_the_stream() {
         for skip in 0..5 {
             for len in [0usize, 1, 3, 4, 7, 14, 33] {
                 let mut a = PlannerRng::seed_from_u64(11);
@@ -321,11 +318,22 @@ mod tests {
                     a.next_u64();
                     b.next_u64();
                 }
+                let lo: Vec<f64> = (0..len).map(|i| -1.0 - i as f64).collect();
+                let hi: Vec<f64> = (0..len).map(|i| 0.5 * i as f64).collect();
                 let mut got = vec![0.0; len];
-                a.fill_unit(&mut got);
-                let want: Vec<f64> = (0..len).map(|_| unit(b.next_u64())).collect();
+                a.fill_uniform(&lo, &hi, &mut got);
+                if len > 0 {
+                    b.pos = LANES;
+                }
+                let want: Vec<f64> = (0..len)
+                    .map(|i| scale(lo[i], hi[i], unit(b.next_u64())))
+                    .collect();
                 assert_eq!(got, want, "skip {skip}, len {len}");
-                assert!(got.iter().all(|v| (0.0..1.0).contains(v)));
+                assert!(got
+                    .iter()
+                    .zip(&lo)
+                    .zip(&hi)
+                    .all(|((v, l), h)| l <= v && v < h));
                 assert_eq!(a.next_u64(), b.next_u64());
             }
         }

@@ -207,14 +207,12 @@ impl JointSpace {
         }
     }
 
-    /// [`Self::sample_uniform`] with the planners' vectorised generator: [`PlannerRng::fill_unit`]
-    /// draws the unit values a vector at a time.
+    /// [`Self::sample_uniform`] with the planners' vectorised generator
+    /// ([`PlannerRng::fill_uniform`](super::PlannerRng::fill_uniform): a vector of values per
+    /// step, written with the vector stores that the next distance computation loads).
     #[inline]
     pub fn sample_uniform_fast(&self, rng: &mut super::PlannerRng, out: &mut [f64]) {
-        rng.fill_unit(out);
-        for ((o, lo), hi) in out.iter_mut().zip(&self.lower).zip(&self.upper) {
-            *o = lo + (hi - lo) * *o;
-        }
+        rng.fill_uniform(&self.lower, &self.upper, out);
     }
 
     /// True when `q` has `dim()` finite values within the bounds.
