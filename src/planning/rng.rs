@@ -1,10 +1,11 @@
 //! The sampling generator of the tree planners' inner loops: xoshiro256++ (Blackman & Vigna,
-//! "Scrambled linear pseudorandom number generators", ACM TOMS 2021). A few adds, shifts and
-//! rotates per 64-bit draw — RRT-Connect draws one per joint every iteration, and on
-//! MotionBenchMaker's Baxter problems most of ~10⁵ iterations end after sampling and one
-//! nearest-neighbour query, where ChaCha8 took a tenth of the time. Not for cryptography.
-//! Seeded from a `u64` through SplitMix64 (the authors' recommendation), so equal seeds give
-//! equal streams on every platform.
+//! "Scrambled linear pseudorandom number generators", ACM TOMS 2021), four independent
+//! generators stepped together in one AVX2 vector (scalar code off AVX2, same stream). A few
+//! adds, shifts and rotates per step of four 64-bit draws — RRT-Connect draws one per joint
+//! every iteration, and on MotionBenchMaker's Baxter problems most of ~10⁵ iterations end
+//! right after sampling, so [`PlannerRng::fill_uniform`] turns draws into samples within the
+//! bounds a vector at a time. Not for cryptography. Seeded from a `u64` through SplitMix64
+//! (the authors' recommendation), so equal seeds give equal streams on every platform.
 
 use rand::{RngCore, SeedableRng};
 

@@ -32,30 +32,19 @@ unsafe fn block_distances_avx(data: &[f64], weights: &[f64], q: &[f64]) -> [f64;
     block_distances(data, weights, q)
 }
 
-/// Weighted squared distance with plain products and sums, four partial sums (one vector; no
-/// fused multiply-add, which off FMA CPUs is a slow library call). Not bit-equal to
-/// [`Tree::nearest`]'s distances; for bounds only.
-#[inline(always)]
+/// Weighted squared distance with plain products and sums (no fused multiply-add, which off
+/// FMA CPUs is a slow library call). Not bit-equal to [`Tree::nearest`]'s distances; for
+/// bounds only.
+#[inline]
 fn plain_dist_sq(a: &[f64], b: &[f64], w: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let n = a.len().min(b.len()).min(w.len());
-    let (a, b, w) = (&a[..n], &b[..n], &w[..n]);
-    let whole = n - n % 4;
-    for ((ca, cb), cw) in a[..whole]
-        .chunks_exact(4)
-        .zip(b[..whole].chunks_exact(4))
-        .zip(w[..whole].chunks_exact(4))
-    {
-        for l in 0..4 {
-            let e = ca[l] - cb[l];
-            acc[l] += cw[l] * e * e;
-        }
-    }
-    for k in whole..n {
-        let e = a[k] - b[k];
-        acc[k - whole] += w[k] * e * e;
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3])
+    a.iter()
+        .zip(b)
+        .zip(w)
+        .map(|((x, y), w)| {
+            let e = x - y;
+            w * e * e
+        })
+        .sum()
 }
 
 /// [`plain_dist_sq`] with AVX intrinsics (one 4-lane accumulator; the summation order differs,
@@ -227,8 +216,8 @@ impl Tree {
     /// when that exceeds a bound of every radius, no state's domain holds `q`. One distance
     /// instead of a nearest-neighbour query: on MotionBenchMaker's Baxter problems over 99 % of
     /// samples are skipped, ~92 % of them by this test (measured: the trees keep ~5 states on
-    /// average, within ~0.7 of their first state). `false` means "not certain" (an infinite radius, or `q` near the tree), and the
-    /// caller then asks [`Tree::nearest`].
+    /// average, within ~0.7 of their first state). `false` means "not certain" (an infinite
+    /// radius, or `q` near the tree), and the caller then asks [`Tree::nearest`].
     #[inline]
     pub fn outside_every_domain(&self, q: &[f64]) -> bool {
         if self.is_empty() || self.infinite_radii > 0 || q.len() != self.dim {
@@ -237,14 +226,14 @@ impl Tree {
         // Relative slack far above the rounding of a few dozen f64 operations.
         const SLACK: f64 = 1e-9;
         let reach = (self.finite_radius_bound + self.spread) * (1.0 + SLACK);
-        self.dist_sq_bound(0, q) * (1.0 - SLACK) > reach * reach
+        self.dist_sq_to_first(q) * (1.0 - SLACK) > reach * reach
     }
 
-    /// Squared distance from state `i` to `q` for bounds ([`plain_dist_sq`], with AVX when the
+    /// Squared distance from state 0 to `q`, for bounds ([`plain_dist_sq`], with AVX when the
     /// CPU has it).
     #[inline]
-    fn dist_sq_bound(&self, i: usize, q: &[f64]) -> f64 {
-        let s = &self.states[i * self.dim..(i + 1) * self.dim];
+    fn dist_sq_to_first(&self, q: &[f64]) -> f64 {
+        let s = &self.states[..self.dim];
         #[cfg(target_arch = "x86_64")]
         if self.avx {
             // SAFETY: `avx` is set only when the CPU has AVX and FMA (checked in `Tree::new`).
@@ -284,7 +273,7 @@ impl Tree {
                 self.scan_data[b + k * BUCKET + slot] = v;
             }
         }
-        let from_first = self.dist_sq_bound(0, q).sqrt();
+        let from_first = self.dist_sq_to_first(q).sqrt();
         self.spread = self.spread.max(from_first);
         self.kd_insert(i);
         i
