@@ -34,5 +34,5 @@ pub use rrt_connect::{RrtConnect, RrtConnectSettings};
 pub use shortcut::{ShortcutSettings, ShortcutStats};
 pub use space::JointSpace;
 pub use termination::{StopReason, Termination};
-pub use tree::{Tree, NO_PARENT};
+pub use tree::{DomainBall, Tree, NO_PARENT};
 pub use validity::{space_checker, SegmentChecker, SpaceValidator};

@@ -9,6 +9,8 @@
 
 use rand::{RngCore, SeedableRng};
 
+use super::DomainBall;
+
 /// Independent xoshiro256++ generators stepped together (one AVX2 vector of 64-bit lanes).
 const LANES: usize = 4;
 
@@ -58,9 +60,36 @@ fn step(s: &mut [[u64; LANES]; 4]) -> [u64; LANES] {
 
 /// A draw as a uniform f64 in [0, 1): its top 52 bits as the mantissa of a number in [1, 2),
 /// minus 1 (exact, no integer-to-float conversion, which AVX2 lacks for 64-bit lanes).
+#[cfg(test)]
 #[inline(always)]
 fn unit(v: u64) -> f64 {
-    f64::from_bits((v >> 12) | 0x3FF0_0000_0000_0000) - 1.0
+    f64::from_bits((v >> 12) | ONE_BITS) - 1.0
+}
+
+/// The bits of 1.0.
+const ONE_BITS: u64 = 0x3FF0_0000_0000_0000;
+
+/// Half a draw as a uniform f64 in [0, 1) with 32 random bits: `h`·2⁻³², built as the
+/// mantissa of a number in [1, 2) minus 1 (exact), as the vector path does.
+#[inline(always)]
+fn unit32(h: u32) -> f64 {
+    f64::from_bits((u64::from(h) << 20) | ONE_BITS) - 1.0
+}
+
+/// Values per vector step in [`PlannerRng::fill_uniform`]: two 32-bit halves of each lane.
+const VALUES_PER_STEP: usize = 2 * LANES;
+
+/// The uniform value in [0, 1) that [`PlannerRng::fill_uniform`] makes of value `j` (below
+/// [`VALUES_PER_STEP`]) of a step's outputs `x`: the low halves of the lanes, then the high
+/// halves.
+#[inline(always)]
+fn step_value(x: &[u64; LANES], j: usize) -> f64 {
+    let w = x[j % LANES];
+    unit32(if j < LANES {
+        w as u32
+    } else {
+        (w >> 32) as u32
+    })
 }
 
 /// `lo + (hi − lo)·u` for `u` a uniform value in [0, 1) (the arithmetic of every path).
@@ -112,51 +141,137 @@ mod avx2 {
         }
     }
 
+    /// The two vectors of uniform values in [0, 1) a step's outputs make (see
+    /// [`super::step_value`]): 32-bit halves placed in the mantissa of a number in [1, 2),
+    /// minus 1.
     #[inline(always)]
-    unsafe fn unit(x: __m256i) -> __m256d {
-        let m = _mm256_or_si256(
-            _mm256_srli_epi64::<12>(x),
-            _mm256_set1_epi64x(0x3FF0_0000_0000_0000),
-        );
-        _mm256_sub_pd(_mm256_castsi256_pd(m), _mm256_set1_pd(1.0))
+    unsafe fn units(x: __m256i) -> (__m256d, __m256d) {
+        let one = _mm256_set1_epi64x(super::ONE_BITS as i64);
+        let low = _mm256_srli_epi64::<12>(_mm256_slli_epi64::<32>(x));
+        let high = _mm256_slli_epi64::<20>(_mm256_srli_epi64::<32>(x));
+        let one_pd = _mm256_set1_pd(1.0);
+        (
+            _mm256_sub_pd(_mm256_castsi256_pd(_mm256_or_si256(low, one)), one_pd),
+            _mm256_sub_pd(_mm256_castsi256_pd(_mm256_or_si256(high, one)), one_pd),
+        )
     }
 
-    /// [`super::PlannerRng::fill_uniform`]: whole vectors into `out`, then one more step into
-    /// `buf` for the tail; returns how many of `buf` were used. The three slices have equal
-    /// lengths.
+    /// Lanes below `r` set (for the last, partial vector of a slice).
+    #[inline(always)]
+    unsafe fn lanes_below(r: usize) -> __m256i {
+        _mm256_cmpgt_epi64(_mm256_set1_epi64x(r as i64), _mm256_set_epi64x(3, 2, 1, 0))
+    }
+
+    /// Loads `LANES` values of `p` from `k`, only the lanes of `mask` when `partial` (the
+    /// others read as 0).
+    ///
+    /// # Safety
+    /// `p[k..k + LANES]`, or its lanes in `mask` when `partial`, are in bounds.
+    #[inline(always)]
+    unsafe fn load_at(p: &[f64], k: usize, partial: bool, mask: __m256i) -> __m256d {
+        if partial {
+            _mm256_maskload_pd(p.as_ptr().add(k), mask)
+        } else {
+            _mm256_loadu_pd(p.as_ptr().add(k))
+        }
+    }
+
+    /// One sample into `out` (`lo + (hi − lo)·u` per value, whole steps of
+    /// [`super::VALUES_PER_STEP`] values) and, when `DIST`, the 4-lane accumulator of
+    /// `w·(c − x)·(c − x)` (as `tree::plain_dist_sq_avx` sums it). All five slices have length
+    /// `n`; `mask` is [`lanes_below`]`(n % LANES)`.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn draw<const DIST: bool>(
+        v: &mut [__m256i; 4],
+        lo: &[f64],
+        hi: &[f64],
+        center: &[f64],
+        w: &[f64],
+        out: &mut [f64],
+        n: usize,
+        mask: __m256i,
+    ) -> __m256d {
+        let mut acc = _mm256_setzero_pd();
+        let mut k = 0;
+        while k < n {
+            let (a, b) = units(step(v));
+            for u in [a, b] {
+                if k >= n {
+                    break;
+                }
+                let partial = k + LANES > n;
+                // SAFETY: lanes k.. below n are in bounds of all five slices; the mask keeps
+                // the partial vector's loads and store within them.
+                let l = load_at(lo, k, partial, mask);
+                let h = load_at(hi, k, partial, mask);
+                let x = _mm256_add_pd(l, _mm256_mul_pd(_mm256_sub_pd(h, l), u));
+                if partial {
+                    _mm256_maskstore_pd(out.as_mut_ptr().add(k), mask, x);
+                } else {
+                    _mm256_storeu_pd(out.as_mut_ptr().add(k), x);
+                }
+                if DIST {
+                    let e = _mm256_sub_pd(load_at(center, k, partial, mask), x);
+                    let we = _mm256_mul_pd(load_at(w, k, partial, mask), e);
+                    acc = _mm256_add_pd(acc, _mm256_mul_pd(we, e));
+                }
+                k += LANES;
+            }
+        }
+        acc
+    }
+
+    /// [`super::PlannerRng::fill_uniform`]. The three slices have equal lengths.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn fill_uniform(
         s: &mut [[u64; LANES]; 4],
-        buf: &mut [u64; LANES],
         lo: &[f64],
         hi: &[f64],
         out: &mut [f64],
-    ) -> usize {
-        let mut v = load(s);
+    ) {
         let n = out.len().min(lo.len()).min(hi.len());
-        let mut k = 0;
-        while k + LANES <= n {
-            // SAFETY: k + LANES <= n, within all three slices. The same arithmetic as
-            // `super::scale` (separate multiply and add, no fused rounding).
-            let l = _mm256_loadu_pd(lo.as_ptr().add(k));
-            let h = _mm256_loadu_pd(hi.as_ptr().add(k));
-            let u = unit(step(&mut v));
-            let x = _mm256_add_pd(l, _mm256_mul_pd(_mm256_sub_pd(h, l), u));
-            _mm256_storeu_pd(out.as_mut_ptr().add(k), x);
-            k += LANES;
-        }
-        let used = if k < n {
-            let x = step(&mut v);
-            _mm256_storeu_si256(buf.as_mut_ptr().cast(), x);
-            for (j, &b) in buf.iter().enumerate().take(n - k) {
-                out[k + j] = super::scale(lo[k + j], hi[k + j], super::unit(b));
-            }
-            n - k
-        } else {
-            LANES
-        };
+        let mut v = load(s);
+        draw::<false>(&mut v, lo, hi, &[], &[], out, n, lanes_below(n % LANES));
         store(&v, s);
-        used
+    }
+
+    /// [`super::PlannerRng::fill_uniform_until_inside`]: draws as [`fill_uniform`] does and
+    /// measures each draw against the ball with the arithmetic of `tree::plain_dist_sq_avx`,
+    /// all in registers. Returns (draws, inside). `out`, `lo`, `hi` and the ball have equal
+    /// lengths; `max_draws` ≥ 1.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn fill_uniform_until_inside(
+        s: &mut [[u64; LANES]; 4],
+        lo: &[f64],
+        hi: &[f64],
+        ball: &crate::planning::DomainBall<'_>,
+        max_draws: u64,
+        out: &mut [f64],
+    ) -> (u64, bool) {
+        let (center, w) = (ball.center(), ball.weights());
+        let n = out
+            .len()
+            .min(lo.len())
+            .min(hi.len())
+            .min(center.len())
+            .min(w.len());
+        let mask = lanes_below(n % LANES);
+        let mut v = load(s);
+        let mut draws = 0;
+        let mut inside = false;
+        while draws < max_draws {
+            draws += 1;
+            let acc = draw::<true>(&mut v, lo, hi, center, w, out, n, mask);
+            let half = _mm_add_pd(_mm256_castpd256_pd128(acc), _mm256_extractf128_pd::<1>(acc));
+            let d2 = _mm_cvtsd_f64(_mm_add_sd(half, _mm_unpackhi_pd(half, half)));
+            if !ball.excludes_dist_sq(d2) {
+                inside = true;
+                break;
+            }
+        }
+        store(&v, s);
+        (draws, inside)
     }
 
     /// [`super::step`] with AVX2.
@@ -172,25 +287,75 @@ mod avx2 {
 }
 
 impl PlannerRng {
-    /// Fills `out[i]` with a uniform value in [`lo[i]`, `hi[i]`) (52 random bits each; the
-    /// three slices have equal lengths), a vector of [`LANES`] values per step, starting at a
-    /// fresh step (draws still buffered are dropped).
+    /// Fills `out[i]` with a uniform value in [`lo[i]`, `hi[i]`) (32 random bits each; the
+    /// three slices have equal lengths). Consumes whole vector steps from a fresh one (draws
+    /// still buffered are dropped): each step's [`LANES`] outputs make [`VALUES_PER_STEP`]
+    /// values, the low halves then the high halves (see [`step_value`]), and what a last step
+    /// leaves over is dropped too.
     #[inline]
     pub fn fill_uniform(&mut self, lo: &[f64], hi: &[f64], out: &mut [f64]) {
         debug_assert!(lo.len() == out.len() && hi.len() == out.len());
+        self.pos = LANES;
         if out.is_empty() {
             return;
         }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU has AVX2 (checked at seeding).
-            self.pos = unsafe { avx2::fill_uniform(&mut self.s, &mut self.buf, lo, hi, out) };
+            unsafe { avx2::fill_uniform(&mut self.s, lo, hi, out) };
             return;
         }
-        self.pos = LANES;
-        for ((o, &l), &h) in out.iter_mut().zip(lo).zip(hi) {
-            *o = scale(l, h, unit(self.next_u64()));
+        for (c, chunk) in out.chunks_mut(VALUES_PER_STEP).enumerate() {
+            let x = step(&mut self.s);
+            let k = c * VALUES_PER_STEP;
+            for (j, o) in chunk.iter_mut().enumerate() {
+                *o = scale(lo[k + j], hi[k + j], step_value(&x, j));
+            }
         }
+    }
+
+    /// Draws samples as [`PlannerRng::fill_uniform`] does, one after another into `out`, until
+    /// one is not certainly outside `ball` ([`DomainBall::excludes`]) or `max_draws` (at least
+    /// one) were made; returns the number of draws and whether the last is inside. The same
+    /// draws, samples and verdicts as calling `fill_uniform` and `excludes` in turn (tested),
+    /// but on AVX2 CPUs one fused loop in registers: dynamic-domain RRT-Connect skips most of
+    /// its samples this way (Yershova et al., ICRA 2005), and there the separate calls cost
+    /// more than the test itself.
+    #[inline]
+    pub fn fill_uniform_until_inside(
+        &mut self,
+        lo: &[f64],
+        hi: &[f64],
+        ball: &DomainBall<'_>,
+        max_draws: u64,
+        out: &mut [f64],
+    ) -> (u64, bool) {
+        let max_draws = max_draws.max(1);
+        let n = out.len();
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2
+            && ball.uses_avx()
+            && n > 0
+            && lo.len() == n
+            && hi.len() == n
+            && ball.center().len() == n
+        {
+            self.pos = LANES;
+            // SAFETY: `avx2` is set only when the CPU has AVX2 (checked at seeding); the
+            // ball's distance uses the same AVX arithmetic.
+            return unsafe {
+                avx2::fill_uniform_until_inside(&mut self.s, lo, hi, ball, max_draws, out)
+            };
+        }
+        let mut draws = 0;
+        while draws < max_draws {
+            draws += 1;
+            self.fill_uniform(lo, hi, out);
+            if !ball.excludes(out) {
+                return (draws, true);
+            }
+        }
+        (draws, false)
     }
 
     /// Steps every lane once into the buffer.
@@ -306,13 +471,13 @@ mod tests {
         assert_ne!(got[1], got[0]);
     }
 
-    /// `fill_uniform` draws from a fresh step whatever the buffer position, one draw per value
-    /// in stream order, and leaves the rest of its last step to `next_u64`; values stay in
-    /// [lo, hi).
+    /// `fill_uniform` consumes whole steps from a fresh one whatever the buffer position,
+    /// [`VALUES_PER_STEP`] values per step in [`step_value`] order (the scalar reference),
+    /// drops what is left, and values stay in [lo, hi).
     #[test]
     fn fill_uniform_follows_the_stream() {
         for skip in 0..5 {
-            for len in [0usize, 1, 3, 4, 7, 14, 33] {
+            for len in [0usize, 1, 3, 4, 7, 8, 9, 14, 33] {
                 let mut a = PlannerRng::seed_from_u64(11);
                 let mut b = PlannerRng::seed_from_u64(11);
                 for _ in 0..skip {
@@ -323,23 +488,80 @@ mod tests {
                 let hi: Vec<f64> = (0..len).map(|i| 0.5 * i as f64).collect();
                 let mut got = vec![0.0; len];
                 a.fill_uniform(&lo, &hi, &mut got);
-                if len > 0 {
-                    b.pos = LANES;
+                let mut want = vec![0.0; len];
+                for (i, w) in want.iter_mut().enumerate() {
+                    if i % VALUES_PER_STEP == 0 {
+                        b.pos = LANES;
+                        b.refill();
+                    }
+                    *w = scale(lo[i], hi[i], step_value(&b.buf, i % VALUES_PER_STEP));
                 }
-                let want: Vec<f64> = (0..len)
-                    .map(|i| scale(lo[i], hi[i], unit(b.next_u64())))
-                    .collect();
                 assert_eq!(got, want, "skip {skip}, len {len}");
                 assert!(got
                     .iter()
                     .zip(&lo)
                     .zip(&hi)
                     .all(|((v, l), h)| l <= v && v < h));
-                assert_eq!(a.next_u64(), b.next_u64());
+                b.pos = LANES;
+                assert_eq!(a.next_u64(), b.next_u64(), "skip {skip}, len {len}");
             }
         }
         assert_eq!(unit(0), 0.0);
         assert_eq!(unit(u64::MAX), 1.0 - f64::EPSILON);
+        assert_eq!(unit32(0), 0.0);
+        assert_eq!(unit32(u32::MAX), 1.0 - 2f64.powi(-32));
+        let x = [0x0000_0002_0000_0001u64, 0, 0, 0];
+        assert_eq!(step_value(&x, 0), 2f64.powi(-32));
+        assert_eq!(step_value(&x, LANES), 2.0 * 2f64.powi(-32));
+    }
+
+    /// `fill_uniform_until_inside` makes the same draws, samples and verdicts as
+    /// `fill_uniform` and `DomainBall::excludes` in turn, for balls that exclude from none to
+    /// all of the samples (so verdicts near the boundary are exercised too), for dimensions
+    /// with and without a partial last vector.
+    #[test]
+    fn fused_sampling_equals_sample_then_test() {
+        use crate::planning::{Tree, NO_PARENT};
+        let mut total = [0u64; 2];
+        for dim in [1usize, 3, 4, 7, 8, 14, 20] {
+            let lo: Vec<f64> = (0..dim).map(|i| -1.0 - 0.3 * i as f64).collect();
+            let hi: Vec<f64> = (0..dim).map(|i| 1.5 + 0.1 * i as f64).collect();
+            let w: Vec<f64> = (0..dim).map(|i| 0.5 + 0.25 * (i % 3) as f64).collect();
+            let mut tree = Tree::new(&w);
+            let root: Vec<f64> = (0..dim).map(|i| 0.1 * i as f64 - 0.2).collect();
+            tree.add(&root, NO_PARENT);
+            for (case, r) in [0.05, 0.5, 1.0, 1.5, 2.0, 3.0, 6.0].iter().enumerate() {
+                tree.set_radius(0, r * (dim as f64).sqrt());
+                let Some(ball) = tree.domain_ball() else {
+                    panic!("a finite radius gives a ball");
+                };
+                for max in [1u64, 5, 65] {
+                    let seed = (dim * 100 + case * 10) as u64 + max;
+                    let mut a = PlannerRng::seed_from_u64(seed);
+                    let mut b = PlannerRng::seed_from_u64(seed);
+                    let (mut qa, mut qb) = (vec![0.0; dim], vec![0.0; dim]);
+                    for _ in 0..20 {
+                        let (draws, inside) =
+                            a.fill_uniform_until_inside(&lo, &hi, &ball, max, &mut qa);
+                        let mut want = (0, false);
+                        while want.0 < max {
+                            want.0 += 1;
+                            b.fill_uniform(&lo, &hi, &mut qb);
+                            if !ball.excludes(&qb) {
+                                want.1 = true;
+                                break;
+                            }
+                        }
+                        assert_eq!((draws, inside), want, "dim {dim}, radius {r}, max {max}");
+                        assert_eq!(qa, qb, "dim {dim}, radius {r}, max {max}");
+                        total[usize::from(inside)] += 1;
+                    }
+                    assert_eq!(a.next_u64(), b.next_u64());
+                }
+            }
+        }
+        // Both outcomes occur.
+        assert!(total[0] > 100 && total[1] > 100, "{total:?}");
     }
 
     #[test]

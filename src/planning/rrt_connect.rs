@@ -267,7 +267,6 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 return Err(stopped(validator, stats, (t0, checks0, segments0), term));
             }
             iterations += 1;
-            validator.space().sample_uniform_fast(&mut rng, q_rand);
             if settings.balance {
                 start_side = ts.len() <= tg.len();
             }
@@ -276,6 +275,32 @@ impl<C: SegmentChecker> RrtConnect<C> {
             } else {
                 (&mut *tg, &mut *ts)
             };
+            // With balanced trees the side stays the same until a tree grows, so the samples
+            // that fall outside every domain of `ta` (most of them: see
+            // `Tree::outside_every_domain`) are drawn and skipped in one fused loop, each still
+            // counted as an iteration. Same draws, same search as one sample per iteration.
+            let ball = match settings.dynamic_domain {
+                Some(_) if settings.balance => ta.domain_ball(),
+                _ => None,
+            };
+            if let Some(ball) = ball {
+                let space = validator.space();
+                let quiet = term.quiet_iterations();
+                let (draws, inside) = rng.fill_uniform_until_inside(
+                    space.lower(),
+                    space.upper(),
+                    &ball,
+                    1 + quiet,
+                    q_rand,
+                );
+                term.count_quiet(draws - 1);
+                iterations += draws - 1;
+                if !inside {
+                    continue;
+                }
+            } else {
+                validator.space().sample_uniform_fast(&mut rng, q_rand);
+            }
             let grown = match settings.dynamic_domain {
                 Some(r0) => extend_dynamic_domain(ta, validator, range, r0, q_rand, q_new),
                 None => extend(ta, validator, range, q_rand, q_new),

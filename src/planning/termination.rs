@@ -119,6 +119,38 @@ impl Termination {
         false
     }
 
+    /// How many more iterations [`Termination::count_quiet`] may count at once: those whose
+    /// [`Termination::should_stop`] would neither read the clock nor reach the iteration
+    /// limit (at most 64, so a planner that counts this way still reads the stop flag at
+    /// least every 65 iterations). 0 once the condition has fired.
+    #[inline]
+    pub fn quiet_iterations(&self) -> u64 {
+        if self.reason.is_some() {
+            return 0;
+        }
+        let mut n: u64 = 64;
+        if let Some(m) = self.max_iterations {
+            n = n.min(m.saturating_sub(self.iterations));
+        }
+        if self.deadline.is_some() {
+            n = n.min(u64::from(self.until_clock));
+        }
+        n
+    }
+
+    /// Counts `n` iterations (at most [`Termination::quiet_iterations`]) as that many calls of
+    /// [`Termination::should_stop`] returning false would, without reading the stop flag:
+    /// for loops that skip many cheap iterations in a row.
+    #[inline]
+    pub fn count_quiet(&mut self, n: u64) {
+        let n = n.min(self.quiet_iterations());
+        self.iterations += n;
+        if self.deadline.is_some() {
+            // n ≤ until_clock here.
+            self.until_clock -= n as u32;
+        }
+    }
+
     /// Checks the clock and the flag now, without counting an iteration (for slow steps).
     pub fn should_stop_now(&mut self) -> bool {
         if self.reason.is_some() {
@@ -188,5 +220,43 @@ mod tests {
         f.store(true, Ordering::Relaxed);
         assert!(t.should_stop());
         assert_eq!(t.reason(), Some(StopReason::Requested));
+    }
+
+    /// Counting quietly never skips a clock reading or the iteration limit: a loop that calls
+    /// `should_stop` and then counts what `quiet_iterations` allows stops at the same
+    /// iteration as one that calls `should_stop` every time, and reads the clock as often.
+    #[test]
+    fn quiet_counting_keeps_limits() {
+        for limit in [1u64, 7, 16, 17, 100, 1000] {
+            let mut t = Termination::new()
+                .with_iteration_limit(limit)
+                .with_time_limit(Duration::from_secs(3600));
+            let mut counted = 0u64;
+            let mut clock_reads = 0u64;
+            while !t.should_stop() {
+                counted += 1;
+                if t.until_clock == t.clock_every - 1 {
+                    clock_reads += 1;
+                }
+                let q = t.quiet_iterations();
+                assert!(q <= 64);
+                let n = q.min(1 + counted % 40);
+                t.count_quiet(n);
+                counted += n;
+                assert!(t.iterations() <= limit);
+            }
+            assert_eq!(t.reason(), Some(StopReason::IterationLimit));
+            assert_eq!(counted, limit);
+            assert_eq!(t.iterations(), limit + 1);
+            // One clock reading per 16 counted iterations, as with plain calls.
+            assert_eq!(clock_reads, limit.div_ceil(16), "limit {limit}");
+        }
+        let mut t = Termination::new().with_iteration_limit(2);
+        assert!(!t.should_stop());
+        assert_eq!(t.quiet_iterations(), 1);
+        t.count_quiet(5);
+        assert_eq!(t.iterations(), 2);
+        assert!(t.should_stop());
+        assert_eq!(t.quiet_iterations(), 0);
     }
 }

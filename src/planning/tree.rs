@@ -47,8 +47,10 @@ fn plain_dist_sq(a: &[f64], b: &[f64], w: &[f64]) -> f64 {
         .sum()
 }
 
-/// [`plain_dist_sq`] with AVX intrinsics (one 4-lane accumulator; the summation order differs,
-/// which bounds allow for).
+/// [`plain_dist_sq`] with AVX intrinsics: one 4-lane accumulator of (w·e)·e, the last partial
+/// vector loaded under a mask (its other lanes add 0), then the halves summed. The summation
+/// order differs from [`plain_dist_sq`], which bounds allow for; `PlannerRng`'s fused sampler
+/// repeats it exactly.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 unsafe fn plain_dist_sq_avx(a: &[f64], b: &[f64], w: &[f64]) -> f64 {
@@ -56,24 +58,102 @@ unsafe fn plain_dist_sq_avx(a: &[f64], b: &[f64], w: &[f64]) -> f64 {
     let n = a.len().min(b.len()).min(w.len());
     let mut acc = _mm256_setzero_pd();
     let mut k = 0;
-    while k + 4 <= n {
-        // SAFETY: k + 4 <= n, within all three slices.
-        let e = _mm256_sub_pd(
-            _mm256_loadu_pd(a.as_ptr().add(k)),
-            _mm256_loadu_pd(b.as_ptr().add(k)),
-        );
-        let we = _mm256_mul_pd(_mm256_loadu_pd(w.as_ptr().add(k)), e);
+    while k < n {
+        // SAFETY: lanes k.. below n are within all three slices; the mask keeps the loads of a
+        // partial last vector within them.
+        let (x, y, wk) = if k + 4 <= n {
+            (
+                _mm256_loadu_pd(a.as_ptr().add(k)),
+                _mm256_loadu_pd(b.as_ptr().add(k)),
+                _mm256_loadu_pd(w.as_ptr().add(k)),
+            )
+        } else {
+            let r = (n - k) as i64;
+            let m = _mm256_set_epi64x(
+                -i64::from(r > 3),
+                -i64::from(r > 2),
+                -i64::from(r > 1),
+                -i64::from(r > 0),
+            );
+            (
+                _mm256_maskload_pd(a.as_ptr().add(k), m),
+                _mm256_maskload_pd(b.as_ptr().add(k), m),
+                _mm256_maskload_pd(w.as_ptr().add(k), m),
+            )
+        };
+        let e = _mm256_sub_pd(x, y);
+        let we = _mm256_mul_pd(wk, e);
         acc = _mm256_add_pd(acc, _mm256_mul_pd(we, e));
         k += 4;
     }
-    let mut tail = 0.0;
-    while k < n {
-        let e = a[k] - b[k];
-        tail += w[k] * e * e;
-        k += 1;
-    }
     let half = _mm_add_pd(_mm256_castpd256_pd128(acc), _mm256_extractf128_pd::<1>(acc));
-    _mm_cvtsd_f64(_mm_add_sd(half, _mm_unpackhi_pd(half, half))) + tail
+    _mm_cvtsd_f64(_mm_add_sd(half, _mm_unpackhi_pd(half, half)))
+}
+
+/// Relative slack of [`DomainBall`]'s test, far above the rounding of a few dozen f64
+/// operations.
+const DOMAIN_SLACK: f64 = 1e-9;
+
+/// A ball around a tree's state 0 that holds every state's dynamic domain
+/// ([`Tree::domain_ball`]): radius (largest finite radius + spread) with a relative slack.
+#[derive(Debug, Clone, Copy)]
+pub struct DomainBall<'a> {
+    center: &'a [f64],
+    weights: &'a [f64],
+    reach_sq: f64,
+    avx: bool,
+}
+
+impl<'a> DomainBall<'a> {
+    /// State 0 of the tree.
+    #[inline]
+    pub fn center(&self) -> &'a [f64] {
+        self.center
+    }
+
+    /// The tree's metric weights.
+    #[inline]
+    pub fn weights(&self) -> &'a [f64] {
+        self.weights
+    }
+
+    /// True when a point at squared distance `d2` from the center (as [`DomainBall::dist_sq`]
+    /// computes it) is certainly outside the ball.
+    #[inline]
+    pub fn excludes_dist_sq(&self, d2: f64) -> bool {
+        d2 * (1.0 - DOMAIN_SLACK) > self.reach_sq
+    }
+
+    /// True when `q` is certainly outside the ball (false for a `q` of the wrong length).
+    #[inline]
+    pub fn excludes(&self, q: &[f64]) -> bool {
+        q.len() == self.center.len() && self.excludes_dist_sq(self.dist_sq(q))
+    }
+
+    /// Weighted squared distance from the center to `q` ([`plain_dist_sq`], with AVX when the
+    /// CPU has it; `PlannerRng`'s fused sampler repeats the vector arithmetic exactly).
+    #[inline]
+    pub fn dist_sq(&self, q: &[f64]) -> f64 {
+        bound_dist_sq(self.center, q, self.weights, self.avx)
+    }
+
+    /// [`DomainBall::dist_sq`] uses the vector arithmetic (AVX).
+    #[inline]
+    pub(super) fn uses_avx(&self) -> bool {
+        self.avx
+    }
+}
+
+/// [`plain_dist_sq`], with AVX when `avx` (the CPU has AVX; see `Tree::avx`).
+#[inline]
+fn bound_dist_sq(a: &[f64], b: &[f64], w: &[f64], avx: bool) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if avx {
+        // SAFETY: callers pass `avx` true only when the CPU has AVX (checked in `Tree::new`).
+        return unsafe { plain_dist_sq_avx(a, b, w) };
+    }
+    let _ = avx;
+    plain_dist_sq(a, b, w)
 }
 
 /// Parent index of a root state.
@@ -220,26 +300,24 @@ impl Tree {
     /// radius, or `q` near the tree), and the caller then asks [`Tree::nearest`].
     #[inline]
     pub fn outside_every_domain(&self, q: &[f64]) -> bool {
-        if self.is_empty() || self.infinite_radii > 0 || q.len() != self.dim {
-            return false;
-        }
-        // Relative slack far above the rounding of a few dozen f64 operations.
-        const SLACK: f64 = 1e-9;
-        let reach = (self.finite_radius_bound + self.spread) * (1.0 + SLACK);
-        self.dist_sq_to_first(q) * (1.0 - SLACK) > reach * reach
+        self.domain_ball().is_some_and(|b| b.excludes(q))
     }
 
-    /// Squared distance from state 0 to `q`, for bounds ([`plain_dist_sq`], with AVX when the
-    /// CPU has it).
+    /// The ball around state 0 outside which [`Tree::outside_every_domain`] holds (`None` when
+    /// it holds nowhere: an empty tree or an infinite radius), for samplers that test many
+    /// samples against it in a row.
     #[inline]
-    fn dist_sq_to_first(&self, q: &[f64]) -> f64 {
-        let s = &self.states[..self.dim];
-        #[cfg(target_arch = "x86_64")]
-        if self.avx {
-            // SAFETY: `avx` is set only when the CPU has AVX and FMA (checked in `Tree::new`).
-            return unsafe { plain_dist_sq_avx(s, q, &self.weights) };
+    pub fn domain_ball(&self) -> Option<DomainBall<'_>> {
+        if self.is_empty() || self.infinite_radii > 0 {
+            return None;
         }
-        plain_dist_sq(s, q, &self.weights)
+        let reach = (self.finite_radius_bound + self.spread) * (1.0 + DOMAIN_SLACK);
+        Some(DomainBall {
+            center: &self.states[..self.dim],
+            weights: &self.weights,
+            reach_sq: reach * reach,
+            avx: self.avx,
+        })
     }
 
     #[inline]
@@ -273,7 +351,7 @@ impl Tree {
                 self.scan_data[b + k * BUCKET + slot] = v;
             }
         }
-        let from_first = self.dist_sq_to_first(q).sqrt();
+        let from_first = bound_dist_sq(&self.states[..self.dim], q, &self.weights, self.avx).sqrt();
         self.spread = self.spread.max(from_first);
         self.kd_insert(i);
         i
