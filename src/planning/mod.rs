@@ -29,6 +29,7 @@ mod validity;
 pub use ik_rrt::{GoalSampler, IkRrt, IkRrtSettings};
 pub use j_plus_rrt::{DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings};
 pub use result::{PlanError, PlanResult, PlanStats};
+pub(crate) use rng::DomainPretest;
 pub use rng::PlannerRng;
 pub use rrt_connect::{RrtConnect, RrtConnectSettings};
 pub use shortcut::{ShortcutSettings, ShortcutStats};

@@ -98,11 +98,136 @@ fn scale(lo: f64, hi: f64, u: f64) -> f64 {
     lo + (hi - lo) * u
 }
 
+/// Steps per draw the f32 pretest handles (so dimensions up to 32).
+const PRETEST_STEPS: usize = 4;
+
+/// f32 values in the lane order of a vector step seen as 8 lanes of 32 bits, a vector per
+/// step.
+#[derive(Debug, Clone, Copy)]
+#[repr(align(32))]
+struct StepLanes([[f32; 8]; PRETEST_STEPS]);
+
+/// The f32 pretest of [`PlannerRng::fill_uniform_until_inside`] for one tree: the space's
+/// bounds and the tree's state 0 and weights in f32, placed in the 32-bit lane order of the
+/// vector step (lane 2m of a step holds value m's low half, lane 2m + 1 value m + 4's high
+/// half; see [`step_value`]), and a bound of the f32 distance's error. A draw whose f32
+/// distance exceeds the ball's exclusion threshold by more than that bound is skipped without
+/// its f64 sample; all others go through the exact test, so the verdicts are the exact test's.
+/// Built once per tree root, and only valid with that tree's balls (its state 0 and weights;
+/// checked in debug builds): with another tree's ball it would skip the wrong draws. Up to 32
+/// dimensions of modest magnitude (|values| ≤ 10⁴).
+#[derive(Debug, Clone)]
+pub(crate) struct DomainPretest {
+    steps: usize,
+    lo: StepLanes,
+    span: StepLanes,
+    center: StepLanes,
+    weights: StepLanes,
+    /// Bound of |f32 distance − exact distance| (absolute part).
+    margin: f64,
+    /// The f64 center and weights it was built for.
+    center64: [f64; PRETEST_STEPS * VALUES_PER_STEP],
+    weights64: [f64; PRETEST_STEPS * VALUES_PER_STEP],
+    n: usize,
+}
+
+impl DomainPretest {
+    /// The pretest for samples in [`lo`, `hi`) against balls around `center` in the metric of
+    /// `weights`; `None` off AVX2 + FMA, beyond 32 dimensions, or for values outside ±10⁴ (or
+    /// weights outside (0, 10⁴]), where the f32 bound would not hold.
+    pub(crate) fn new(
+        lo: &[f64],
+        hi: &[f64],
+        center: &[f64],
+        weights: &[f64],
+    ) -> Option<DomainPretest> {
+        let n = center.len();
+        #[cfg(target_arch = "x86_64")]
+        let simd = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        #[cfg(not(target_arch = "x86_64"))]
+        let simd = false;
+        const BIG: f64 = 1e4;
+        let modest = |v: f64| v.is_finite() && v.abs() <= BIG;
+        if !simd
+            || n == 0
+            || n > PRETEST_STEPS * VALUES_PER_STEP
+            || lo.len() != n
+            || hi.len() != n
+            || weights.len() != n
+            || !lo.iter().chain(hi).chain(center).all(|&v| modest(v))
+            || !weights.iter().all(|&w| w > 0.0 && w <= BIG)
+            || lo.iter().zip(hi).any(|(l, h)| l > h)
+        {
+            return None;
+        }
+        let zero = StepLanes([[0.0; 8]; PRETEST_STEPS]);
+        let mut p = DomainPretest {
+            steps: n.div_ceil(VALUES_PER_STEP),
+            lo: zero,
+            span: zero,
+            center: zero,
+            weights: zero,
+            margin: 0.0,
+            center64: [0.0; PRETEST_STEPS * VALUES_PER_STEP],
+            weights64: [0.0; PRETEST_STEPS * VALUES_PER_STEP],
+            n,
+        };
+        p.center64[..n].copy_from_slice(center);
+        p.weights64[..n].copy_from_slice(weights);
+        let eps32 = 2f64.powi(-24);
+        let mut margin = 0.0;
+        for i in 0..n {
+            let (step, j) = (i / VALUES_PER_STEP, i % VALUES_PER_STEP);
+            let lane = if j < LANES {
+                2 * j
+            } else {
+                2 * (j - LANES) + 1
+            };
+            let span = hi[i] - lo[i];
+            p.lo.0[step][lane] = lo[i] as f32;
+            p.span.0[step][lane] = span as f32;
+            p.center.0[step][lane] = center[i] as f32;
+            p.weights.0[step][lane] = weights[i] as f32;
+            // The f32 value differs from the f64 one by at most (|lo| + span)·5·2⁻²⁴ (the
+            // 23-bit fraction, the roundings of lo, span and the fused multiply-add), the
+            // f32 difference to the center by ε below; e is at most E in magnitude.
+            let eps = (center[i].abs() + lo[i].abs() + span) * 8.0 * eps32;
+            let e_max = (center[i] - lo[i]).abs().max((hi[i] - center[i]).abs());
+            let w = weights[i];
+            margin += w * (2.0 * e_max * eps + eps * eps + 4.0 * eps32 * (e_max + eps).powi(2));
+        }
+        // Twice the bound, for the roundings it does not itemise.
+        p.margin = 2.0 * margin;
+        Some(p)
+    }
+
+    /// Built for this ball's center and weights (checked in debug builds; the dimension
+    /// always).
+    #[inline]
+    fn matches(&self, ball: &DomainBall<'_>) -> bool {
+        debug_assert!(
+            ball.center().len() != self.n
+                || (ball.center() == &self.center64[..self.n]
+                    && ball.weights() == &self.weights64[..self.n]),
+            "a DomainPretest used with a ball of another tree"
+        );
+        ball.center().len() == self.n
+    }
+
+    /// The f32 distance above which a draw is certainly excluded by `ball`: the exact test's
+    /// boundary (with room for its f64 rounding) plus the error bound, with room for the f32
+    /// summation's relative error (≤ 16·2⁻²⁴ for at most 4 steps of 8 lanes).
+    #[inline]
+    fn threshold(&self, ball: &DomainBall<'_>) -> f64 {
+        (ball.exclusion_boundary() * (1.0 + 2f64.powi(-40)) + self.margin) / (1.0 - 2f64.powi(-18))
+    }
+}
+
 /// The vector step with AVX2 intrinsics (the compiler does not vectorise [`step`] by itself):
 /// the same arithmetic as [`step`], all lanes at once.
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::LANES;
+    use super::{DomainBall, LANES};
     use std::arch::x86_64::*;
 
     #[inline(always)]
@@ -176,14 +301,14 @@ mod avx2 {
         }
     }
 
-    /// One sample into `out` (`lo + (hi − lo)·u` per value, whole steps of
+    /// One sample into `out` from the step outputs `next` yields (`lo + (hi − lo)·u` per value, whole steps of
     /// [`super::VALUES_PER_STEP`] values) and, when `DIST`, the 4-lane accumulator of
     /// `w·(c − x)·(c − x)` (as `tree::plain_dist_sq_avx` sums it). All five slices have length
     /// `n`; `mask` is [`lanes_below`]`(n % LANES)`.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     unsafe fn draw<const DIST: bool>(
-        v: &mut [__m256i; 4],
+        next: &mut impl FnMut() -> __m256i,
         lo: &[f64],
         hi: &[f64],
         center: &[f64],
@@ -195,7 +320,7 @@ mod avx2 {
         let mut acc = _mm256_setzero_pd();
         let mut k = 0;
         while k < n {
-            let (a, b) = units(step(v));
+            let (a, b) = units(next());
             for u in [a, b] {
                 if k >= n {
                     break;
@@ -232,43 +357,144 @@ mod avx2 {
     ) {
         let n = out.len().min(lo.len()).min(hi.len());
         let mut v = load(s);
-        draw::<false>(&mut v, lo, hi, &[], &[], out, n, lanes_below(n % LANES));
+        draw::<false>(
+            &mut || step(&mut v),
+            lo,
+            hi,
+            &[],
+            &[],
+            out,
+            n,
+            lanes_below(n % LANES),
+        );
         store(&v, s);
     }
 
-    /// [`super::PlannerRng::fill_uniform_until_inside`]: draws as [`fill_uniform`] does and
-    /// measures each draw against the ball with the arithmetic of `tree::plain_dist_sq_avx`,
-    /// all in registers. Returns (draws, inside). `out`, `lo`, `hi` and the ball have equal
-    /// lengths; `max_draws` ≥ 1.
+    /// The f64 test of one draw from the step outputs `next` yields: the sample into `out`, the
+    /// distance with the arithmetic of `tree::plain_dist_sq_avx`; true when inside.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn exact_inside(
+        next: &mut impl FnMut() -> __m256i,
+        lo: &[f64],
+        hi: &[f64],
+        ball: &DomainBall<'_>,
+        out: &mut [f64],
+        n: usize,
+        mask: __m256i,
+    ) -> bool {
+        let acc = draw::<true>(next, lo, hi, ball.center(), ball.weights(), out, n, mask);
+        let half = _mm_add_pd(_mm256_castpd256_pd128(acc), _mm256_extractf128_pd::<1>(acc));
+        let d2 = _mm_cvtsd_f64(_mm_add_sd(half, _mm_unpackhi_pd(half, half)));
+        !ball.excludes_dist_sq(d2)
+    }
+
+    /// [`super::PlannerRng::fill_uniform_until_inside`] without a pretest: every draw through
+    /// [`exact_inside`], all in registers. Returns (draws, inside). `out`, `lo`, `hi` and the
+    /// ball have `n` values; `max_draws` ≥ 1.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn fill_uniform_until_inside(
         s: &mut [[u64; LANES]; 4],
         lo: &[f64],
         hi: &[f64],
-        ball: &crate::planning::DomainBall<'_>,
+        ball: &DomainBall<'_>,
         max_draws: u64,
         out: &mut [f64],
     ) -> (u64, bool) {
-        let (center, w) = (ball.center(), ball.weights());
-        let n = out
-            .len()
-            .min(lo.len())
-            .min(hi.len())
-            .min(center.len())
-            .min(w.len());
+        let n = out.len();
         let mask = lanes_below(n % LANES);
         let mut v = load(s);
         let mut draws = 0;
         let mut inside = false;
         while draws < max_draws {
             draws += 1;
-            let acc = draw::<true>(&mut v, lo, hi, center, w, out, n, mask);
-            let half = _mm_add_pd(_mm256_castpd256_pd128(acc), _mm256_extractf128_pd::<1>(acc));
-            let d2 = _mm_cvtsd_f64(_mm_add_sd(half, _mm_unpackhi_pd(half, half)));
-            if !ball.excludes_dist_sq(d2) {
+            if exact_inside(&mut || step(&mut v), lo, hi, ball, out, n, mask) {
                 inside = true;
                 break;
             }
+        }
+        store(&v, s);
+        (draws, inside)
+    }
+
+    /// [`fill_uniform_until_inside`] with the f32 pretest of `pre` (`C` = its steps per
+    /// draw): each draw's steps are made once; their distance in f32 (8 lanes, 23 bits of each
+    /// value, the constants in the steps' lane order) skips the draw when it exceeds
+    /// `threshold`, which the f32 error bound puts past the exact test's boundary; any other
+    /// draw goes through the exact f64 test from the same step outputs.
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn fill_uniform_until_inside_pretest<const C: usize>(
+        s: &mut [[u64; LANES]; 4],
+        lo: &[f64],
+        hi: &[f64],
+        ball: &DomainBall<'_>,
+        pre: &super::DomainPretest,
+        threshold: f64,
+        max_draws: u64,
+        out: &mut [f64],
+    ) -> (u64, bool) {
+        let n = out.len();
+        let mask = lanes_below(n % LANES);
+        let mut v = load(s);
+        let ld = |a: &[[f32; 8]; super::PRETEST_STEPS], k: usize| _mm256_loadu_ps(a[k].as_ptr());
+        let mut plo = [_mm256_setzero_ps(); C];
+        let mut pspan = [_mm256_setzero_ps(); C];
+        let mut pc = [_mm256_setzero_ps(); C];
+        let mut pw = [_mm256_setzero_ps(); C];
+        for k in 0..C {
+            plo[k] = ld(&pre.lo.0, k);
+            pspan[k] = ld(&pre.span.0, k);
+            pc[k] = ld(&pre.center.0, k);
+            pw[k] = ld(&pre.weights.0, k);
+        }
+        let one_bits = _mm256_set1_epi32(0x3F80_0000);
+        let one = _mm256_set1_ps(1.0);
+        let mut draws = 0;
+        let mut inside = false;
+        let mut xs = [_mm256_setzero_si256(); C];
+        let mut tested_exactly = false;
+        while draws < max_draws {
+            draws += 1;
+            tested_exactly = false;
+            let mut acc = _mm256_setzero_ps();
+            for k in 0..C {
+                let x = step(&mut v);
+                xs[k] = x;
+                let u = _mm256_sub_ps(
+                    _mm256_castsi256_ps(_mm256_or_si256(_mm256_srli_epi32::<9>(x), one_bits)),
+                    one,
+                );
+                let e = _mm256_sub_ps(pc[k], _mm256_fmadd_ps(pspan[k], u, plo[k]));
+                acc = _mm256_fmadd_ps(_mm256_mul_ps(pw[k], e), e, acc);
+            }
+            let h = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
+            let h = _mm_add_ps(h, _mm_movehl_ps(h, h));
+            let d32 = _mm_cvtss_f32(_mm_add_ss(h, _mm_movehdup_ps(h)));
+            if f64::from(d32) > threshold {
+                continue;
+            }
+            tested_exactly = true;
+            let mut i = 0;
+            let mut next = || {
+                let x = xs[i];
+                i += 1;
+                x
+            };
+            if exact_inside(&mut next, lo, hi, ball, out, n, mask) {
+                inside = true;
+                break;
+            }
+        }
+        if !tested_exactly {
+            // The last draw was skipped by the pretest: its sample still goes to `out`.
+            let mut i = 0;
+            let mut next = || {
+                let x = xs[i];
+                i += 1;
+                x
+            };
+            draw::<false>(&mut next, lo, hi, &[], &[], out, n, mask);
         }
         store(&v, s);
         (draws, inside)
@@ -318,15 +544,17 @@ impl PlannerRng {
     /// one is not certainly outside `ball` ([`DomainBall::excludes`]) or `max_draws` (at least
     /// one) were made; returns the number of draws and whether the last is inside. The same
     /// draws, samples and verdicts as calling `fill_uniform` and `excludes` in turn (tested),
-    /// but on AVX2 CPUs one fused loop in registers: dynamic-domain RRT-Connect skips most of
-    /// its samples this way (Yershova et al., ICRA 2005), and there the separate calls cost
-    /// more than the test itself.
+    /// but on AVX2 CPUs one fused loop in registers, and with a `pretest` built for the ball's
+    /// tree ([`DomainPretest`]) most draws are rejected in f32 without their f64 sample:
+    /// dynamic-domain RRT-Connect skips most of its samples this way (Yershova et al., ICRA
+    /// 2005), and there the separate calls cost more than the test itself.
     #[inline]
-    pub fn fill_uniform_until_inside(
+    pub(crate) fn fill_uniform_until_inside(
         &mut self,
         lo: &[f64],
         hi: &[f64],
         ball: &DomainBall<'_>,
+        pretest: Option<&DomainPretest>,
         max_draws: u64,
         out: &mut [f64],
     ) -> (u64, bool) {
@@ -339,14 +567,38 @@ impl PlannerRng {
             && lo.len() == n
             && hi.len() == n
             && ball.center().len() == n
+            && ball.weights().len() == n
         {
             self.pos = LANES;
+            if let Some(p) = pretest.filter(|p| p.matches(ball)) {
+                let t = p.threshold(ball);
+                let (s, pre) = (&mut self.s, p);
+                // SAFETY: a pretest exists only on CPUs with AVX2 and FMA (checked in
+                // `DomainPretest::new`); its constants cover the n ≤ 8·steps values.
+                return unsafe {
+                    match p.steps {
+                        1 => avx2::fill_uniform_until_inside_pretest::<1>(
+                            s, lo, hi, ball, pre, t, max_draws, out,
+                        ),
+                        2 => avx2::fill_uniform_until_inside_pretest::<2>(
+                            s, lo, hi, ball, pre, t, max_draws, out,
+                        ),
+                        3 => avx2::fill_uniform_until_inside_pretest::<3>(
+                            s, lo, hi, ball, pre, t, max_draws, out,
+                        ),
+                        _ => avx2::fill_uniform_until_inside_pretest::<4>(
+                            s, lo, hi, ball, pre, t, max_draws, out,
+                        ),
+                    }
+                };
+            }
             // SAFETY: `avx2` is set only when the CPU has AVX2 (checked at seeding); the
             // ball's distance uses the same AVX arithmetic.
             return unsafe {
                 avx2::fill_uniform_until_inside(&mut self.s, lo, hi, ball, max_draws, out)
             };
         }
+        let _ = pretest;
         let mut draws = 0;
         while draws < max_draws {
             draws += 1;
@@ -535,14 +787,19 @@ mod tests {
                 let Some(ball) = tree.domain_ball() else {
                     panic!("a finite radius gives a ball");
                 };
-                for max in [1u64, 5, 65] {
+                let pretest = DomainPretest::new(&lo, &hi, &root, &w);
+                assert!(pretest.is_some() || !is_x86_feature_detected!("fma"));
+                for (max, pre) in [(1u64, None), (5, None), (65, None), (1, pretest.as_ref())]
+                    .into_iter()
+                    .chain([5, 65, 1000].map(|m| (m, pretest.as_ref())))
+                {
                     let seed = (dim * 100 + case * 10) as u64 + max;
                     let mut a = PlannerRng::seed_from_u64(seed);
                     let mut b = PlannerRng::seed_from_u64(seed);
                     let (mut qa, mut qb) = (vec![0.0; dim], vec![0.0; dim]);
                     for _ in 0..20 {
                         let (draws, inside) =
-                            a.fill_uniform_until_inside(&lo, &hi, &ball, max, &mut qa);
+                            a.fill_uniform_until_inside(&lo, &hi, &ball, pre, max, &mut qa);
                         let mut want = (0, false);
                         while want.0 < max {
                             want.0 += 1;
@@ -552,8 +809,9 @@ mod tests {
                                 break;
                             }
                         }
-                        assert_eq!((draws, inside), want, "dim {dim}, radius {r}, max {max}");
-                        assert_eq!(qa, qb, "dim {dim}, radius {r}, max {max}");
+                        let at = format!("dim {dim}, radius {r}, max {max}, {}", pre.is_some());
+                        assert_eq!((draws, inside), want, "{at}");
+                        assert_eq!(qa, qb, "{at}");
                         total[usize::from(inside)] += 1;
                     }
                     assert_eq!(a.next_u64(), b.next_u64());
@@ -562,6 +820,58 @@ mod tests {
         }
         // Both outcomes occur.
         assert!(total[0] > 100 && total[1] > 100, "{total:?}");
+    }
+
+    /// Near the boundary: a 14-D ball that excludes about half of the samples, so many
+    /// draws lie close to it; the pretest's verdicts still equal the exact test's, and its
+    /// threshold sits within 0.1 % of the exact boundary (it does skip draws there).
+    #[test]
+    fn pretest_verdicts_near_the_boundary() {
+        use crate::planning::{Tree, NO_PARENT};
+        let lo = [
+            -1.7, -2.147, -3.05, -0.05, -3.059, -1.57, -3.059, -1.7, -2.147, -3.05, -0.05, -3.059,
+            -1.57, -3.059,
+        ];
+        let hi = [
+            1.7, 1.047, 3.05, 2.618, 3.059, 2.094, 3.059, 1.7, 1.047, 3.05, 2.618, 3.059, 2.094,
+            3.059,
+        ];
+        let w = [1.0; 14];
+        let root = [
+            0.3, -0.5, 0.1, 1.2, -0.4, 0.6, 0.0, -0.3, 0.2, 1.0, 0.5, 0.0, -0.6, 2.0,
+        ];
+        let mut tree = Tree::new(&w);
+        tree.add(&root, NO_PARENT);
+        tree.set_radius(0, 5.1);
+        let Some(ball) = tree.domain_ball() else {
+            panic!("a finite radius gives a ball");
+        };
+        let Some(pre) = DomainPretest::new(&lo, &hi, &root, &w) else {
+            assert!(!is_x86_feature_detected!("fma"));
+            return;
+        };
+        let boundary = ball.exclusion_boundary();
+        assert!(pre.threshold(&ball) < boundary * 1.001);
+        assert!(pre.threshold(&ball) > boundary);
+        let mut a = PlannerRng::seed_from_u64(5);
+        let mut b = PlannerRng::seed_from_u64(5);
+        let (mut qa, mut qb) = ([0.0; 14], [0.0; 14]);
+        let (mut inside, mut near) = (0, 0);
+        for _ in 0..20_000 {
+            let got = a.fill_uniform_until_inside(&lo, &hi, &ball, Some(&pre), 1, &mut qa);
+            b.fill_uniform(&lo, &hi, &mut qb);
+            let d2 = ball.dist_sq(&qb);
+            assert_eq!(
+                got,
+                (1, !ball.excludes(&qb)),
+                "d² {d2}, boundary {boundary}"
+            );
+            assert_eq!(qa, qb);
+            inside += usize::from(got.1);
+            near += usize::from((d2 / boundary - 1.0).abs() < 0.01);
+        }
+        assert!((5_000..15_000).contains(&inside), "{inside} inside");
+        assert!(near > 200, "{near} near the boundary");
     }
 
     #[test]

@@ -11,7 +11,8 @@ use rand::SeedableRng;
 use super::shortcut::{simplify, ShortcutSettings};
 use super::validity::{space_checker, SegmentChecker, SpaceValidator};
 use super::{
-    JointSpace, PlanError, PlanResult, PlanStats, PlannerRng, Termination, Tree, NO_PARENT,
+    DomainPretest, JointSpace, PlanError, PlanResult, PlanStats, PlannerRng, Termination, Tree,
+    NO_PARENT,
 };
 use crate::collision::{CollisionWorld, FastChecker};
 
@@ -257,6 +258,17 @@ impl<C: SegmentChecker> RrtConnect<C> {
                 }
             }
         }
+        // The f32 pretests of the fused dynamic-domain sampling, one per tree (state 0 is
+        // fixed from here on).
+        let pretests = if settings.dynamic_domain.is_some() && settings.balance {
+            let space = validator.space();
+            let pretest = |t: &Tree| {
+                DomainPretest::new(space.lower(), space.upper(), t.state(0), t.weights())
+            };
+            [pretest(ts), pretest(tg)]
+        } else {
+            [None, None]
+        };
         let mut iterations = 0u64;
         let mut start_side = true; // the tree extended toward the sample this iteration
         while found.is_none() {
@@ -290,6 +302,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
                     space.lower(),
                     space.upper(),
                     &ball,
+                    pretests[usize::from(!start_side)].as_ref(),
                     1 + quiet,
                     q_rand,
                 );

@@ -124,6 +124,13 @@ impl<'a> DomainBall<'a> {
         d2 * (1.0 - DOMAIN_SLACK) > self.reach_sq
     }
 
+    /// The squared distance beyond which [`DomainBall::excludes_dist_sq`] holds (up to the
+    /// rounding of that test's one product).
+    #[inline]
+    pub fn exclusion_boundary(&self) -> f64 {
+        self.reach_sq / (1.0 - DOMAIN_SLACK)
+    }
+
     /// True when `q` is certainly outside the ball (false for a `q` of the wrong length).
     #[inline]
     pub fn excludes(&self, q: &[f64]) -> bool {
@@ -318,6 +325,12 @@ impl Tree {
             reach_sq: reach * reach,
             avx: self.avx,
         })
+    }
+
+    /// The metric weights.
+    #[inline]
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
     }
 
     #[inline]
