@@ -8,15 +8,17 @@
 //! insertion only grows flat arrays. Each state also carries a dynamic-domain radius
 //! (Yershova et al., ICRA 2005) for planners that use one.
 
-/// Weighted squared distances from `q` to the [`BUCKET`] states of a coordinate-major leaf block,
-/// all slots at once, coordinate by coordinate: the summation order (and rounding) of
-/// [`Tree::nearest_linear`], so both give the same distances to the last bit.
+/// Weighted squared distances from `q` to the first `W` (≤ [`BUCKET`]) states of a
+/// coordinate-major leaf block, those slots at once, coordinate by coordinate: the summation
+/// order (and rounding) of [`Tree::nearest_linear`], so both give the same distances to the
+/// last bit. The other slots are +∞ (a partly filled block needs only its first slots).
 #[inline(always)]
-fn block_distances(data: &[f64], weights: &[f64], q: &[f64]) -> [f64; BUCKET] {
-    let mut d = [0.0f64; BUCKET];
+fn block_distances<const W: usize>(data: &[f64], weights: &[f64], q: &[f64]) -> [f64; BUCKET] {
+    let mut d = [f64::INFINITY; BUCKET];
+    d[..W].fill(0.0);
     for ((col, &w), &qk) in data.chunks_exact(BUCKET).zip(weights).zip(q) {
         let col: &[f64; BUCKET] = col.try_into().unwrap_or(&[f64::INFINITY; BUCKET]);
-        for s in 0..BUCKET {
+        for s in 0..W {
             let e = col[s] - qk;
             d[s] = (w * e).mul_add(e, d[s]);
         }
@@ -28,8 +30,12 @@ fn block_distances(data: &[f64], weights: &[f64], q: &[f64]) -> [f64; BUCKET] {
 /// exactly like `f64::mul_add` in the reference, which off such CPUs is a slower library call).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,fma")]
-unsafe fn block_distances_avx(data: &[f64], weights: &[f64], q: &[f64]) -> [f64; BUCKET] {
-    block_distances(data, weights, q)
+unsafe fn block_distances_avx<const W: usize>(
+    data: &[f64],
+    weights: &[f64],
+    q: &[f64],
+) -> [f64; BUCKET] {
+    block_distances::<W>(data, weights, q)
 }
 
 /// Weighted squared distance with plain products and sums (no fused multiply-add, which off
@@ -498,8 +504,8 @@ impl Tree {
             // descent; ties go to the lowest index, as in `nearest_linear`.
             let n = self.len();
             for (blk, data) in self.scan_data.chunks_exact(self.dim * BUCKET).enumerate() {
-                let d = self.block_distances(data, q);
                 let first = blk * BUCKET;
+                let d = self.block_distances_first(data, q, n - first);
                 for (s, &ds) in d.iter().enumerate().take(n - first) {
                     if ds < best.1 {
                         best = ((first + s) as u32, ds);
@@ -529,22 +535,38 @@ impl Tree {
         d
     }
 
-    /// [`block_distances`] of a coordinate-major block, with AVX when the CPU has it.
+    /// [`block_distances`] of the first `used` (rounded up to a multiple of 4) slots of a
+    /// block; the others are +∞. The small trees of dynamic-domain searches often fill a
+    /// fraction of their one block.
     #[inline]
-    fn block_distances(&self, data: &[f64], q: &[f64]) -> [f64; BUCKET] {
+    fn block_distances_first(&self, data: &[f64], q: &[f64], used: usize) -> [f64; BUCKET] {
+        const _: () = assert!(BUCKET == 16);
         #[cfg(target_arch = "x86_64")]
         if self.avx {
             // SAFETY: `avx` is set only when the CPU has AVX and FMA (checked in `Tree::new`).
-            return unsafe { block_distances_avx(data, &self.weights, q) };
+            return unsafe {
+                match used {
+                    0..=4 => block_distances_avx::<4>(data, &self.weights, q),
+                    5..=8 => block_distances_avx::<8>(data, &self.weights, q),
+                    9..=12 => block_distances_avx::<12>(data, &self.weights, q),
+                    _ => block_distances_avx::<16>(data, &self.weights, q),
+                }
+            };
         }
-        block_distances(data, &self.weights, q)
+        match used {
+            0..=4 => block_distances::<4>(data, &self.weights, q),
+            5..=8 => block_distances::<8>(data, &self.weights, q),
+            9..=12 => block_distances::<12>(data, &self.weights, q),
+            _ => block_distances::<16>(data, &self.weights, q),
+        }
     }
 
     /// Offers the states of a leaf block to `best` (distances from `q`).
     #[inline]
     fn scan_leaf(&self, block: u32, items: &[u32], q: &[f64], best: &mut (u32, f64)) {
         let b = block as usize * self.dim * BUCKET;
-        let d = self.block_distances(&self.leaf_data[b..b + self.dim * BUCKET], q);
+        let d =
+            self.block_distances_first(&self.leaf_data[b..b + self.dim * BUCKET], q, items.len());
         for (s, &i) in items.iter().enumerate() {
             if d[s] < best.1 {
                 *best = (i, d[s]);
