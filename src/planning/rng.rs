@@ -874,6 +874,42 @@ mod tests {
         assert!(near > 200, "{near} near the boundary");
     }
 
+    /// The scalar paths (CPUs without AVX2) make the same samples and verdicts as the vector
+    /// paths: the same stream on every x86-64 CPU.
+    #[test]
+    fn scalar_paths_equal_vector_paths() {
+        use crate::planning::{Tree, NO_PARENT};
+        let dim = 14;
+        let lo: Vec<f64> = (0..dim).map(|i| -1.5 - 0.2 * i as f64).collect();
+        let hi: Vec<f64> = (0..dim).map(|i| 1.0 + 0.3 * i as f64).collect();
+        let w: Vec<f64> = (0..dim).map(|i| 1.0 + 0.5 * (i % 2) as f64).collect();
+        let mut tree = Tree::new(&w);
+        tree.add(&vec![0.1; dim], NO_PARENT);
+        tree.set_radius(0, 5.5);
+        let Some(ball) = tree.domain_ball() else {
+            panic!("a finite radius gives a ball");
+        };
+        let pre = DomainPretest::new(&lo, &hi, ball.center(), &w);
+        let mut a = PlannerRng::seed_from_u64(21);
+        let mut b = PlannerRng::seed_from_u64(21);
+        b.avx2 = false;
+        let (mut qa, mut qb) = (vec![0.0; dim], vec![0.0; dim]);
+        let mut inside = 0;
+        for k in 0..300 {
+            a.fill_uniform(&lo, &hi, &mut qa);
+            b.fill_uniform(&lo, &hi, &mut qb);
+            assert_eq!(qa, qb);
+            let max = 1 + k % 20;
+            let ra = a.fill_uniform_until_inside(&lo, &hi, &ball, pre.as_ref(), max, &mut qa);
+            let rb = b.fill_uniform_until_inside(&lo, &hi, &ball, pre.as_ref(), max, &mut qb);
+            assert_eq!(ra, rb);
+            assert_eq!(qa, qb);
+            inside += usize::from(ra.1);
+            assert_eq!(a.next_u64(), b.next_u64());
+        }
+        assert!((10..290).contains(&inside), "{inside}");
+    }
+
     #[test]
     fn equal_seeds_equal_streams() {
         let mut a = PlannerRng::seed_from_u64(7);
