@@ -5,7 +5,10 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use manyhands::collision::{AutoChecker, CollisionChecker, ExactChecker, SphereChecker};
+use manyhands::collision::{
+    AutoChecker, CollisionChecker, CollisionWorld, ExactChecker, SphereChecker,
+};
+use manyhands::geometry::Pose;
 use manyhands::planning::mbm::MbmFile;
 use manyhands::Robot;
 use rand::{Rng, SeedableRng};
@@ -135,6 +138,66 @@ fn segment_check_equals_state_by_state() {
             assert_eq!(sc.segment_free(&a, &b, n), each, "{} n = {n}", p.set);
         }
     }
+}
+
+/// The node-level cull of self-pair groups (Baxter's grippers: 9 bodies on one node each)
+/// changes no result and no refinement, end to end: single states, plain segments and
+/// certified segments give the same verdicts and the same number of checked states with the
+/// cull on and off, with no obstacles (self pairs decide), on segments from free states to
+/// colliding ones. (That the cull bounds every pair it skips, inflations included, is tested
+/// directly in the module: `node_cull_bounds_every_pair_of_its_group`.)
+#[test]
+fn node_cull_changes_nothing() {
+    let r = robot("baxter");
+    let file = MbmFile::load(&mbm("baxter/problems.json")).expect("problems");
+    let vars = file.joint_vars(&r).expect("vars");
+    // No obstacles: the self pairs decide every verdict.
+    let world = CollisionWorld::single(r.clone(), Pose::identity());
+    let mut on = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut off = on.clone();
+    off.set_node_cull(false);
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let random = |rng: &mut ChaCha8Rng| -> Vec<f64> {
+        let mut q = r.zero_config();
+        for &v in &vars {
+            let l = r.var_limits(v);
+            q[v] = rng.random_range(l.lower..=l.upper);
+        }
+        q
+    };
+    // Segments from a free state to a colliding one: they cross the contact boundary, where
+    // inflated spheres touch and plain ones do not.
+    let mut states: [Vec<Vec<f64>>; 2] = [Vec::new(), Vec::new()];
+    while states[0].len() < 300 || states[1].len() < 300 {
+        let q = random(&mut rng);
+        let f = off.is_free(&q);
+        assert_eq!(on.is_free(&q), f);
+        states[usize::from(f)].push(q);
+    }
+    let (mut free, mut hit) = (0, 0);
+    for k in 0..600 {
+        let a = states[1][k % 300].clone();
+        let b = if k % 2 == 0 {
+            states[0][k / 2 % 300].clone()
+        } else {
+            // A short segment from a free state toward a colliding one.
+            let c = &states[0][(k / 2 + 7) % 300];
+            a.iter().zip(c).map(|(x, y)| x + 0.15 * (y - x)).collect()
+        };
+        assert_eq!(on.is_free(&a), off.is_free(&a), "state {k}");
+        let (c0, d0) = (on.checks(), off.checks());
+        let v = on.segment_certified(&a, &b, 0.04);
+        assert_eq!(v, off.segment_certified(&a, &b, 0.04), "segment {k}");
+        assert_eq!(on.checks() - c0, off.checks() - d0, "segment {k}");
+        let n = rng.random_range(1..40);
+        assert_eq!(on.segment_free(&a, &b, n), off.segment_free(&a, &b, n));
+        if v {
+            free += 1;
+        } else {
+            hit += 1;
+        }
+    }
+    assert!(free > 50 && hit > 50, "{free} free, {hit} in collision");
 }
 
 #[test]
