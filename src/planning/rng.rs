@@ -4,8 +4,11 @@
 //! adds, shifts and rotates per step of four 64-bit draws — RRT-Connect draws one per joint
 //! every iteration, and on MotionBenchMaker's Baxter problems most of ~10⁵ iterations end
 //! right after sampling, so [`PlannerRng::fill_uniform`] turns draws into samples within the
-//! bounds a vector at a time. Not for cryptography. Seeded from a `u64` through SplitMix64
-//! (the authors' recommendation), so equal seeds give equal streams on every platform.
+//! bounds a vector at a time (two 32-bit values per draw), and
+//! [`PlannerRng::fill_uniform_until_inside`] draws and rejects the samples a dynamic domain
+//! skips in one loop in registers, most of them by an f32 pretest (`DomainPretest`). Not
+//! for cryptography. Seeded from a `u64` through SplitMix64 (the authors' recommendation), so
+//! equal seeds give equal streams on every platform.
 
 use rand::{RngCore, SeedableRng};
 
@@ -17,8 +20,8 @@ const LANES: usize = 4;
 /// xoshiro256++ (see the module documentation), [`LANES`] independent generators stepped
 /// together so that one vector step yields [`LANES`] draws. `next_u64` returns lane 0's first
 /// output, lane 1's first, …, lane 3's first, lane 0's second, and so on;
-/// [`PlannerRng::fill_uniform`] starts at a fresh step (draws still buffered are dropped), so
-/// its vectors line up with the output slice.
+/// [`PlannerRng::fill_uniform`] consumes whole steps from a fresh one (draws still buffered
+/// are dropped).
 #[derive(Debug, Clone)]
 pub struct PlannerRng {
     /// `s[k][lane]`: word `k` of each lane's state.

@@ -208,8 +208,8 @@ impl JointSpace {
     }
 
     /// [`Self::sample_uniform`] with the planners' vectorised generator
-    /// ([`PlannerRng::fill_uniform`](super::PlannerRng::fill_uniform): a vector of values per
-    /// step, written with the vector stores that the next distance computation loads).
+    /// ([`PlannerRng::fill_uniform`](super::PlannerRng::fill_uniform): two vectors of values
+    /// per step, 32 random bits each).
     #[inline]
     pub fn sample_uniform_fast(&self, rng: &mut super::PlannerRng, out: &mut [f64]) {
         rng.fill_uniform(&self.lower, &self.upper, out);
