@@ -420,6 +420,18 @@ mod avx2 {
         (draws, inside)
     }
 
+    /// The saved step outputs of a draw, in order, as [`draw`] takes them (it takes exactly
+    /// `C`: the pretest's steps per draw).
+    #[inline(always)]
+    fn replay<const C: usize>(xs: &[__m256i; C]) -> impl FnMut() -> __m256i + '_ {
+        let mut i = 0;
+        move || {
+            let x = xs[i.min(C - 1)];
+            i += 1;
+            x
+        }
+    }
+
     /// [`fill_uniform_until_inside`] with the f32 pretest of `pre` (`C` = its steps per
     /// draw): each draw's steps are made once; their distance in f32 (8 lanes, 23 bits of each
     /// value, the constants in the steps' lane order) skips the draw when it exceeds
@@ -478,26 +490,14 @@ mod avx2 {
                 continue;
             }
             tested_exactly = true;
-            let mut i = 0;
-            let mut next = || {
-                let x = xs[i];
-                i += 1;
-                x
-            };
-            if exact_inside(&mut next, lo, hi, ball, out, n, mask) {
+            if exact_inside(&mut replay(&xs), lo, hi, ball, out, n, mask) {
                 inside = true;
                 break;
             }
         }
         if !tested_exactly {
             // The last draw was skipped by the pretest: its sample still goes to `out`.
-            let mut i = 0;
-            let mut next = || {
-                let x = xs[i];
-                i += 1;
-                x
-            };
-            draw::<false>(&mut next, lo, hi, &[], &[], out, n, mask);
+            draw::<false>(&mut replay(&xs), lo, hi, &[], &[], out, n, mask);
         }
         store(&v, s);
         (draws, inside)

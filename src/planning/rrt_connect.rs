@@ -287,15 +287,19 @@ impl<C: SegmentChecker> RrtConnect<C> {
             } else {
                 (&mut *tg, &mut *ts)
             };
-            // With balanced trees the side stays the same until a tree grows, so the samples
-            // that fall outside every domain of `ta` (most of them: see
-            // `Tree::outside_every_domain`) are drawn and skipped in one fused loop, each still
-            // counted as an iteration. Same draws, same search as one sample per iteration.
-            let ball = match settings.dynamic_domain {
-                Some(_) if settings.balance => ta.domain_ball(),
-                _ => None,
-            };
-            if let Some(ball) = ball {
+            // Samples outside the ball around `ta`'s state 0 lie outside every domain of `ta`
+            // (most of them: see `Tree::outside_every_domain`) and are skipped without a
+            // nearest-neighbour query. With balanced trees the side stays the same until a
+            // tree grows, so they are drawn and skipped in one fused loop, each still counted
+            // as an iteration. Same draws, same search as one sample per iteration.
+            let ball = settings.dynamic_domain.and_then(|_| ta.domain_ball());
+            if let (Some(ball), false) = (ball, settings.balance) {
+                validator.space().sample_uniform_fast(&mut rng, q_rand);
+                if ball.excludes(q_rand) {
+                    start_side = !start_side;
+                    continue;
+                }
+            } else if let Some(ball) = ball {
                 let space = validator.space();
                 let quiet = term.quiet_iterations();
                 let (draws, inside) = rng.fill_uniform_until_inside(
@@ -461,7 +465,8 @@ pub(super) fn connect<C: SegmentChecker>(
 const DYNAMIC_DOMAIN_ALPHA: f64 = 1e-4;
 
 /// EXTEND with dynamic-domain sampling (see [`RrtConnectSettings::dynamic_domain`]): a sample
-/// outside its nearest state's radius is skipped (`Trapped`, nothing checked).
+/// outside its nearest state's radius is skipped (`Trapped`, nothing checked). The caller has
+/// already skipped the samples [`Tree::domain_ball`] excludes.
 #[inline]
 fn extend_dynamic_domain<C: SegmentChecker>(
     tree: &mut Tree,
@@ -471,9 +476,6 @@ fn extend_dynamic_domain<C: SegmentChecker>(
     target: &[f64],
     q_new: &mut [f64],
 ) -> Extend {
-    if tree.outside_every_domain(target) {
-        return Extend::Trapped;
-    }
     let Some((near, d2)) = tree.nearest(target) else {
         return Extend::Trapped;
     };
