@@ -201,6 +201,52 @@ fn node_cull_changes_nothing() {
 }
 
 #[test]
+fn hot_body_first_changes_nothing() {
+    // Panda among a bookshelf's boxes and cylinders: motions into the shelves hit a few links
+    // again and again, so the hot body is often right and often wrong.
+    let r = robot("panda");
+    let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
+    let vars = file.joint_vars(&r).expect("vars");
+    let set = file.set("bookshelf_tall").expect("set");
+    let world = set.problems[0].world(r.clone());
+    let mut on = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut off = on.clone();
+    off.set_hot_first(false);
+    let mut rng = ChaCha8Rng::seed_from_u64(29);
+    let random = |rng: &mut ChaCha8Rng| -> Vec<f64> {
+        let mut q = r.zero_config();
+        for &v in &vars {
+            let l = r.var_limits(v);
+            q[v] = rng.random_range(l.lower..=l.upper);
+        }
+        q
+    };
+    let (mut free, mut hit) = (0, 0);
+    for k in 0..1500 {
+        let a = random(&mut rng);
+        let c = random(&mut rng);
+        let t = [1.0, 0.3, 0.08][k % 3];
+        let b: Vec<f64> = a.iter().zip(&c).map(|(x, y)| x + t * (y - x)).collect();
+        let (c0, d0) = (on.checks(), off.checks());
+        let v = on.segment_certified(&a, &b, 0.04);
+        assert_eq!(v, off.segment_certified(&a, &b, 0.04), "segment {k}");
+        assert_eq!(on.checks() - c0, off.checks() - d0, "segment {k}");
+        let n = rng.random_range(1..40);
+        assert_eq!(
+            on.segment_free(&a, &b, n),
+            off.segment_free(&a, &b, n),
+            "{k}"
+        );
+        if v {
+            free += 1;
+        } else {
+            hit += 1;
+        }
+    }
+    assert!(free > 100 && hit > 100, "{free} free, {hit} in collision");
+}
+
+#[test]
 fn auto_checker_picks_spheres_for_sphere_robots() {
     let r = robot("panda");
     let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
