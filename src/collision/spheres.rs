@@ -67,8 +67,11 @@ struct Step {
     parent: u32,
     /// Joint origin in the parent node's frame: rotation column-major, then translation.
     rot: [f32; 9],
-    rot_identity: bool,
+    /// The shape of `rot`, so that its zero terms cost nothing (VAMP compiles them away).
+    rot_kind: OriginRot,
     t: [f32; 3],
+    /// Bit k: `t[k]` is not zero (zero terms of the translation are skipped).
+    t_terms: u8,
     axis: [f32; 3],
     var: u32,
     mul: f32,
@@ -77,6 +80,56 @@ struct Step {
     travel: f64,
     /// Range of the bodies riding on this node.
     bodies: (u32, u32),
+}
+
+/// The shape of a joint origin's rotation. URDF origins are mostly identities or quarter turns
+/// (`rpy` of ±π/2), whose products with the parent frame need no arithmetic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum OriginRot {
+    Identity,
+    /// Column c is `±e_k`: `(k, sign bit)` per column (sign bit 0 for +, `0x8000_0000` for −).
+    Permutation([(u8, u32); 3]),
+    General,
+}
+
+/// Entries within this of 0 or ±1 in a joint origin are taken as exactly 0 or ±1 (the f32
+/// model's rounding, [`SphereChecker::ROUNDING_MARGIN`], is orders of magnitude larger).
+const ORIGIN_SNAP: f64 = 1e-9;
+
+impl OriginRot {
+    fn classify(m: &Matrix3<f64>) -> OriginRot {
+        if (m - Matrix3::identity()).abs().max() < ORIGIN_SNAP {
+            return OriginRot::Identity;
+        }
+        let mut cols = [(0u8, 0u32); 3];
+        for (c, col) in cols.iter_mut().enumerate() {
+            let Some(k) = (0..3).find(|&k| m[(k, c)].abs() > 0.5) else {
+                return OriginRot::General;
+            };
+            let unit = (m[(k, c)].abs() - 1.0).abs() < ORIGIN_SNAP
+                && (0..3).all(|r| r == k || m[(r, c)].abs() < ORIGIN_SNAP);
+            if !unit {
+                return OriginRot::General;
+            }
+            *col = (k as u8, if m[(k, c)] < 0.0 { 0x8000_0000 } else { 0 });
+        }
+        OriginRot::Permutation(cols)
+    }
+}
+
+/// A joint origin's translation as f32 with its zero terms (within [`ORIGIN_SNAP`]) set to 0
+/// and marked absent.
+fn origin_terms(t: &Vector3<f64>) -> ([f32; 3], u8) {
+    let mut v = f3(t);
+    let mut mask = 0u8;
+    for k in 0..3 {
+        if t[k].abs() < ORIGIN_SNAP {
+            v[k] = 0.0;
+        } else {
+            mask |= 1 << k;
+        }
+    }
+    (v, mask)
 }
 
 /// A link's spheres.
@@ -260,8 +313,9 @@ impl SphereChecker {
                 kind: StepKind::Root,
                 parent: root,
                 rot: colmajor(&base.rot),
-                rot_identity: false,
+                rot_kind: OriginRot::General,
                 t: f3(&base.t),
+                t_terms: 0b111,
                 axis: [0.0; 3],
                 var: 0,
                 mul: 0.0,
@@ -322,12 +376,14 @@ impl SphereChecker {
                             }
                             _ => 0.0,
                         };
+                        let (t, t_terms) = origin_terms(&origin.t);
                         steps.push(Step {
                             kind,
                             parent,
                             rot: colmajor(&origin.rot),
-                            rot_identity: (origin.rot - Matrix3::identity()).abs().max() < 1e-12,
-                            t: f3(&origin.t),
+                            rot_kind: OriginRot::classify(&origin.rot),
+                            t,
+                            t_terms,
                             axis: f3(&j.axis.into_inner()),
                             var: (p.offset + var.unwrap_or(0)) as u32,
                             mul: mul as f32,
@@ -1138,17 +1194,43 @@ impl SphereChecker {
         let mut m = [[0.0f32; N]; 9];
         let mut t = [[0.0f32; N]; 3];
         for r in 0..3 {
-            t[r] = lin4::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], &p[9 + r], s.t);
+            t[r] = if s.t_terms == 0b111 {
+                lin4::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], &p[9 + r], s.t)
+            } else {
+                // The same sum in the same order without its zero terms.
+                let mut o = [0.0f32; N];
+                o.copy_from_slice(&p[9 + r][..N]);
+                for k in 0..3 {
+                    if s.t_terms & (1 << k) != 0 {
+                        for l in 0..N {
+                            o[l] = fmadd::<AVX>(p[k * 3 + r][l], s.t[k], o[l]);
+                        }
+                    }
+                }
+                o
+            };
         }
-        if s.rot_identity {
-            for k in 0..9 {
-                m[k].copy_from_slice(&p[k][..N]);
+        match s.rot_kind {
+            OriginRot::Identity => {
+                for k in 0..9 {
+                    m[k].copy_from_slice(&p[k][..N]);
+                }
             }
-        } else {
-            for c in 0..3 {
-                let o = [s.rot[c * 3], s.rot[c * 3 + 1], s.rot[c * 3 + 2]];
-                for r in 0..3 {
-                    m[c * 3 + r] = lin3::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], o);
+            OriginRot::Permutation(cols) => {
+                for c in 0..3 {
+                    let (k, sign) = cols[c];
+                    let k = usize::from(k).min(2); // (no bounds checks below)
+                    for r in 0..3 {
+                        m[c * 3 + r] = signed::<N>(&p[k * 3 + r], sign);
+                    }
+                }
+            }
+            OriginRot::General => {
+                for c in 0..3 {
+                    let o = [s.rot[c * 3], s.rot[c * 3 + 1], s.rot[c * 3 + 2]];
+                    for r in 0..3 {
+                        m[c * 3 + r] = lin3::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], o);
+                    }
                 }
             }
         }
@@ -1649,6 +1731,17 @@ fn lin3<const N: usize, const AVX: bool>(a: &Lane, b: &Lane, c: &Lane, s: [f32; 
     o
 }
 
+/// `a` with its sign bits flipped by `sign` per lane (negated when `sign` is `0x8000_0000`).
+/// A bit operation, so the kinematic chain's latency does not grow.
+#[inline(always)]
+fn signed<const N: usize>(a: &Lane, sign: u32) -> [f32; N] {
+    let mut o = [0.0f32; N];
+    for l in 0..N {
+        o[l] = f32::from_bits(a[l].to_bits() ^ sign);
+    }
+    o
+}
+
 /// `a·s0 + b·s1 + c·s2 + d` per lane.
 #[inline(always)]
 fn lin4<const N: usize, const AVX: bool>(
@@ -1960,6 +2053,95 @@ mod tests {
             culled > 100 && kept > 100 && near_pairs > 100,
             "{culled} {kept} {near_pairs}"
         );
+    }
+
+    /// Quarter-turn and identity origins (Panda's `rpy="±1.57079632679 0 0"`) are recognised,
+    /// and the kinematics through them (AVX and generic) give the frames of the general
+    /// product within f32 rounding, over random 8-lane Panda states.
+    #[test]
+    fn specialised_origins_give_the_general_frames() {
+        use super::*;
+        use crate::geometry::Pose;
+        use rand::{Rng, SeedableRng};
+        // The URDF's truncated π/2 and π/4, as written there.
+        #[allow(clippy::approx_constant)]
+        let (half_pi, quarter_pi) = (1.57079632679, 0.785398163397);
+        let quarter = nalgebra::Rotation3::from_euler_angles(-half_pi, 0.0, 0.0);
+        match OriginRot::classify(quarter.matrix()) {
+            OriginRot::Permutation(cols) => {
+                assert_eq!(cols, [(0, 0), (2, 0x8000_0000), (1, 0)], "x, −z, y")
+            }
+            k => panic!("{k:?}"),
+        }
+        let yaw = nalgebra::Rotation3::from_euler_angles(0.0, 0.0, -quarter_pi);
+        assert_eq!(OriginRot::classify(yaw.matrix()), OriginRot::General);
+        assert_eq!(
+            OriginRot::classify(&Matrix3::identity()),
+            OriginRot::Identity
+        );
+        assert_eq!(
+            origin_terms(&Vector3::new(-0.0825, 3e-17, 0.384)),
+            ([-0.0825, 0.0, 0.384], 0b101)
+        );
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/benchmarks/mbm/panda");
+        let robot = std::sync::Arc::new(
+            crate::Robot::from_files(
+                &dir.join("panda_spherized.urdf"),
+                Some(&dir.join("panda.srdf")),
+            )
+            .expect("robot"),
+        );
+        let world = CollisionWorld::single(robot.clone(), Pose::identity());
+        let mut fast = SphereChecker::new(&world, 0.0).expect("spheres");
+        let (mut perms, mut sparse) = (0, 0);
+        for s in &fast.steps[1..] {
+            perms += usize::from(matches!(s.rot_kind, OriginRot::Permutation(_)));
+            sparse += usize::from(s.t_terms != 0b111);
+        }
+        assert!(
+            perms >= 6 && sparse >= 6,
+            "{perms} quarter turns, {sparse} sparse"
+        );
+        let mut general = fast.clone();
+        for s in &mut general.steps[1..] {
+            s.rot_kind = OriginRot::General;
+            s.t_terms = 0b111;
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut worst = 0.0f32;
+        for _ in 0..200 {
+            for (v, lanes) in fast.qv.iter_mut().enumerate() {
+                let l = robot.var_limits(v);
+                for x in lanes.iter_mut() {
+                    *x = rng.random_range(l.lower.max(-4.0)..=l.upper.min(4.0)) as f32;
+                }
+            }
+            general.qv.clone_from(&fast.qv);
+            let mut avx = fast.clone();
+            for si in 0..fast.steps.len() {
+                fast.step::<LANES, false>(si);
+                general.step::<LANES, false>(si);
+            }
+            // No obstacles: every step is computed before the self pairs.
+            #[cfg(target_arch = "x86_64")]
+            if avx.avx2 {
+                // SAFETY: AVX2 + FMA are present (checked at construction).
+                unsafe { avx.run8_avx2() };
+            }
+            for (si, (f, g)) in fast.frames.iter().zip(&general.frames).enumerate() {
+                for k in 0..12 {
+                    for l in 0..LANES {
+                        worst = worst.max((f[k][l] - g[k][l]).abs());
+                        if avx.avx2 {
+                            let a = avx.frames[si][k][l];
+                            assert!((a - g[k][l]).abs() < 1e-5, "step {si} entry {k}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(worst < 1e-5, "worst {worst:e}");
     }
 
     #[test]
