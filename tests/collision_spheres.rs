@@ -258,7 +258,8 @@ fn auto_checker_picks_spheres_for_sphere_robots() {
 /// finds every state free at a resolution 10× finer than the exact re-check of `bench mbm`, for Panda and
 /// Baxter (self-collision pairs on a shared torso included). Certification is not vacuous: most
 /// segments that the exact fine check finds free are certified, and segments the exact check
-/// finds colliding are never certified.
+/// finds colliding are never certified. Focused refinement (only what was tight at a
+/// sub-interval's ends) certifies every segment the unfocused one does, and nothing colliding.
 fn certified_segments_are_free(name: &str, max_inflation: f64) {
     let r = robot(name);
     let file = MbmFile::load(&mbm(&format!("{name}/problems.json"))).expect("problems");
@@ -269,6 +270,8 @@ fn certified_segments_are_free(name: &str, max_inflation: f64) {
             let world = p.world(r.clone());
             let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
             assert!(sc.certifiable());
+            let mut unfocused = sc.clone();
+            unfocused.set_focus(false);
             let mut exact = ExactChecker::new(&world);
             for _ in 0..30 {
                 // From the start or a goal (close to obstacles) toward a nearby configuration.
@@ -283,6 +286,11 @@ fn certified_segments_are_free(name: &str, max_inflation: f64) {
                     .map(|v| v + rng.random_range(-0.6..0.6))
                     .collect();
                 let cert = sc.segment_certified(&a, &b, max_inflation);
+                let unfocused_cert = unfocused.segment_certified(&a, &b, max_inflation);
+                assert!(
+                    cert || !unfocused_cert,
+                    "only the unfocused check certifies"
+                );
                 // Exact states every 0.025° of the largest joint move.
                 let dmax = a
                     .iter()
@@ -313,6 +321,114 @@ fn certified_segments_are_free(name: &str, max_inflation: f64) {
         certified * 10 >= exact_free * 6,
         "{certified} certified of {exact_free} exactly free"
     );
+}
+
+/// Segments through states a little short of a contact (bisected on the segment from a free state
+/// to a colliding one with the plain spheres), in random directions and lengths: some graze the
+/// contact between the certification's states, some miss it, some cross it.
+fn grazing_segments(
+    sc: &mut SphereChecker,
+    free: &[Vec<f64>],
+    colliding: &[Vec<f64>],
+    vars: &[usize],
+    rng: &mut ChaCha8Rng,
+    count: usize,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let lerp = |a: &[f64], b: &[f64], t: f64| -> Vec<f64> {
+        a.iter().zip(b).map(|(x, y)| x + t * (y - x)).collect()
+    };
+    (0..count)
+        .map(|k| {
+            let a = &free[k % free.len()];
+            let c = &colliding[rng.random_range(0..colliding.len())];
+            let (mut lo, mut hi) = (0.0, 1.0);
+            for _ in 0..30 {
+                let mid = 0.5 * (lo + hi);
+                if sc.is_free(&lerp(a, c, mid)) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            // A little short of the contact, so that some segments through it miss.
+            let q = lerp(a, c, (lo - rng.random_range(0.0..0.05)).max(0.0));
+            let len = rng.random_range(0.02..0.4);
+            let mut d = vec![0.0; q.len()];
+            for &v in vars {
+                d[v] = rng.random_range(-len..len);
+            }
+            let a: Vec<f64> = q.iter().zip(&d).map(|(x, y)| x + y).collect();
+            let b: Vec<f64> = q.iter().zip(&d).map(|(x, y)| x - y).collect();
+            (a, b)
+        })
+        .collect()
+}
+
+/// Focused refinement (only what was tight at a sub-interval's ends) against a fine discrete
+/// check of the plain spheres, on grazing segments with a coarse first pass (large inflation,
+/// so contacts between its states are common): whatever it certifies has no colliding state
+/// among 2000, it certifies everything the unfocused check does, and the segments are a mix.
+fn focused_refinement_misses_nothing(world: &CollisionWorld, r: &Robot, vars: &[usize], seed: u64) {
+    let mut sc = SphereChecker::new(world, 0.0).expect("spheres");
+    let mut unfocused = sc.clone();
+    unfocused.set_focus(false);
+    let mut fine = sc.clone();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut states: [Vec<Vec<f64>>; 2] = [Vec::new(), Vec::new()];
+    while states[0].len() < 200 || states[1].len() < 200 {
+        let mut q = r.zero_config();
+        for &v in vars {
+            let l = r.var_limits(v);
+            q[v] = rng.random_range(l.lower..=l.upper);
+        }
+        let f = fine.is_free(&q);
+        states[usize::from(f)].push(q);
+    }
+    let segments = grazing_segments(&mut fine, &states[1], &states[0], vars, &mut rng, 1500);
+    let (mut certified, mut colliding, mut uncertified_free) = (0, 0, 0);
+    for (k, (a, b)) in segments.iter().enumerate() {
+        if !fine.is_free(a) {
+            continue;
+        }
+        let cert = sc.segment_certified(a, b, 0.2);
+        assert!(
+            cert || !unfocused.segment_certified(a, b, 0.2),
+            "segment {k}"
+        );
+        let free = fine.segment_free(a, b, 2000);
+        if cert {
+            certified += 1;
+            assert!(free, "segment {k}: certified, but a state collides");
+        }
+        colliding += usize::from(!free);
+        uncertified_free += usize::from(free && !cert);
+    }
+    eprintln!("{certified} certified, {colliding} colliding, {uncertified_free} free uncertified");
+    assert!(
+        certified > 200 && colliding > 200,
+        "{certified} {colliding}"
+    );
+}
+
+#[test]
+fn focused_refinement_misses_no_contact() {
+    let r = robot("panda");
+    let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
+    let vars = file.joint_vars(&r).expect("vars");
+    for (i, set) in file.sets.iter().enumerate() {
+        let world = set.problems[0].world(r.clone());
+        focused_refinement_misses_nothing(&world, &r, &vars, 23 + i as u64);
+    }
+}
+
+/// The same for self pairs: Baxter alone (arms and torso, no obstacles).
+#[test]
+fn focused_refinement_misses_no_self_contact() {
+    let r = robot("baxter");
+    let file = MbmFile::load(&mbm("baxter/problems.json")).expect("problems");
+    let vars = file.joint_vars(&r).expect("vars");
+    let world = CollisionWorld::single(r.clone(), Pose::identity());
+    focused_refinement_misses_nothing(&world, &r, &vars, 31);
 }
 
 #[test]

@@ -252,9 +252,43 @@ pub struct SphereChecker {
     hot_body: u32,
     /// The hot body goes first (off only to compare against in tests).
     hot_first: bool,
-    tight_ks: Vec<usize>,
-    refine: Vec<(f64, f64, u32)>,
+    /// The bodies (obstacle tests) and self pairs (`SELF_PAIR | index`) with tight lanes in
+    /// the last check, each once, with those lanes.
+    tight_log: Vec<(u32, u32)>,
+    /// Per tight state of a certification's first pass: (state, body or self pair).
+    tight_states: Vec<(usize, u32)>,
+    /// Sub-intervals to refine: (t0, t1, depth, range of `focus_pool`, or `NO_FOCUS`).
+    refine: Vec<(f64, f64, u32, u32, u32)>,
+    /// The bodies and self pairs each refinement tests (see [`Self::certify`]).
+    focus_pool: Vec<u32>,
+    /// Refinements test only what was tight at their ends (off only to compare in tests).
+    focus: bool,
 }
+
+/// Appends to `out` the ids (bodies, self pairs) tight at state `i` or `i + 1`, each once;
+/// `tight` holds (state, id) sorted and without repeats.
+fn focus_of_states(tight: &[(usize, u32)], i: usize, out: &mut Vec<u32>) {
+    let start = out.len();
+    let lo = tight.partition_point(|e| e.0 < i);
+    let hi = tight.partition_point(|e| e.0 <= i + 1);
+    for &(_, id) in &tight[lo..hi] {
+        if !out[start..].contains(&id) {
+            out.push(id);
+        }
+    }
+}
+
+/// Appends to `out` the ids of a check's tight log (each id once there) tight in lane `l` or
+/// `l + 1`: the ends of the sub-interval between them.
+fn focus_of_lanes(log: &[(u32, u32)], l: usize, out: &mut Vec<u32>) {
+    let ends = 0b11u32 << l;
+    out.extend(log.iter().filter(|e| e.1 & ends != 0).map(|e| e.0));
+}
+
+/// Marks a self pair's index among the bodies' indices in `tight_log` and `focus_pool`.
+const SELF_PAIR: u32 = 1 << 31;
+/// A refinement that tests everything.
+const NO_FOCUS: u32 = u32::MAX;
 
 #[inline(always)]
 fn f3(v: &Vector3<f64>) -> [f32; 3] {
@@ -764,8 +798,11 @@ impl SphereChecker {
             tight: 0,
             hot_body: u32::MAX,
             hot_first: true,
-            tight_ks: Vec::new(),
+            tight_log: Vec::new(),
+            tight_states: Vec::new(),
             refine: Vec::new(),
+            focus_pool: Vec::new(),
+            focus: true,
         })
     }
 
@@ -775,6 +812,15 @@ impl SphereChecker {
     pub fn set_hot_first(&mut self, on: bool) {
         self.hot_first = on;
         self.hot_body = u32::MAX;
+    }
+
+    /// Turns focused refinement of certified checks on or off (on by default): with it, a
+    /// refinement tests only the bodies and self pairs tight at its ends. It may certify a
+    /// segment that the unfocused check gives up on (deeper refinement of pairs already
+    /// certified free), never one with a collision; tests compare both.
+    #[doc(hidden)]
+    pub fn set_focus(&mut self, on: bool) {
+        self.focus = on;
     }
 
     /// Turns the node-level cull of self-pair groups on or off (on by default). It never
@@ -908,7 +954,9 @@ impl SphereChecker {
     /// that distance of one end). The segment is split into the fewest equal sub-intervals whose
     /// inflation stays at most `max_inflation` metres, their end states are checked 8 per call
     /// in raked order, and sub-intervals next to a state that is free only with plain spheres
-    /// are split in 7 (one 8-lane call, a 7× smaller inflation) until certified; a state colliding with plain
+    /// are split in 7 (one 8-lane call, a 7× smaller inflation) until certified. A refinement
+    /// tests only the bodies (against their obstacles) and self pairs tight at its ends: the
+    /// coarser check certified every other one free over the whole sub-interval. A state colliding with plain
     /// spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
     /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
@@ -952,7 +1000,7 @@ impl SphereChecker {
         // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches).
         let total = n + 1;
         let batches = total.div_ceil(LANES);
-        self.tight_ks.clear();
+        self.tight_states.clear();
         for j in 0..batches {
             let mut ts = [0.0; LANES];
             let mut ks = [usize::MAX; LANES];
@@ -970,34 +1018,52 @@ impl SphereChecker {
             if self.collides8() {
                 return false;
             }
-            let mut m = self.tight;
-            while m != 0 {
-                let l = m.trailing_zeros() as usize;
-                m &= m - 1;
-                if ks[l] != usize::MAX {
-                    self.tight_ks.push(ks[l]);
+            for e in 0..self.tight_log.len() {
+                let (id, mut m) = self.tight_log[e];
+                while m != 0 {
+                    let l = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if ks[l] != usize::MAX {
+                        self.tight_states.push((ks[l], id));
+                    }
                 }
             }
         }
-        if self.tight_ks.is_empty() {
+        if self.tight_states.is_empty() {
             return true;
         }
-        // Sub-intervals [k, k+1] with a tight end, each once.
+        // Sub-intervals [i, i+1] with a tight end, each once. A body (against all its
+        // obstacles) or self pair free with the inflation at both ends is free over the whole
+        // sub-interval (the certificate above, applied to it alone), so the refinement tests
+        // only what was tight at either end.
         self.refine.clear();
-        self.tight_ks.sort_unstable();
-        self.tight_ks.dedup();
+        self.focus_pool.clear();
+        self.tight_states.sort_unstable();
+        self.tight_states.dedup();
+        let ts_ = &self.tight_states;
         let mut last = usize::MAX;
-        for idx in 0..self.tight_ks.len() {
-            let k = self.tight_ks[idx];
+        for idx in 0..ts_.len() {
+            let k = ts_[idx].0;
+            if idx > 0 && ts_[idx - 1].0 == k {
+                continue;
+            }
             for i in [k.wrapping_sub(1), k] {
                 if i < n && i != last && (last == usize::MAX || i > last) {
-                    self.refine.push((i as f64 * h, (i + 1) as f64 * h, 0));
+                    let (fs, fe) = if self.focus {
+                        let start = self.focus_pool.len();
+                        focus_of_states(ts_, i, &mut self.focus_pool);
+                        (start as u32, self.focus_pool.len() as u32)
+                    } else {
+                        (NO_FOCUS, NO_FOCUS)
+                    };
+                    self.refine
+                        .push((i as f64 * h, (i + 1) as f64 * h, 0, fs, fe));
                     last = i;
                 }
             }
         }
         let mut budget = Self::CERTIFY_MAX_REFINEMENTS;
-        while let Some((t0, t1, depth)) = self.refine.pop() {
+        while let Some((t0, t1, depth, fs, fe)) = self.refine.pop() {
             if depth >= Self::CERTIFY_MAX_DEPTH || budget == 0 {
                 return false;
             }
@@ -1016,13 +1082,25 @@ impl SphereChecker {
             }
             self.load_lanes(a, b, &ts);
             self.checks += LANES as u64;
-            if self.collides8() {
+            let hit = if fs == NO_FOCUS {
+                self.collides8()
+            } else {
+                self.collides8_focus(fs as usize, fe as usize)
+            };
+            if hit {
                 return false;
             }
             let m = self.tight;
             for l in 0..LANES - 1 {
                 if m & (0b11 << l) != 0 {
-                    self.refine.push((ts[l], ts[l + 1], depth + 1));
+                    let (fs, fe) = if fs == NO_FOCUS {
+                        (NO_FOCUS, NO_FOCUS)
+                    } else {
+                        let start = self.focus_pool.len();
+                        focus_of_lanes(&self.tight_log, l, &mut self.focus_pool);
+                        (start as u32, self.focus_pool.len() as u32)
+                    };
+                    self.refine.push((ts[l], ts[l + 1], depth + 1, fs, fe));
                 }
             }
         }
@@ -1040,6 +1118,22 @@ impl SphereChecker {
         }
         self.checks += qs.len() as u64;
         self.collides8()
+    }
+
+    /// [`Self::collides8`] testing only the bodies and self pairs `focus_pool[fs..fe]`.
+    fn collides8_focus(&mut self, fs: usize, fe: usize) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
+            return unsafe { self.run8_focus_avx2(fs, fe) }.is_some();
+        }
+        self.run_focus::<LANES, false>(fs, fe).is_some()
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn run8_focus_avx2(&mut self, fs: usize, fe: usize) -> Option<Hit> {
+        self.run_focus::<LANES, true>(fs, fe)
     }
 
     fn collides8(&mut self) -> bool {
@@ -1068,13 +1162,7 @@ impl SphereChecker {
     /// Fused FK and checking of the first `N` lanes of `qv`.
     #[inline(always)]
     fn run<const N: usize, const AVX: bool>(&mut self) -> Option<Hit> {
-        self.tight = 0;
-        self.epoch = self.epoch.wrapping_add(1);
-        if self.epoch == 0 {
-            self.sw_epoch.iter_mut().for_each(|e| *e = 0);
-            self.ncw_epoch.iter_mut().for_each(|e| *e = 0);
-            self.epoch = 1;
-        }
+        self.new_call();
         // The hot body first (8-lane checks only), with the kinematics up to its node.
         let hot = if N == LANES && self.hot_first {
             self.hot_body
@@ -1120,21 +1208,79 @@ impl SphereChecker {
                     continue;
                 }
             }
-            #[cfg(target_arch = "x86_64")]
-            if AVX && N == LANES {
-                // SAFETY: as above.
-                if unsafe { self.pair_hits_avx(pi, a as usize, b as usize) } {
-                    return Some(Hit::SelfPair(a, b));
-                }
-                pi += 1;
-                continue;
-            }
-            if self.pair_hits::<N>(pi, a as usize, b as usize) {
+            if self.pair_of::<N, AVX>(pi, a as usize, b as usize) {
                 return Some(Hit::SelfPair(a, b));
             }
             pi += 1;
         }
         None
+    }
+
+    /// Clears the per-call state: tight lanes and the epoch of placed spheres.
+    #[inline(always)]
+    fn new_call(&mut self) {
+        self.tight = 0;
+        self.tight_log.clear();
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.sw_epoch.iter_mut().for_each(|e| *e = 0);
+            self.ncw_epoch.iter_mut().for_each(|e| *e = 0);
+            self.epoch = 1;
+        }
+    }
+
+    /// [`Self::run`] restricted to the bodies (against their obstacles) and self pairs
+    /// `focus_pool[fs..fe]`, with the kinematics up to the deepest node among them.
+    #[inline(always)]
+    fn run_focus<const N: usize, const AVX: bool>(&mut self, fs: usize, fe: usize) -> Option<Hit> {
+        self.new_call();
+        let mut last = 0;
+        for &id in &self.focus_pool[fs..fe] {
+            let (a, b) = if id & SELF_PAIR != 0 {
+                self.self_pairs[(id & !SELF_PAIR) as usize]
+            } else {
+                (id, id)
+            };
+            last = last
+                .max(self.bodies[a as usize].node as usize)
+                .max(self.bodies[b as usize].node as usize);
+        }
+        for si in 0..=last.min(self.steps.len().saturating_sub(1)) {
+            self.step::<N, AVX>(si);
+        }
+        for k in fs..fe {
+            let id = self.focus_pool[k];
+            if id & SELF_PAIR == 0 {
+                if let Some(h) = self.env_of::<N, AVX>(id as usize) {
+                    return Some(h);
+                }
+                continue;
+            }
+            let pi = (id & !SELF_PAIR) as usize;
+            let (a, b) = self.self_pairs[pi];
+            for x in [a, b] {
+                let body = &self.bodies[x as usize];
+                let c = Self::place::<N, AVX>(&self.frames[body.node as usize], &body.bc);
+                for r in 0..3 {
+                    self.bcw[x as usize][r][..N].copy_from_slice(&c[r]);
+                }
+            }
+            if self.pair_of::<N, AVX>(pi, a as usize, b as usize) {
+                return Some(Hit::SelfPair(a, b));
+            }
+        }
+        None
+    }
+
+    /// Self pair `pi` (bodies `a`, `b`, their centres placed).
+    #[inline(always)]
+    fn pair_of<const N: usize, const AVX: bool>(&mut self, pi: usize, a: usize, b: usize) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if AVX && N == LANES {
+            // SAFETY: as in `env_of`.
+            return unsafe { self.pair_hits_avx(pi, a, b) };
+        }
+        self.pair_hits::<N>(pi, a, b)
     }
 
     /// Body `b` against the obstacles (its node's frame computed).
@@ -1345,6 +1491,7 @@ impl SphereChecker {
         let br = body.br + infl;
         let (o0, o1) = body.obstacles;
         let mut spheres_ready = false;
+        let mut tb = 0u32;
         for k in o0 as usize..o1 as usize {
             let oi = self.body_obstacles[k] as usize;
             // Obstacles whose bounding sphere no lane's bounding sphere touches are skipped.
@@ -1375,9 +1522,13 @@ impl SphereChecker {
                     if infl == 0.0 || obs_mask::<N>(&o, &x, &y, &z, r) != 0 {
                         return Some(Hit::Obstacle(b as u32, oi as u32));
                     }
-                    self.tight |= m;
+                    tb |= m;
                 }
             }
+        }
+        if tb != 0 {
+            self.tight |= tb;
+            self.tight_log.push((b as u32, tb));
         }
         None
     }
@@ -1393,6 +1544,7 @@ impl SphereChecker {
         self.ensure_spheres::<N, false>(b);
         let (sa, sb) = (self.bodies[a].spheres, self.bodies[b].spheres);
         let (bb, rb) = (&self.bcw[b], self.bodies[b].br);
+        let mut tp = 0u32;
         for i in sa.0 as usize..sa.1 as usize {
             let (wi, ri) = (&self.sw[i], self.spheres[i][3]);
             // The sphere against b's bounding sphere first.
@@ -1406,9 +1558,13 @@ impl SphereChecker {
                     if ex == 0.0 || near_mask::<N>(wi, &self.sw[j], rij) != 0 {
                         return true;
                     }
-                    self.tight |= m;
+                    tp |= m;
                 }
             }
+        }
+        if tp != 0 {
+            self.tight |= tp;
+            self.tight_log.push((SELF_PAIR | pi as u32, tp));
         }
         false
     }
@@ -1434,6 +1590,7 @@ impl SphereChecker {
             epoch,
             spheres,
             tight,
+            tight_log,
             ..
         } = self;
         let body = &bodies[b];
@@ -1445,6 +1602,7 @@ impl SphereChecker {
         let (o0, o1) = (body.obstacles.0 as usize, body.obstacles.1 as usize);
         let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
         let mut placed = sw_epoch[b] == *epoch;
+        let mut tb = 0u32;
         for (&oi, ob) in body_obstacles[o0..o1]
             .iter()
             .zip(&body_obstacle_sphere[o0..o1])
@@ -1471,9 +1629,13 @@ impl SphereChecker {
                     if infl == 0.0 || obs(o, p, sp[3]) != 0 {
                         return Some(Hit::Obstacle(b as u32, oi));
                     }
-                    *tight |= m;
+                    tb |= m;
                 }
             }
+        }
+        if tb != 0 {
+            *tight |= tb;
+            tight_log.push((b as u32, tb));
         }
         None
     }
@@ -1496,6 +1658,7 @@ impl SphereChecker {
         let (sa0, sa1) = (ba.spheres.0 as usize, ba.spheres.1 as usize);
         let (sb0, sb1) = (bb.spheres.0 as usize, bb.spheres.1 as usize);
         let rb = bb.br;
+        let mut tp = 0u32;
         for (si, wi) in self.spheres[sa0..sa1].iter().zip(&self.sw[sa0..sa1]) {
             let (pi_, ri) = (load3(wi), si[3]);
             // The sphere against b's bounding sphere first.
@@ -1510,9 +1673,13 @@ impl SphereChecker {
                     if ex == 0.0 || near(pi_, pj, rij) != 0 {
                         return true;
                     }
-                    self.tight |= m;
+                    tp |= m;
                 }
             }
+        }
+        if tp != 0 {
+            self.tight |= tp;
+            self.tight_log.push((SELF_PAIR | pi as u32, tp));
         }
         false
     }
@@ -2142,6 +2309,43 @@ mod tests {
             }
         }
         assert!(worst < 1e-5, "worst {worst:e}");
+    }
+
+    /// A refinement's focus holds every id tight at either end of its sub-interval, once, and
+    /// nothing else.
+    #[test]
+    fn focus_holds_what_is_tight_at_either_end() {
+        use super::{focus_of_lanes, focus_of_states, SELF_PAIR};
+        let states = [(2, 4), (3, 1), (3, 4), (4, 7), (5, SELF_PAIR | 2), (9, 1)];
+        let mut out = vec![99];
+        focus_of_states(&states, 3, &mut out);
+        assert_eq!(out, [99, 1, 4, 7], "state 3 and state 4, 4 once");
+        out.clear();
+        focus_of_states(&states, 4, &mut out);
+        assert_eq!(out, [7, SELF_PAIR | 2]);
+        out.clear();
+        focus_of_states(&states, 1, &mut out);
+        assert_eq!(out, [4], "only the right end tight");
+        out.clear();
+        focus_of_states(&states, 6, &mut out);
+        assert!(out.is_empty());
+        let log = [
+            (3, 0b0000_0001),
+            (5, 0b0100_0000),
+            (SELF_PAIR | 1, 0b1000_0000),
+        ];
+        out.clear();
+        focus_of_lanes(&log, 0, &mut out);
+        assert_eq!(out, [3]);
+        out.clear();
+        focus_of_lanes(&log, 5, &mut out);
+        assert_eq!(out, [5], "only the right end tight");
+        out.clear();
+        focus_of_lanes(&log, 6, &mut out);
+        assert_eq!(out, [5, SELF_PAIR | 1]);
+        out.clear();
+        focus_of_lanes(&log, 2, &mut out);
+        assert!(out.is_empty());
     }
 
     #[test]
