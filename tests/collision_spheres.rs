@@ -14,6 +14,16 @@ use manyhands::Robot;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// A configuration with the planned variables `vars` uniform within their limits, the others 0.
+fn random_config(r: &Robot, vars: &[usize], rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let mut q = r.zero_config();
+    for &v in vars {
+        let l = r.var_limits(v);
+        q[v] = rng.random_range(l.lower..=l.upper);
+    }
+    q
+}
+
 fn mbm(p: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/benchmarks/mbm")
@@ -157,19 +167,11 @@ fn node_cull_changes_nothing() {
     let mut off = on.clone();
     off.set_node_cull(false);
     let mut rng = ChaCha8Rng::seed_from_u64(17);
-    let random = |rng: &mut ChaCha8Rng| -> Vec<f64> {
-        let mut q = r.zero_config();
-        for &v in &vars {
-            let l = r.var_limits(v);
-            q[v] = rng.random_range(l.lower..=l.upper);
-        }
-        q
-    };
     // Segments from a free state to a colliding one: they cross the contact boundary, where
     // inflated spheres touch and plain ones do not.
     let mut states: [Vec<Vec<f64>>; 2] = [Vec::new(), Vec::new()];
     while states[0].len() < 300 || states[1].len() < 300 {
-        let q = random(&mut rng);
+        let q = random_config(&r, &vars, &mut rng);
         let f = off.is_free(&q);
         assert_eq!(on.is_free(&q), f);
         states[usize::from(f)].push(q);
@@ -213,18 +215,10 @@ fn hot_body_first_changes_nothing() {
     let mut off = on.clone();
     off.set_hot_first(false);
     let mut rng = ChaCha8Rng::seed_from_u64(29);
-    let random = |rng: &mut ChaCha8Rng| -> Vec<f64> {
-        let mut q = r.zero_config();
-        for &v in &vars {
-            let l = r.var_limits(v);
-            q[v] = rng.random_range(l.lower..=l.upper);
-        }
-        q
-    };
     let (mut free, mut hit) = (0, 0);
     for k in 0..1500 {
-        let a = random(&mut rng);
-        let c = random(&mut rng);
+        let a = random_config(&r, &vars, &mut rng);
+        let c = random_config(&r, &vars, &mut rng);
         let t = [1.0, 0.3, 0.08][k % 3];
         let b: Vec<f64> = a.iter().zip(&c).map(|(x, y)| x + t * (y - x)).collect();
         let (c0, d0) = (on.checks(), off.checks());
@@ -376,11 +370,7 @@ fn focused_refinement_misses_nothing(world: &CollisionWorld, r: &Robot, vars: &[
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut states: [Vec<Vec<f64>>; 2] = [Vec::new(), Vec::new()];
     while states[0].len() < 200 || states[1].len() < 200 {
-        let mut q = r.zero_config();
-        for &v in vars {
-            let l = r.var_limits(v);
-            q[v] = rng.random_range(l.lower..=l.upper);
-        }
+        let q = random_config(r, vars, &mut rng);
         let f = fine.is_free(&q);
         states[usize::from(f)].push(q);
     }
