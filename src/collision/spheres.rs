@@ -2143,6 +2143,20 @@ impl CollisionChecker for AutoChecker {
 
 #[cfg(test)]
 mod tests {
+    /// A MotionBenchMaker robot (`../shared/benchmarks/mbm/NAME`): spherized URDF and SRDF.
+    fn mbm_robot(name: &str) -> std::sync::Arc<crate::Robot> {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/benchmarks/mbm")
+            .join(name);
+        std::sync::Arc::new(
+            crate::Robot::from_files(
+                &dir.join(format!("{name}_spherized.urdf")),
+                Some(&dir.join(format!("{name}.srdf"))),
+            )
+            .expect("robot"),
+        )
+    }
+
     /// The node-level cull of a pair group is a bound of every pair in it: over random
     /// Baxter configurations (8 lanes) and random inflations, whenever the nodes' spheres are
     /// apart in every lane, so is every pair's body-level test that the cull skips. Both
@@ -2152,15 +2166,7 @@ mod tests {
         use super::*;
         use crate::geometry::Pose;
         use rand::{Rng, SeedableRng};
-        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/benchmarks/mbm/baxter");
-        let robot = std::sync::Arc::new(
-            crate::Robot::from_files(
-                &dir.join("baxter_spherized.urdf"),
-                Some(&dir.join("baxter.srdf")),
-            )
-            .expect("robot"),
-        );
+        let robot = mbm_robot("baxter");
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
         let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
         assert!(
@@ -2250,15 +2256,7 @@ mod tests {
             origin_terms(&Vector3::new(-0.0825, 3e-17, 0.384)),
             ([-0.0825, 0.0, 0.384], 0b101)
         );
-        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/benchmarks/mbm/panda");
-        let robot = std::sync::Arc::new(
-            crate::Robot::from_files(
-                &dir.join("panda_spherized.urdf"),
-                Some(&dir.join("panda.srdf")),
-            )
-            .expect("robot"),
-        );
+        let robot = mbm_robot("panda");
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
         let mut fast = SphereChecker::new(&world, 0.0).expect("spheres");
         let (mut perms, mut sparse) = (0, 0);
