@@ -156,6 +156,30 @@ fn segment_check_equals_state_by_state() {
 /// cull on and off, with no obstacles (self pairs decide), on segments from free states to
 /// colliding ones. (That the cull bounds every pair it skips, inflations included, is tested
 /// directly in the module: `node_cull_bounds_every_pair_of_its_group`.)
+/// Segment `k` (`a → b`) gets the same certified verdict with the same number of checked
+/// states from both checkers, and the same discrete verdict at a random resolution; returns
+/// the certified verdict.
+fn same_segment_verdicts(
+    on: &mut SphereChecker,
+    off: &mut SphereChecker,
+    a: &[f64],
+    b: &[f64],
+    rng: &mut ChaCha8Rng,
+    k: usize,
+) -> bool {
+    let (c0, d0) = (on.checks(), off.checks());
+    let v = on.segment_certified(a, b, 0.04);
+    assert_eq!(v, off.segment_certified(a, b, 0.04), "segment {k}");
+    assert_eq!(on.checks() - c0, off.checks() - d0, "segment {k}");
+    let n = rng.random_range(1..40);
+    assert_eq!(
+        on.segment_free(a, b, n),
+        off.segment_free(a, b, n),
+        "segment {k}"
+    );
+    v
+}
+
 #[test]
 fn node_cull_changes_nothing() {
     let r = robot("baxter");
@@ -187,12 +211,7 @@ fn node_cull_changes_nothing() {
             a.iter().zip(c).map(|(x, y)| x + 0.15 * (y - x)).collect()
         };
         assert_eq!(on.is_free(&a), off.is_free(&a), "state {k}");
-        let (c0, d0) = (on.checks(), off.checks());
-        let v = on.segment_certified(&a, &b, 0.04);
-        assert_eq!(v, off.segment_certified(&a, &b, 0.04), "segment {k}");
-        assert_eq!(on.checks() - c0, off.checks() - d0, "segment {k}");
-        let n = rng.random_range(1..40);
-        assert_eq!(on.segment_free(&a, &b, n), off.segment_free(&a, &b, n));
+        let v = same_segment_verdicts(&mut on, &mut off, &a, &b, &mut rng, k);
         if v {
             free += 1;
         } else {
@@ -221,16 +240,7 @@ fn hot_body_first_changes_nothing() {
         let c = random_config(&r, &vars, &mut rng);
         let t = [1.0, 0.3, 0.08][k % 3];
         let b: Vec<f64> = a.iter().zip(&c).map(|(x, y)| x + t * (y - x)).collect();
-        let (c0, d0) = (on.checks(), off.checks());
-        let v = on.segment_certified(&a, &b, 0.04);
-        assert_eq!(v, off.segment_certified(&a, &b, 0.04), "segment {k}");
-        assert_eq!(on.checks() - c0, off.checks() - d0, "segment {k}");
-        let n = rng.random_range(1..40);
-        assert_eq!(
-            on.segment_free(&a, &b, n),
-            off.segment_free(&a, &b, n),
-            "{k}"
-        );
+        let v = same_segment_verdicts(&mut on, &mut off, &a, &b, &mut rng, k);
         if v {
             free += 1;
         } else {

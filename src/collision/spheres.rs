@@ -243,8 +243,6 @@ pub struct SphereChecker {
     pair_scale: f64,
     /// Per world variable: |b − a| of the segment being certified.
     seg_dq: Vec<f64>,
-    /// Lanes of the last check that are free with the plain spheres but not with `infl`.
-    tight: u32,
     /// The body that last hit an obstacle in an 8-lane check (`u32::MAX`: none yet). The next
     /// 8-lane check tests it first: motions that collide mostly collide with the same link
     /// (Panda's forearm in 69 % of MotionBenchMaker hits), and a check that hits early skips
@@ -795,7 +793,6 @@ impl SphereChecker {
             infl: vec![0.0; nb],
             pair_scale: 0.0,
             seg_dq: vec![0.0; world.dof()],
-            tight: 0,
             hot_body: u32::MAX,
             hot_first: true,
             tight_log: Vec::new(),
@@ -1040,18 +1037,18 @@ impl SphereChecker {
         self.focus_pool.clear();
         self.tight_states.sort_unstable();
         self.tight_states.dedup();
-        let ts_ = &self.tight_states;
+        let tight = &self.tight_states;
         let mut last = usize::MAX;
-        for idx in 0..ts_.len() {
-            let k = ts_[idx].0;
-            if idx > 0 && ts_[idx - 1].0 == k {
+        for idx in 0..tight.len() {
+            let k = tight[idx].0;
+            if idx > 0 && tight[idx - 1].0 == k {
                 continue;
             }
             for i in [k.wrapping_sub(1), k] {
                 if i < n && i != last && (last == usize::MAX || i > last) {
                     let (fs, fe) = if self.focus {
                         let start = self.focus_pool.len();
-                        focus_of_states(ts_, i, &mut self.focus_pool);
+                        focus_of_states(tight, i, &mut self.focus_pool);
                         (start as u32, self.focus_pool.len() as u32)
                     } else {
                         (NO_FOCUS, NO_FOCUS)
@@ -1090,7 +1087,8 @@ impl SphereChecker {
             if hit {
                 return false;
             }
-            let m = self.tight;
+            // Lanes free with the plain spheres but not with the inflation.
+            let m = self.tight_log.iter().fold(0, |m, e| m | e.1);
             for l in 0..LANES - 1 {
                 if m & (0b11 << l) != 0 {
                     let (fs, fe) = if fs == NO_FOCUS {
@@ -1216,10 +1214,9 @@ impl SphereChecker {
         None
     }
 
-    /// Clears the per-call state: tight lanes and the epoch of placed spheres.
+    /// Clears the per-call state: the tight log and the epoch of placed spheres.
     #[inline(always)]
     fn new_call(&mut self) {
-        self.tight = 0;
         self.tight_log.clear();
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
@@ -1479,7 +1476,7 @@ impl SphereChecker {
     }
 
     /// The body's spheres against its obstacles. With an inflation, a lane whose inflated
-    /// spheres touch but whose plain spheres do not is marked in `tight`; a plain touch is a hit.
+    /// spheres touch but whose plain spheres do not is logged in `tight_log`; a plain touch is a hit.
     #[inline(always)]
     fn body_env<const N: usize>(&mut self, b: usize) -> Option<Hit> {
         let body = &self.bodies[b];
@@ -1527,7 +1524,6 @@ impl SphereChecker {
             }
         }
         if tb != 0 {
-            self.tight |= tb;
             self.tight_log.push((b as u32, tb));
         }
         None
@@ -1563,7 +1559,6 @@ impl SphereChecker {
             }
         }
         if tp != 0 {
-            self.tight |= tp;
             self.tight_log.push((SELF_PAIR | pi as u32, tp));
         }
         false
@@ -1589,7 +1584,6 @@ impl SphereChecker {
             sw_epoch,
             epoch,
             spheres,
-            tight,
             tight_log,
             ..
         } = self;
@@ -1634,7 +1628,6 @@ impl SphereChecker {
             }
         }
         if tb != 0 {
-            *tight |= tb;
             tight_log.push((b as u32, tb));
         }
         None
@@ -1678,7 +1671,6 @@ impl SphereChecker {
             }
         }
         if tp != 0 {
-            self.tight |= tp;
             self.tight_log.push((SELF_PAIR | pi as u32, tp));
         }
         false
