@@ -321,7 +321,7 @@ fn platform_grid(
 fn base_placement_dual_arm_ik_on_the_kitchen_wok() {
     use manyhands::collision::{BodyId, FastChecker};
     use manyhands::kinematics::dual_arm::DualArmIk;
-    use manyhands::reachability::inverse::{bimanual, ik_dual_arm, inverse_map};
+    use manyhands::reachability::inverse::{bimanual, ik_dual_arm, inverse_map, placement_cdf};
     use manyhands::reachability::{hand_links, queries::grasp_set};
 
     let sc = scene("kitchen");
@@ -340,6 +340,7 @@ fn base_placement_dual_arm_ik_on_the_kitchen_wok() {
     let ml = inverse_map(&robot, &base, &start, &bv, &gl, &tl, c, 0.1, 1.2, 16, 0.0).expect("map");
     let mr = inverse_map(&robot, &base, &start, &bv, &gr, &tr, c, 0.1, 1.2, 16, 0.0).expect("map");
     let (bi, rights) = bimanual(&ml, &mr).expect("same layout");
+    let cdf = placement_cdf(&bi);
     assert!(bi.max() > 0.0);
     for (k, right) in rights.iter().enumerate() {
         assert!(bi.value[k] <= ml.value[k] && bi.value[k] <= mr.value[k]);
@@ -372,6 +373,7 @@ fn base_placement_dual_arm_ik_on_the_kitchen_wok() {
             &start,
             &bv,
             &bi,
+            &cdf,
             &rights,
             &tl,
             &tr,

@@ -414,7 +414,7 @@ pub fn run(ctx: &Ctx, a: &IkBenchArgs) -> Result<()> {
 fn base_placement_row(ctx: &Ctx, a: &IkBenchArgs) -> Result<Stat> {
     use manyhands::collision::{BodyId, CollisionChecker, FastChecker};
     use manyhands::kinematics::dual_arm::DualArmIk;
-    use manyhands::reachability::inverse::{bimanual, ik_dual_arm, inverse_map};
+    use manyhands::reachability::inverse::{bimanual, ik_dual_arm, inverse_map, placement_cdf};
     use manyhands::reachability::{hand_links, queries::grasp_set};
 
     let sc = ctx.scene("kitchen")?;
@@ -458,6 +458,7 @@ fn base_placement_row(ctx: &Ctx, a: &IkBenchArgs) -> Result<Stat> {
     let mr = inverse_map(&robot, &base, &start, &bv, &gr, &tr, c, 0.1, 1.2, 16, 0.0)
         .ok_or_else(|| anyhow!("inverse map"))?;
     let (bi, rights) = bimanual(&ml, &mr).ok_or_else(|| anyhow!("maps differ"))?;
+    let cdf = placement_cdf(&bi);
     let map_ms = t1.elapsed().as_secs_f64() * 1e3;
     if !ctx.json {
         eprintln!(
@@ -502,6 +503,7 @@ fn base_placement_row(ctx: &Ctx, a: &IkBenchArgs) -> Result<Stat> {
             &start,
             &bv,
             &bi,
+            &cdf,
             &rights,
             &tl,
             &tr,

@@ -26,7 +26,7 @@ use crate::geometry::Pose;
 use crate::kinematics::dual_arm::DualArmIk;
 use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
 use crate::model::{Robot, Scene};
-use crate::reachability::inverse::{bimanual, ik_dual_arm, inverse_map, InverseMap};
+use crate::reachability::inverse::{bimanual, ik_dual_arm, inverse_map, placement_cdf, InverseMap};
 use crate::reachability::queries::grasp_set;
 use crate::reachability::ReachabilityGrid;
 
@@ -276,6 +276,7 @@ impl BimanualProblem {
         BimanualGoals {
             ik: self.ik.clone(),
             map: self.map.clone(),
+            cdf: placement_cdf(&self.map.0),
             robot_base: p.base,
             robot_q: world_q[p.offset..p.offset + p.robot.dof()].to_vec(),
             base_vars: self.base_vars,
@@ -319,6 +320,8 @@ impl BimanualProblem {
 pub struct BimanualGoals {
     ik: Arc<DualArmIk>,
     map: Arc<(InverseMap, Vec<Vec<u16>>)>,
+    /// [`placement_cdf`] of R_bi, built once per sampler.
+    cdf: Vec<f64>,
     robot_base: Pose,
     robot_q: Vec<f64>,
     base_vars: [usize; 3],
@@ -354,6 +357,7 @@ impl GoalSampler for BimanualGoals {
             &self.robot_q,
             &self.base_vars,
             bi,
+            &self.cdf,
             rights,
             &self.targets_left,
             &self.targets_right,

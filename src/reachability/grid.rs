@@ -637,6 +637,37 @@ impl ReachabilityGrid {
         ((((c[0] * self.dims[1] + c[1]) * self.dims[2] + c[2]) * b + c[3]) * b + c[4]) * b + c[5]
     }
 
+    /// The orientation part of the flat cell index of a rotation (chain-base frame): a pose's
+    /// cell is its position voxel's index · rot_bins³ plus this ([`Self::index`]). Lets callers
+    /// that look up many positions with one rotation bin it once
+    /// ([`Self::probability_with_rotation`]).
+    pub fn rotation_offset(&self, rotation: &nalgebra::UnitQuaternion<f64>) -> usize {
+        let mut c = [0usize; 6];
+        self.bin_rotation(rotation, &mut c);
+        let b = self.params.rot_bins as usize;
+        (c[3] * b + c[4]) * b + c[5]
+    }
+
+    /// [`Self::probability`] of the pose with position `t` and the rotation whose
+    /// [`Self::rotation_offset`] is `rotation_offset`: the same value, without binning the
+    /// rotation again.
+    #[inline]
+    pub fn probability_with_rotation(
+        &self,
+        t: &nalgebra::Vector3<f64>,
+        rotation_offset: usize,
+    ) -> f64 {
+        let Some(v) = self.voxel_of(t) else {
+            return 0.0;
+        };
+        if !self.voxel_filled(&v) {
+            return 0.0;
+        }
+        let b = self.params.rot_bins as usize;
+        let voxel = (v[0] * self.dims[1] + v[1]) * self.dims[2] + v[2];
+        self.entry_at(voxel * b * b * b + rotation_offset) as f64 * self.inv_max
+    }
+
     /// Flat cell index of a pose (chain-base frame).
     #[inline]
     pub fn cell_of(&self, pose: &Pose) -> Option<usize> {

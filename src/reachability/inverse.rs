@@ -212,6 +212,31 @@ pub fn inverse_map(
     let layout = map.clone_layout();
     let path = FkPath::new(robot, platform);
     let reach = YawReach::new(&path, robot_base, &mut start.to_vec(), base_vars, grid);
+    // The platform's rotation at each yaw bin (taken at the first cell) and, for every target,
+    // its position turned by it and the orientation part of its grid cell under it. A base pose
+    // whose rotation is bit for bit the same (every cell of a planar base, where x and y only
+    // translate) then needs one addition and a position lookup per target, with the very
+    // values the full lookup computes; other base poses take the full lookup.
+    let g_count = targets.len();
+    let mut yaw_rot = Vec::with_capacity(yaw_bins);
+    let mut rot_off = Vec::with_capacity(yaw_bins * g_count);
+    let mut turned = Vec::with_capacity(yaw_bins * g_count);
+    {
+        let mut q = start.to_vec();
+        for iw in 0..yaw_bins {
+            let xyw = layout.cell_pose(0, 0, iw);
+            let r = platform_pose(&path, robot_base, &mut q, base_vars, xyw)
+                .inverse()
+                .rotation;
+            yaw_rot.push(r);
+            rot_off.extend(
+                targets
+                    .iter()
+                    .map(|t| grid.rotation_offset(&(r * t.rotation))),
+            );
+            turned.extend(targets.iter().map(|t| r * t.translation.vector));
+        }
+    }
     map.value
         .par_chunks_mut(row)
         .zip(map.grasps.par_chunks_mut(row))
@@ -243,7 +268,23 @@ pub fn inverse_map(
                     let inv = platform_pose(&path, robot_base, &mut q, base_vars, xyw).inverse();
                     let k = iy * yaw_bins + iw;
                     let probs = &mut probs[..near.len()];
-                    grid.probabilities(&inv, &near, probs);
+                    let r0 = &yaw_rot[iw];
+                    if r0
+                        .coords
+                        .iter()
+                        .zip(inv.rotation.coords.iter())
+                        .all(|(a, b)| a == b)
+                    {
+                        // Same rotation as the yaw bin's: positions only.
+                        let offs = &rot_off[iw * g_count..(iw + 1) * g_count];
+                        let turned = &turned[iw * g_count..(iw + 1) * g_count];
+                        for (&g, p) in index.iter().zip(probs.iter_mut()) {
+                            let pos = turned[g as usize] + inv.translation.vector;
+                            *p = grid.probability_with_rotation(&pos, offs[g as usize]);
+                        }
+                    } else {
+                        grid.probabilities(&inv, &near, probs);
+                    }
                     for (&g, &p) in index.iter().zip(probs.iter()) {
                         if p > threshold {
                             values[k] = values[k].max(p as f32);
@@ -290,10 +331,24 @@ pub struct BasePlacement {
     pub counters: IkCounters,
 }
 
+/// The cumulative distribution of a map's values over (cell, yaw bin), in the order of
+/// `value`: what [`ik_dual_arm`] samples base poses from (∝ R_bi). Build it once per map.
+pub fn placement_cdf(map: &InverseMap) -> Vec<f64> {
+    let mut acc = 0.0f64;
+    map.value
+        .iter()
+        .map(|&v| {
+            acc += v.max(0.0) as f64;
+            acc
+        })
+        .collect()
+}
+
 /// IkDualArm (002 Alg. 1): sample a base pose (x, y within the cell, yaw within the bin) from the
 /// bimanual map with probability ∝ R_bi, sample the free (hip) joints, solve both arms
 /// analytically (up to `settings.psi_samples` swivel angles each) only for the grasps that cell lists (left `targets_left[g]`, right
-/// `targets_right[g]`, world poses), and return the first collision-free combination.
+/// `targets_right[g]`, world poses), and return the first collision-free combination. `cdf` is
+/// [`placement_cdf`] of `bi` (no solution when its length differs).
 #[allow(clippy::too_many_arguments)]
 pub fn ik_dual_arm<R: Rng + ?Sized>(
     ik: &DualArmIk,
@@ -301,6 +356,7 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
     start: &[f64],
     base_vars: &[usize; 3],
     bi: &InverseMap,
+    cdf: &[f64],
     rights: &[Vec<u16>],
     targets_left: &[Pose],
     targets_right: &[Pose],
@@ -315,15 +371,9 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
             expected: robot.dof(),
         });
     }
-    // Cumulative distribution over (cell, yaw).
-    let mut cdf = Vec::with_capacity(bi.value.len());
-    let mut acc = 0.0f64;
-    for &v in &bi.value {
-        acc += v.max(0.0) as f64;
-        cdf.push(acc);
-    }
     let mut c = IkCounters::default();
-    if acc <= 0.0 {
+    let acc = cdf.last().copied().unwrap_or(0.0);
+    if cdf.len() != bi.value.len() || acc <= 0.0 {
         return Err(RandomizedIkError::NoSolution {
             tries: 0,
             counters: c,
