@@ -55,6 +55,70 @@ fn ik_rrt_reaches_the_wok_with_and_without_obstacle() {
     }
 }
 
+/// The fast checker's skipping segment check changes no search: IK-RRT and the dual-arm
+/// re-grasp find the same paths (raw and pruned) with skipping on and off, with fewer checks.
+#[test]
+fn skipping_segment_checks_change_no_search() {
+    use manyhands::collision::FastChecker;
+    use manyhands::planning::space_checker;
+
+    let (s, p) = reach_problem("obstacle", "torso_right_arm");
+    let run = |skip: bool, seed: u64| {
+        let mut checker = space_checker(&p.world, &p.space);
+        if !skip {
+            checker.set_skip_inflation(0.0);
+        }
+        let mut planner =
+            IkRrt::with_checker(p.space.clone(), &p.world, checker, IkRrtSettings::default())
+                .expect("planner");
+        let mut goals = p.goals(None, ik_settings());
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        planner
+            .plan(&p.start, &mut goals, &mut term, seed)
+            .expect("plan")
+    };
+    let (mut on, mut off) = (0, 0);
+    for seed in 0..6 {
+        let (a, b) = (run(true, seed), run(false, seed));
+        assert_eq!(a.path, b.path, "seed {seed}");
+        assert_eq!(a.stats.length_raw, b.stats.length_raw, "seed {seed}");
+        on += a.stats.collision_checks;
+        off += b.stats.collision_checks;
+    }
+    assert!(on < off, "{on} checks skipping, {off} without");
+    // Dual-arm re-grasp: the wok in the right hand, the left one takes it.
+    let world = CollisionWorld::from_scene(&s);
+    let r = run(true, 0);
+    let q1 = p.space.to_world(r.path.last().expect("path"));
+    let h = HandOffProblem::new(
+        &s,
+        &world,
+        &q1,
+        ("armar", "torso_right_arm"),
+        ("armar", "torso_left_arm"),
+        "wok",
+        p.grasps[r.goal_index],
+    )
+    .expect("hand-off problem");
+    let run = |skip: bool| {
+        let mut checker: FastChecker = space_checker(&h.world, &h.space);
+        if !skip {
+            checker.set_skip_inflation(0.0);
+        }
+        let mut planner =
+            IkRrt::with_checker(h.space.clone(), &h.world, checker, IkRrtSettings::default())
+                .expect("planner");
+        let mut goals = h.goals(None, ik_settings());
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        planner
+            .plan(&h.start, &mut goals, &mut term, 3)
+            .expect("plan")
+    };
+    let (a, b) = (run(true), run(false));
+    assert_eq!(a.path, b.path);
+    assert!(a.stats.collision_checks < b.stats.collision_checks);
+}
+
 #[test]
 fn ik_rrt_is_deterministic_per_seed() {
     let (_s, p) = reach_problem("obstacle", "torso_right_arm");

@@ -19,6 +19,8 @@ use crate::geometry::{Pose, Shape};
 
 use crate::kinematics::{FkModel, Frame};
 
+mod sweep;
+
 /// Settings of the fast model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FastModelSettings {
@@ -415,6 +417,10 @@ pub struct FastChecker {
     /// variables, the frozen ones with their values, and the first colliding pair among those
     /// tested once at build time (it collides in every configuration).
     frozen: Option<Frozen>,
+    /// Speed bounds of the bodies and buffers of segment checks (`sweep.rs`).
+    sweep: sweep::Sweep,
+    /// Largest inflation of [`FastChecker::segment_free`] (0: every state is checked).
+    skip_inflation: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -481,7 +487,13 @@ impl FastChecker {
             (Mount { robot, link: rep }, rel)
         };
         let mut moving = Vec::new();
-        let mut index_of = std::collections::HashMap::new();
+        // Body → index tables (plain vectors: hashing showed in per-problem setup).
+        let mut link_index: Vec<Vec<Option<usize>>> = world
+            .robots
+            .iter()
+            .map(|p| vec![None; p.robot.links.len()])
+            .collect();
+        let mut attached_index: Vec<Option<usize>> = vec![None; world.attached.len()];
         let mut start = 0;
         let mut overapprox: f64 = 0.0;
         let mut push_body = |id: BodyId,
@@ -502,7 +514,11 @@ impl FastChecker {
                 })
                 .collect();
             let (bc, br) = bounding_of(&local);
-            index_of.insert(id, moving.len());
+            match id {
+                BodyId::Link { robot, link } => link_index[robot][link] = Some(moving.len()),
+                BodyId::Attached(a) => attached_index[a] = Some(moving.len()),
+                BodyId::Static(_) => {}
+            }
             let n = local.len();
             moving.push(MovingBody {
                 id,
@@ -535,7 +551,7 @@ impl FastChecker {
             }
         }
         let mut statics = Vec::new();
-        let mut static_index = std::collections::HashMap::new();
+        let mut static_index: Vec<Option<usize>> = vec![None; world.statics.len()];
         for (s, st) in world.statics.iter().enumerate() {
             if st.shapes.is_empty() {
                 continue;
@@ -555,7 +571,7 @@ impl FastChecker {
             let hi = prims
                 .iter()
                 .fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(&p.2));
-            static_index.insert(BodyId::Static(s), statics.len());
+            static_index[s] = Some(statics.len());
             statics.push(StaticBodyModel {
                 id: BodyId::Static(s),
                 prims,
@@ -578,27 +594,31 @@ impl FastChecker {
             overapprox = overapprox.max(o);
         }
         overapprox += settings.padding;
+        let moving_of = |id: BodyId| match id {
+            BodyId::Link { robot, link } => link_index[robot][link],
+            BodyId::Attached(a) => attached_index[a],
+            BodyId::Static(_) => None,
+        };
+        let static_of = |id: BodyId| match id {
+            BodyId::Static(s) => static_index[s],
+            _ => None,
+        };
         let mut pairs = Vec::new();
         for (a, b) in world.pairs() {
-            match (
-                index_of.get(&a),
-                index_of.get(&b),
-                static_index.get(&b),
-                static_index.get(&a),
-            ) {
-                (Some(&ia), Some(&ib), _, _) => pairs.push(Pair {
+            match (moving_of(a), moving_of(b), static_of(b), static_of(a)) {
+                (Some(ia), Some(ib), _, _) => pairs.push(Pair {
                     a: ia as u32,
                     b: ib as u32,
                     b_static: false,
                     reach2: (moving[ia].br + moving[ib].br).powi(2),
                 }),
-                (Some(&ia), None, Some(&sb), _) => pairs.push(Pair {
+                (Some(ia), None, Some(sb), _) => pairs.push(Pair {
                     a: ia as u32,
                     b: sb as u32,
                     b_static: true,
                     reach2: moving[ia].br.powi(2),
                 }),
-                (None, Some(&ib), _, Some(&sa)) => pairs.push(Pair {
+                (None, Some(ib), _, Some(sa)) => pairs.push(Pair {
                     a: ib as u32,
                     b: sa as u32,
                     b_static: true,
@@ -663,10 +683,13 @@ impl FastChecker {
             overapprox,
             settings,
             frozen: None,
+            sweep: Default::default(),
+            skip_inflation: FastChecker::SKIP_INFLATION,
         };
         if let Some((active, q0)) = freeze {
             checker.split_constant_pairs(active, q0);
         }
+        checker.sweep = sweep::Sweep::new(&checker);
         checker
     }
 
@@ -755,6 +778,32 @@ impl FastChecker {
     /// The world this checker was built for.
     pub fn world(&self) -> &CollisionWorld {
         &self.world
+    }
+
+    /// Default largest inflation (metres) of [`Self::segment_free`]. On the kitchen planners
+    /// (`bench planners`) 0.04–0.08 m were within noise of each other for IK-RRT and 0.06–0.08
+    /// best for the dual-arm and mobile ones.
+    pub const SKIP_INFLATION: f64 = 0.06;
+
+    /// Sets the largest inflation of [`Self::segment_free`]; 0 makes it check every state.
+    pub fn set_skip_inflation(&mut self, metres: f64) {
+        self.skip_inflation = if metres.is_finite() && metres > 0.0 {
+            metres
+        } else {
+            0.0
+        };
+    }
+
+    /// The motion check of planners: `Some(true)` exactly when every state
+    /// `a + (b − a)·k/n`, k = 1..=n, is free, proving runs of states free together where it can
+    /// ([`Self::segment_free_skipping`] with the inflation of [`Self::set_skip_inflation`]);
+    /// `None` when the states are best checked one by one.
+    pub fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
+        if self.skip_inflation > 0.0 {
+            self.segment_free_skipping(a, b, n, self.skip_inflation)
+        } else {
+            None
+        }
     }
 
     /// Number of body pairs tested per check (before bounding-sphere culling).

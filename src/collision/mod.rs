@@ -3,8 +3,9 @@
 //! `CollisionWorld` says what is checked against what (robot links, fixed obstacles, free and
 //! attached objects, SRDF-disabled pairs, touch links). Two `CollisionChecker`s answer the same
 //! question: `ExactChecker` (parry3d shapes, the reference used by tests) and `FastChecker`
-//! (conservative sphere/box model in f32, no allocation per check). `MotionValidator` checks
-//! straight segments between configurations.
+//! (conservative primitive model, no allocation per check; its segment check skips runs of
+//! states it proves free with swept-volume bounds) and `SphereChecker` (robots made of spheres,
+//! 8 states per call). `MotionValidator` checks straight segments between configurations.
 //!
 //! Depends on `model`, `kinematics`, `geometry`; must not depend on planning or the server.
 

@@ -88,7 +88,7 @@ impl<C: CollisionChecker> MotionValidator<C> {
 }
 
 /// Indices 1..=n in bisection order: n first (the end), then n/2, n/4, 3n/4, …
-fn bisection_order(n: usize, out: &mut Vec<u32>) {
+pub(crate) fn bisection_order(n: usize, out: &mut Vec<u32>) {
     out.clear();
     out.push(n as u32);
     let mut seen = vec![false; n + 1];

@@ -2100,12 +2100,12 @@ impl AutoChecker {
         }
     }
 
-    /// Checks the states `a + (b − a)·k/n`, k = 1..=n, with 8-lane raked batches when the sphere
-    /// model is in use; `None` for the fast model (check the states one by one).
+    /// Checks the states `a + (b − a)·k/n`, k = 1..=n: 8-lane raked batches with the sphere
+    /// model, [`FastChecker::segment_free`] with the fast one (`None`: check them one by one).
     pub fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
         match self {
             AutoChecker::Spheres(s) => Some(s.segment_free(a, b, n)),
-            AutoChecker::Fast(_) => None,
+            AutoChecker::Fast(f) => f.segment_free(a, b, n),
         }
     }
 }

@@ -330,6 +330,49 @@ impl FkModel {
         None
     }
 
+    /// Speed bounds of a ball (`centre` in the frame of computed link `link`, `radius`) for
+    /// straight motions in joint space: one `(variable, w)` per movable joint from `link` up to
+    /// the root, in that order, such that no point of the ball moves faster than `w` metres per
+    /// unit of the variable through that joint. A revolute joint's axis passes through its
+    /// child frame's origin, so `w = |multiplier| · D` with `D` the ball's farthest distance
+    /// from that origin, which grows by each joint's offset and prismatic travel on the way up;
+    /// a prismatic joint gives `|multiplier|`. Summed over the joints, `Σ |Δq_v| · w` bounds how
+    /// far any point of the ball travels along the segment. `None` when a prismatic joint on
+    /// the way has unbounded travel.
+    pub fn speed_bounds(
+        &self,
+        robot: &Robot,
+        link: usize,
+        centre: &nalgebra::Vector3<f64>,
+        radius: f64,
+    ) -> Option<Vec<(usize, f64)>> {
+        let mut out = Vec::new();
+        let mut k = self.rep[link];
+        let mut d = centre.norm() + radius;
+        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+            let (w, travel) = match j.kind {
+                JointKind::Prismatic => {
+                    let lim = robot.var_limits(j.var as usize);
+                    if !lim.bounded {
+                        return None;
+                    }
+                    let t = (j.mul * lim.lower + j.off)
+                        .abs()
+                        .max((j.mul * lim.upper + j.off).abs());
+                    (j.mul.abs(), t)
+                }
+                JointKind::Fixed => (0.0, 0.0),
+                JointKind::Revolute | JointKind::Continuous => (j.mul.abs() * d, 0.0),
+            };
+            if j.kind != JointKind::Fixed {
+                out.push((j.var as usize, w));
+            }
+            d += j.origin.t.norm() + travel;
+            k = j.parent;
+        }
+        out.iter().all(|(_, w)| w.is_finite()).then_some(out)
+    }
+
     /// Number of links (length of the output slice).
     pub fn links(&self) -> usize {
         self.links

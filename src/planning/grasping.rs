@@ -21,7 +21,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::validity::space_checker;
-use super::{GoalSampler, JointSpace, PlanError};
+use super::{GoalSampler, IkRrt, IkRrtSettings, JointSpace, PlanError};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::geometry::Pose;
 use crate::kinematics::randomized::{
@@ -239,6 +239,29 @@ impl ReachProblem {
         grid: Option<Arc<ReachabilityGrid>>,
         settings: RandomizedIkSettings,
     ) -> ArmGoals {
+        self.goals_with(grid, settings, space_checker(&self.world, &self.space))
+    }
+
+    /// The IK-RRT planner of this problem and its goal sampler, sharing one collision model:
+    /// built once and cloned (building it is most of a query's setup).
+    pub fn ik_rrt(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        planner: IkRrtSettings,
+        ik: RandomizedIkSettings,
+    ) -> Result<(IkRrt, ArmGoals), PlanError> {
+        let checker = space_checker(&self.world, &self.space);
+        let goals = self.goals_with(grid, ik, checker.clone());
+        let rrt = IkRrt::with_checker(self.space.clone(), &self.world, checker, planner)?;
+        Ok((rrt, goals))
+    }
+
+    fn goals_with(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        settings: RandomizedIkSettings,
+        checker: FastChecker,
+    ) -> ArmGoals {
         let p = &self.world.robots[self.hand.robot];
         let world_q = self.space.base().to_vec();
         ArmGoals {
@@ -250,7 +273,7 @@ impl ReachProblem {
             grasps: self.grasps.clone(),
             robot_q: world_q[p.offset..p.offset + p.robot.dof()].to_vec(),
             offset: p.offset,
-            checker: space_checker(&self.world, &self.space),
+            checker,
             space: self.space.clone(),
             world_q,
             counters: IkCounters::default(),
@@ -402,6 +425,29 @@ impl HandOffProblem {
         grid: Option<Arc<ReachabilityGrid>>,
         settings: RandomizedIkSettings,
     ) -> HandOffGoals {
+        self.goals_with(grid, settings, space_checker(&self.world, &self.space))
+    }
+
+    /// The IK-RRT planner of this problem and its goal sampler, sharing one collision model:
+    /// built once and cloned (building it is most of a query's setup).
+    pub fn ik_rrt(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        planner: IkRrtSettings,
+        ik: RandomizedIkSettings,
+    ) -> Result<(IkRrt, HandOffGoals), PlanError> {
+        let checker = space_checker(&self.world, &self.space);
+        let goals = self.goals_with(grid, ik, checker.clone());
+        let rrt = IkRrt::with_checker(self.space.clone(), &self.world, checker, planner)?;
+        Ok((rrt, goals))
+    }
+
+    fn goals_with(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        settings: RandomizedIkSettings,
+        checker: FastChecker,
+    ) -> HandOffGoals {
         let world_q = self.space.base().to_vec();
         let mut sampled = self.giver.world_vars(&self.world);
         let roff = self.world.robots[self.receiver.robot].offset;
@@ -424,7 +470,7 @@ impl HandOffProblem {
         let rdof = self.world.robots[self.receiver.robot].robot.dof();
         HandOffGoals {
             world: self.world.clone(),
-            checker: space_checker(&self.world, &self.space),
+            checker,
             giver: self.giver.clone(),
             receiver: self.receiver.clone(),
             held_inv: self.held.inverse(),

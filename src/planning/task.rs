@@ -18,8 +18,8 @@ use serde::Serialize;
 
 use super::grasping::{attach_by_grasp, Hand, HandOffProblem, ReachProblem};
 use super::{
-    DualArmJPlusRrt, IkRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError,
-    PlanResult, PlanStats, RrtConnect, RrtConnectSettings, Termination,
+    DualArmJPlusRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError, PlanResult,
+    PlanStats, RrtConnect, RrtConnectSettings, Termination,
 };
 use crate::collision::CollisionWorld;
 use crate::geometry::{iso_from_rpy, Pose};
@@ -85,8 +85,7 @@ impl GraspAlgorithm {
     ) -> Result<PlanResult, PlanError> {
         match self {
             GraspAlgorithm::IkRrt => {
-                let mut rrt = IkRrt::new(p.space.clone(), &p.world, planner)?;
-                let mut goals = p.goals(grid, ik);
+                let (mut rrt, mut goals) = p.ik_rrt(grid, planner, ik)?;
                 rrt.plan(&p.start, &mut goals, term, seed)
             }
             GraspAlgorithm::JPlusRrt => {
@@ -107,8 +106,7 @@ impl GraspAlgorithm {
     ) -> Result<PlanResult, PlanError> {
         match self {
             GraspAlgorithm::IkRrt => {
-                let mut rrt = IkRrt::new(h.space.clone(), &h.world, planner)?;
-                let mut goals = h.goals(grid, ik);
+                let (mut rrt, mut goals) = h.ik_rrt(grid, planner, ik)?;
                 rrt.plan(&h.start, &mut goals, term, seed)
             }
             GraspAlgorithm::JPlusRrt => {
@@ -313,9 +311,9 @@ pub fn kitchen_task(
     // 1. Grasp with the first hand.
     let p1 = ReachProblem::grasp(scene, &world, &q0, &task.robot, &task.first, &task.object)
         .map_err(|e| tagged("grasp", e))?;
-    let mut planner =
-        IkRrt::new(p1.space.clone(), &p1.world, task.planner).map_err(|e| tagged("grasp", e))?;
-    let mut goals = p1.goals(task.grids.0.clone(), task.ik);
+    let (mut planner, mut goals) = p1
+        .ik_rrt(task.grids.0.clone(), task.planner, task.ik)
+        .map_err(|e| tagged("grasp", e))?;
     let r1 = planner
         .plan(&p1.start, &mut goals, term, seed)
         .map_err(|e| tagged("grasp", e))?;
@@ -351,9 +349,9 @@ pub fn kitchen_task(
             held1,
         )
         .map_err(|e| tagged("regrasp", e))?;
-        let mut planner = IkRrt::new(p2.space.clone(), &p2.world, task.planner)
+        let (mut planner, mut goals) = p2
+            .ik_rrt(task.grids.1.clone(), task.planner, task.ik)
             .map_err(|e| tagged("regrasp", e))?;
-        let mut goals = p2.goals(task.grids.1.clone(), task.ik);
         let seed2 = seed
             .wrapping_add(1)
             .wrapping_add(REGRASP_SEED_STRIDE * attempt);
@@ -444,9 +442,9 @@ pub fn kitchen_task(
     // 4. Place with the second hand.
     let p4 = ReachProblem::place(&w3, &q3, hand2, &task.object, held2, &task.place_poses)
         .map_err(|e| tagged("place", e))?;
-    let mut planner =
-        IkRrt::new(p4.space.clone(), &p4.world, task.planner).map_err(|e| tagged("place", e))?;
-    let mut goals = p4.goals(task.grids.1.clone(), task.ik);
+    let (mut planner, mut goals) = p4
+        .ik_rrt(task.grids.1.clone(), task.planner, task.ik)
+        .map_err(|e| tagged("place", e))?;
     let r4 = planner
         .plan(&p4.start, &mut goals, term, seed.wrapping_add(3))
         .map_err(|e| tagged("place", e))?;

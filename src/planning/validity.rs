@@ -30,7 +30,12 @@ pub trait SegmentChecker: CollisionChecker {
     }
 }
 
-impl SegmentChecker for FastChecker {}
+impl SegmentChecker for FastChecker {
+    #[inline]
+    fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
+        FastChecker::segment_free(self, a, b, n)
+    }
+}
 impl SegmentChecker for ExactChecker {}
 
 impl SegmentChecker for SphereChecker {

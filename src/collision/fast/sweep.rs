@@ -1,0 +1,480 @@
+//! Skipping states of a discrete motion check with swept-volume bounds: the
+//! [`FastChecker`]'s own segment check. The verdict is exactly that of checking every state at
+//! the resolution; runs of states proven free together are not checked one by one.
+//!
+//! Every moving body has speed bounds per variable
+//! ([`crate::kinematics::FkModel::speed_bounds`] of its bounding sphere): along the segment
+//! `a → b` no point of body `i` travels farther than `L_i = Σ_v |b_v − a_v| · w_iv`, uniformly
+//! in the segment parameter. A run of states between parameters `t0` and `t1` is free when both
+//! its end states are free with every body's primitives grown by `L_i · (t1 − t0) / 2` (each
+//! state of the run lies within that distance of one end, the same certificate as
+//! [`crate::collision::SphereChecker::segment_certified`]). For a pair of moving bodies only the
+//! joints below their first common ancestor count (the ones above move both rigidly), for a body
+//! against a fixed one all of them. Growing a primitive's radii and half extents by a distance
+//! contains its Minkowski sum with a ball of that radius, so the test stays conservative.
+//!
+//! Owns the sweep model and its buffers; works on the checker's prepared frames and must not
+//! depend on planning.
+
+use nalgebra::Vector3;
+
+use super::{dist2_point_aabb, prims_hit, FastChecker, Prim};
+
+/// What an inflated check of one state found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Inflated {
+    /// Free with every body inflated.
+    Free,
+    /// Free with the plain primitives, not with the inflated ones.
+    Tight,
+    /// A collision with the plain primitives.
+    Hit,
+}
+
+/// The speed bounds of the moving bodies and the per-segment buffers.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Sweep {
+    /// False when some body's speed is unbounded (a prismatic joint without limits).
+    bounded: bool,
+    /// `(world variable, w)` of every body's joints from its mount up to the root;
+    /// body `i` owns `chain[range[i].0..range[i].1]`.
+    chain: Vec<(u32, f64)>,
+    range: Vec<(u32, u32)>,
+    /// Running sums of `|Δq_v| · w` along each body's chain (`chain length + 1` entries
+    /// from `cum_off[i]`), for the current segment.
+    cum: Vec<f64>,
+    cum_off: Vec<u32>,
+    /// Per pair of the checker's list: the entries of `cum` that bound the relative motion
+    /// (the body's whole chain against a fixed body; below the first common ancestor for two
+    /// moving bodies).
+    pair_cum: Vec<(u32, u32, bool)>,
+    /// Per pair: its bodies (moving, and moving or fixed), and for the current inflation the
+    /// distance its primitives are grown by and the squared reach of the bounding-sphere cull.
+    pair_bodies: Vec<(u32, u32)>,
+    pair_d: Vec<f64>,
+    pair_reach2: Vec<f64>,
+    /// Bounding-sphere radius of each moving body.
+    br: Vec<f64>,
+    /// Per body: the distance its points travel along the current segment.
+    len: Vec<f64>,
+    /// Per body: the inflation of the current check, and the largest.
+    infl: Vec<f64>,
+    infl_max: f64,
+    /// Half the current sub-interval length (pair inflations are `scale · (cum_a + cum_b)`).
+    scale: f64,
+    // Buffers.
+    q: Vec<f64>,
+    order: Vec<u32>,
+    order_n: usize,
+    ends: Vec<End>,
+}
+
+/// A run end in [`FastChecker::segment_free_skipping`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum End {
+    Free,
+    Tight,
+    /// The segment's start state, in collision (not a state the check is about).
+    Blocked,
+}
+
+impl Sweep {
+    /// The sweep model of `c`'s bodies and pairs (after the pair list is final).
+    pub(super) fn new(c: &FastChecker) -> Sweep {
+        let mut chain = Vec::new();
+        let mut range = Vec::with_capacity(c.moving.len());
+        let mut cum_off = Vec::with_capacity(c.moving.len());
+        let mut bounded = true;
+        let mut cum_len = 0u32;
+        for b in &c.moving {
+            let first = chain.len() as u32;
+            let r = b.mount.robot;
+            let placed = &c.world.robots[r];
+            match c.fk[r].speed_bounds(&placed.robot, b.mount.link, &b.bc, b.br) {
+                Some(s) => chain.extend(
+                    s.into_iter()
+                        // 1e-9 relative: rounding of the bound itself never makes it too small.
+                        .map(|(v, w)| ((placed.offset + v) as u32, w * (1.0 + 1e-9))),
+                ),
+                None => bounded = false,
+            }
+            range.push((first, chain.len() as u32));
+            cum_off.push(cum_len);
+            cum_len += chain.len() as u32 - first + 1;
+        }
+        // Computed links from each body's mount up to the root (chain entry k is the joint
+        // whose child is `up[k]`).
+        let up: Vec<Vec<usize>> = c
+            .moving
+            .iter()
+            .map(|b| c.fk[b.mount.robot].ancestors(b.mount.link))
+            .collect();
+        let below_common = |a: usize, b: usize| -> usize {
+            let n = (range[a].1 - range[a].0) as usize;
+            if c.moving[a].mount.robot != c.moving[b].mount.robot {
+                return n;
+            }
+            up[a]
+                .iter()
+                .position(|l| up[b].contains(l))
+                .unwrap_or(n)
+                .min(n)
+        };
+        let pair_cum = c
+            .pairs
+            .iter()
+            .map(|p| {
+                let a = p.a as usize;
+                if p.b_static {
+                    let n = range[a].1 - range[a].0;
+                    (cum_off[a] + n, 0, true)
+                } else {
+                    let b = p.b as usize;
+                    (
+                        cum_off[a] + below_common(a, b) as u32,
+                        cum_off[b] + below_common(b, a) as u32,
+                        false,
+                    )
+                }
+            })
+            .collect();
+        let nb = c.moving.len();
+        let np = c.pairs.len();
+        Sweep {
+            pair_bodies: c.pairs.iter().map(|p| (p.a, p.b)).collect(),
+            pair_d: vec![0.0; np],
+            pair_reach2: vec![0.0; np],
+            br: c.moving.iter().map(|b| b.br).collect(),
+            bounded,
+            chain,
+            range,
+            cum: vec![0.0; cum_len as usize],
+            cum_off,
+            pair_cum,
+            len: vec![0.0; nb],
+            infl: vec![0.0; nb],
+            infl_max: 0.0,
+            scale: 0.0,
+            q: vec![0.0; c.world.dof()],
+            order: Vec::new(),
+            order_n: 0,
+            ends: Vec::new(),
+        }
+    }
+
+    /// The distance each body's points travel along `a → b` (`len`, with the running sums
+    /// `cum`); returns the largest.
+    fn lengths(&mut self, a: &[f64], b: &[f64]) -> f64 {
+        let mut lmax = 0.0f64;
+        for (i, &(c0, c1)) in self.range.iter().enumerate() {
+            let o = self.cum_off[i] as usize;
+            let mut l = 0.0;
+            self.cum[o] = 0.0;
+            for (k, &(v, w)) in self.chain[c0 as usize..c1 as usize].iter().enumerate() {
+                let v = v as usize;
+                l += (b[v] - a[v]).abs() * w;
+                self.cum[o + k + 1] = l;
+            }
+            self.len[i] = l;
+            lmax = lmax.max(l);
+        }
+        lmax
+    }
+
+    /// Inflations for sub-intervals of length `h` (segment parameter).
+    fn set_inflation(&mut self, h: f64) {
+        self.scale = 0.5 * h;
+        self.infl_max = 0.0;
+        for (i, l) in self.infl.iter_mut().zip(&self.len) {
+            *i = 0.5 * l * h;
+            self.infl_max = self.infl_max.max(*i);
+        }
+        for (pi, &(ca, cb, b_static)) in self.pair_cum.iter().enumerate() {
+            let (a, b) = self.pair_bodies[pi];
+            let (d, reach) = if b_static {
+                let d = self.infl[a as usize];
+                (d, self.br[a as usize] + d)
+            } else {
+                let d = self.scale * (self.cum[ca as usize] + self.cum[cb as usize]);
+                (d, self.br[a as usize] + self.br[b as usize] + d)
+            };
+            self.pair_d[pi] = d;
+            self.pair_reach2[pi] = reach * reach;
+        }
+    }
+}
+
+impl Prim {
+    /// The primitive grown by `d` (radii and half extents): it contains every point within
+    /// `d` of the original.
+    #[inline]
+    fn inflated(&self, d: f64) -> Prim {
+        match *self {
+            Prim::Sphere { c, r } => Prim::Sphere { c, r: r + d },
+            Prim::Obb { c, rot, half } => Prim::Obb {
+                c,
+                rot,
+                half: half.add_scalar(d),
+            },
+            Prim::Cylinder { c, rot, r, h } => Prim::Cylinder {
+                c,
+                rot,
+                r: r + d,
+                h: h + d,
+            },
+            Prim::Capsule { c, rot, r, h } => Prim::Capsule {
+                c,
+                rot,
+                r: r + d,
+                h,
+            },
+        }
+    }
+}
+
+impl FastChecker {
+    /// Whether [`Self::segment_free_skipping`] may run for `a → b`: speeds bounded, sizes
+    /// right, frozen variables unchanged.
+    fn can_sweep(&self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
+        let dof = self.world.dof();
+        let inflation_ok = max_inflation.is_finite() && max_inflation > 0.0;
+        if !(self.sweep.bounded && inflation_ok)
+            || a.len() != dof
+            || b.len() != dof
+            || !a.iter().chain(b).all(|v| v.is_finite())
+        {
+            return false;
+        }
+        match &self.frozen {
+            Some(f) => {
+                let same = |q: &[f64]| f.fixed.iter().all(|&(v, x)| q[v].to_bits() == x.to_bits());
+                same(a) && same(b)
+            }
+            None => true,
+        }
+    }
+
+    /// Discrete motion check that skips what it can prove: `Some(true)` exactly when every
+    /// state `a + (b − a)·k/n`, k = 1..=n, is free — the verdict of checking them one by one
+    /// (the same states, computed the same way), so planners behave as with
+    /// [`crate::collision::MotionValidator`]. Every `m`-th state is checked first (bisection
+    /// order, the end first) with the bodies inflated for `m` steps, `m` the most steps whose
+    /// inflation stays at most `max_inflation` metres (module documentation): a state in
+    /// collision ends the check; a run of `m` steps between two states free with the inflation
+    /// is free as a whole and not checked further; the states inside the other runs are checked
+    /// one by one. `None` (check state by state instead) when that cannot save checks (`m` < 3)
+    /// or the checker cannot bound the motion: a body with unbounded speed, or `a` or `b` moves
+    /// a variable that a checker for active variables froze.
+    pub fn segment_free_skipping(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        n: usize,
+        max_inflation: f64,
+    ) -> Option<bool> {
+        if n < 3 || !self.can_sweep(a, b, max_inflation) {
+            return None;
+        }
+        let mut s = std::mem::take(&mut self.sweep);
+        let ok = self.skip(&mut s, a, b, n, max_inflation);
+        self.sweep = s;
+        ok
+    }
+
+    fn skip(
+        &mut self,
+        s: &mut Sweep,
+        a: &[f64],
+        b: &[f64],
+        n: usize,
+        max_inflation: f64,
+    ) -> Option<bool> {
+        let lmax = s.lengths(a, b);
+        let m = if lmax > 0.0 {
+            (2.0 * max_inflation * n as f64 / lmax).floor()
+        } else {
+            n as f64
+        };
+        // (NaN, from an infinite length, also gives up.)
+        if m.is_nan() || m < 3.0 {
+            return None;
+        }
+        let m = (m as usize).min(n);
+        let runs = n.div_ceil(m);
+        // Every run is at most m steps long: the inflation of m steps covers each.
+        s.set_inflation(m as f64 / n as f64);
+        if s.order_n != runs {
+            super::super::motion::bisection_order(runs, &mut s.order);
+            s.order_n = runs;
+        }
+        s.ends.clear();
+        s.ends.resize(runs + 1, End::Free);
+        for idx in 0..=runs {
+            let i = if idx < runs { s.order[idx] as usize } else { 0 };
+            let k = (i * m).min(n);
+            match self.check_state(s, a, b, k as f64 / n as f64) {
+                // State 0 (`a`) is not one of the states asked about: its run is checked
+                // state by state instead.
+                Inflated::Hit if i == 0 => s.ends[0] = End::Blocked,
+                Inflated::Hit => return Some(false),
+                Inflated::Tight => s.ends[i] = End::Tight,
+                Inflated::Free => {}
+            }
+        }
+        // A run with an end free only without the inflation (or the start in collision):
+        // its states one by one. (Measured on the kitchen wok and dropped: halving such runs
+        // with the inflation, or checking the free end again with twice the inflation to cover
+        // the run from one side, cost more checks than they saved — the hand stays within the
+        // inflation of the wok along whole runs.)
+        for i in 0..runs {
+            if s.ends[i] == End::Free && s.ends[i + 1] == End::Free {
+                continue;
+            }
+            for k in i * m + 1..((i + 1) * m).min(n) {
+                if self.plain_state(s, a, b, k as f64 / n as f64) {
+                    return Some(false);
+                }
+            }
+        }
+        Some(true)
+    }
+
+    /// Whether the state `a + (b − a)·t` collides (plain primitives).
+    fn plain_state(&mut self, s: &mut Sweep, a: &[f64], b: &[f64], t: f64) -> bool {
+        for ((q, &x), &y) in s.q.iter_mut().zip(a).zip(b) {
+            *q = x + (y - x) * t;
+        }
+        let q = std::mem::take(&mut s.q);
+        let hit = self.find(&q).is_some();
+        s.q = q;
+        hit
+    }
+
+    /// Checks the state `a + (b − a)·t` with the current inflations.
+    fn check_state(&mut self, s: &mut Sweep, a: &[f64], b: &[f64], t: f64) -> Inflated {
+        // As the motion validator computes its states (t = 1 included), bit for bit.
+        for ((q, &x), &y) in s.q.iter_mut().zip(a).zip(b) {
+            *q = x + (y - x) * t;
+        }
+        let q = std::mem::take(&mut s.q);
+        let r = self.check_inflated(s, &q);
+        s.q = q;
+        r
+    }
+
+    /// One state with every moving body inflated by `s.infl` (pairs of moving bodies by the
+    /// part of their motion below their common ancestor). `q` agrees with a frozen checker's
+    /// fixed variables (the caller checked).
+    fn check_inflated(&mut self, s: &Sweep, q: &[f64]) -> Inflated {
+        self.checks += 1;
+        if self.frozen.as_ref().and_then(|f| f.constant_hit).is_some() {
+            return Inflated::Hit;
+        }
+        self.prepare(q);
+        let d = s.infl_max;
+        let (lo, hi) = (self.moving_lo.add_scalar(-d), self.moving_hi.add_scalar(d));
+        let mut tight = false;
+        for g in 0..self.static_groups.len() {
+            let (sb, first, end) = self.static_groups[g];
+            let st = &self.statics[sb as usize];
+            if (0..3).any(|k| st.lo[k] > hi[k] || st.hi[k] < lo[k]) {
+                continue;
+            }
+            for pi in first as usize..end as usize {
+                if tight {
+                    // Tight already: only a collision can change the answer.
+                    if self.static_pair_hits(pi) {
+                        return Inflated::Hit;
+                    }
+                    continue;
+                }
+                let p = self.pairs[pi];
+                let (a, sb) = (p.a as usize, p.b as usize);
+                let da = s.pair_d[pi];
+                let st = &self.statics[sb];
+                if dist2_point_aabb(&self.body_bc[a], &st.lo, &st.hi) > s.pair_reach2[pi] {
+                    continue;
+                }
+                if !self.static_prims_hit_by(a, sb, da) {
+                    continue;
+                }
+                if da > 0.0 && !self.static_prims_hit(a, sb) {
+                    tight = true;
+                } else {
+                    return Inflated::Hit;
+                }
+            }
+        }
+        for pi in self.self_start..self.pairs.len() {
+            let p = self.pairs[pi];
+            if tight {
+                if self.moving_pair_hits(p) {
+                    return Inflated::Hit;
+                }
+                continue;
+            }
+            let (a, b) = (p.a as usize, p.b as usize);
+            let d = s.pair_d[pi];
+            if (self.body_bc[a] - self.body_bc[b]).norm_squared() > s.pair_reach2[pi] {
+                continue;
+            }
+            if !self.moving_prims_hit_by(a, b, d) {
+                continue;
+            }
+            if d > 0.0 && !self.moving_prims_hit(a, b) {
+                tight = true;
+            } else {
+                return Inflated::Hit;
+            }
+        }
+        if tight {
+            Inflated::Tight
+        } else {
+            Inflated::Free
+        }
+    }
+
+    /// Whether the primitives of moving body `a`, grown by `d`, touch fixed body `b`.
+    fn static_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
+        self.ensure_prims(a);
+        let ma = &self.moving[a];
+        let range = ma.start..ma.start + ma.local.len();
+        let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
+        let st = &self.statics[b];
+        for (x, &xr) in pa.iter().zip(rad) {
+            let xc: &Vector3<f64> = x.centre();
+            let r = xr + d;
+            let mut grown = None;
+            for (y, lo, hi) in &st.prims {
+                if dist2_point_aabb(xc, lo, hi) <= r * r
+                    && prims_hit(grown.get_or_insert_with(|| x.inflated(d)), y)
+                {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Whether the primitives of moving bodies `a` and `b` touch with those of `a` grown by
+    /// `d` (the relative motion of the two).
+    fn moving_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
+        self.ensure_prims(a);
+        self.ensure_prims(b);
+        let (ma, mb) = (&self.moving[a], &self.moving[b]);
+        let (ra, rb) = (
+            ma.start..ma.start + ma.local.len(),
+            mb.start..mb.start + mb.local.len(),
+        );
+        let (pa, pb) = (&self.world_prims[ra.clone()], &self.world_prims[rb.clone()]);
+        let (rad_a, rad_b) = (&self.prim_radius[ra], &self.prim_radius[rb]);
+        pa.iter().zip(rad_a).any(|(x, &xr)| {
+            let mut grown = None;
+            pb.iter().zip(rad_b).any(|(y, &yr)| {
+                let r = xr + yr + d;
+                (x.centre() - y.centre()).norm_squared() <= r * r
+                    && prims_hit(grown.get_or_insert_with(|| x.inflated(d)), y)
+            })
+        })
+    }
+}
