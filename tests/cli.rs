@@ -1,4 +1,4 @@
-//! The `manyhands` command on real inputs: robot show, fk, ik, check, scene random-boxes.
+//! The `manyhands` command on real inputs: robot show, fk, ik, check, scene random-boxes, plan.
 
 use std::process::Command;
 
@@ -274,5 +274,55 @@ fn query_runs_the_grasp_ik_endpoints_locally() {
     ]);
     assert_ne!(code, 0);
     assert!(err.contains("robbot"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `plan reach` and `plan regrasp` with the arm grid (built into a fresh folder on first use)
+/// and without it: a plan with its grasp events either way.
+#[test]
+fn plan_reach_and_regrasp_with_and_without_the_arm_grid() {
+    let dir = std::env::temp_dir().join(format!("manyhands-cli-grids-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let grid_dir = dir.to_string_lossy().into_owned();
+    for args in [
+        vec![
+            "plan",
+            "reach",
+            "--json",
+            "--seed",
+            "2",
+            "--grid-dir",
+            &grid_dir,
+        ],
+        vec![
+            "plan",
+            "reach",
+            "--json",
+            "--seed",
+            "2",
+            "--no-reachability",
+        ],
+        vec![
+            "plan",
+            "regrasp",
+            "--json",
+            "--seed",
+            "1",
+            "--grid-dir",
+            &grid_dir,
+        ],
+    ] {
+        let v = json(&args);
+        let waypoints = v["waypoints"].as_array().expect("waypoints");
+        assert!(waypoints.len() >= 2, "{args:?}");
+        let events = v["events"].as_array().expect("events");
+        assert!(
+            events.iter().any(|e| e["kind"] == "grasp"),
+            "{args:?}: {events:?}"
+        );
+    }
+    // The grids were built there: the right arm's for reach, the left arm's for the receiver.
+    let built = std::fs::read_dir(&dir).expect("grid folder").count();
+    assert!(built >= 2, "{built} grids in {grid_dir}");
     let _ = std::fs::remove_dir_all(&dir);
 }

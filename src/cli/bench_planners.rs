@@ -17,10 +17,10 @@ use manyhands::geometry::Pose;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{paper_settings, BimanualProblem, BimanualSettings};
-use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::grasping::{arm_grid, HandOffProblem, ReachProblem};
 use manyhands::planning::task::{kitchen_task, GraspAlgorithm, KitchenTask};
 use manyhands::planning::{IkRrtSettings, PlanError, PlanResult, PlanStats, Termination};
-use manyhands::reachability::{GridCache, GridRecipe};
+use manyhands::reachability::{GridCache, GridRecipe, ReachabilityGrid};
 
 #[derive(Args, Debug)]
 pub struct PlannersBenchArgs {
@@ -35,9 +35,29 @@ pub struct PlannersBenchArgs {
     /// Only rows whose name contains this.
     #[arg(long)]
     pub only: Option<String>,
-    /// Folder caching the platform-frame reachability grids of the bimanual row.
+    /// Folder caching the reachability grids: ARMAR's arm grids (the randomized IK's filter,
+    /// 000 §II-D / §III-B) and the platform-frame grids of the bimanual row. Loaded, or built
+    /// and stored, before anything is timed.
     #[arg(long, default_value = "data/reach")]
     pub grid_dir: std::path::PathBuf,
+    /// IK-RRT's goal samplers without the arm grids (the randomized IK unfiltered).
+    #[arg(long)]
+    pub no_reachability: bool,
+}
+
+/// ARMAR's right and left arm grids (none with `--no-reachability`).
+type ArmGrids = (Option<Arc<ReachabilityGrid>>, Option<Arc<ReachabilityGrid>>);
+
+fn arm_grids(s: &Scene, a: &PlannersBenchArgs) -> Result<ArmGrids> {
+    if a.no_reachability {
+        return Ok((None, None));
+    }
+    let world = CollisionWorld::from_scene(s);
+    let cache = GridCache::new(Some(a.grid_dir.clone()));
+    Ok((
+        arm_grid(&cache, &world, "armar", "torso_right_arm")?,
+        arm_grid(&cache, &world, "armar", "torso_left_arm")?,
+    ))
 }
 
 /// One run's figures.
@@ -148,14 +168,14 @@ fn grasp_wok(
     s: &Scene,
     world: &CollisionWorld,
     q0: &[f64],
-    algorithm: GraspAlgorithm,
+    (algorithm, grid): (GraspAlgorithm, &Option<Arc<ReachabilityGrid>>),
     time_limit: f64,
     seed: u64,
 ) -> Result<(ReachProblem, PlanResult), PlanError> {
     let p = ReachProblem::grasp(s, world, q0, "armar", "torso_right_arm", "wok")?;
     let r = algorithm.plan_reach(
         &p,
-        None,
+        grid.clone(),
         IkRrtSettings::default(),
         ik_settings(),
         &mut term(time_limit),
@@ -166,7 +186,7 @@ fn grasp_wok(
 
 fn reach_row(
     s: &Scene,
-    algorithm: GraspAlgorithm,
+    (algorithm, grids): (GraspAlgorithm, &ArmGrids),
     name: &str,
     paper: &'static str,
     target: &'static str,
@@ -175,7 +195,7 @@ fn reach_row(
     let world = CollisionWorld::from_scene(s);
     let q0 = CollisionWorld::start_config(s);
     let runs = timed_runs(a, |seed| {
-        let (_, r) = grasp_wok(s, &world, &q0, algorithm, a.time_limit, seed)?;
+        let (_, r) = grasp_wok(s, &world, &q0, (algorithm, &grids.0), a.time_limit, seed)?;
         Ok(vec![r.stats])
     });
     Ok(Row {
@@ -189,7 +209,7 @@ fn reach_row(
 /// The wok in the right hand (the grasp IK-RRT finds with seed 0), re-grasped to the left.
 fn regrasp_row(
     s: &Scene,
-    algorithm: GraspAlgorithm,
+    (algorithm, grids): (GraspAlgorithm, &ArmGrids),
     name: &str,
     paper: &'static str,
     target: &'static str,
@@ -197,7 +217,8 @@ fn regrasp_row(
 ) -> Result<Row> {
     let world = CollisionWorld::from_scene(s);
     let q0 = CollisionWorld::start_config(s);
-    let (p, r) = grasp_wok(s, &world, &q0, GraspAlgorithm::IkRrt, a.time_limit, 0)?;
+    let ik = (GraspAlgorithm::IkRrt, &grids.0);
+    let (p, r) = grasp_wok(s, &world, &q0, ik, a.time_limit, 0)?;
     let q1 = p
         .space
         .to_world(r.path.last().ok_or_else(|| anyhow!("empty grasp path"))?);
@@ -214,7 +235,7 @@ fn regrasp_row(
         )?;
         let r = algorithm.plan_regrasp(
             &h,
-            None,
+            grids.1.clone(),
             IkRrtSettings::default(),
             ik_settings(),
             &mut term(a.time_limit),
@@ -230,8 +251,11 @@ fn regrasp_row(
     })
 }
 
-fn kitchen_row(s: &Scene, a: &PlannersBenchArgs) -> Result<Row> {
-    let task = KitchenTask::armar_wok();
+fn kitchen_row(s: &Scene, grids: &ArmGrids, a: &PlannersBenchArgs) -> Result<Row> {
+    let task = KitchenTask {
+        grids: grids.clone(),
+        ..KitchenTask::armar_wok()
+    };
     let runs = timed_runs(a, |seed| {
         let plan = kitchen_task(s, &task, &mut term(a.time_limit), seed)?;
         Ok(plan.phases.into_iter().map(|ph| ph.stats).collect())
@@ -297,6 +321,7 @@ pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
     let want = |n: &str| a.only.as_deref().is_none_or(|o| n.contains(o));
     let kitchen = ctx.scene("kitchen")?;
     let obstacle = ctx.scene("obstacle")?;
+    let grids = arm_grids(&kitchen, a)?;
     let mut rows = Vec::new();
     let mut add = |r: Result<Row>| -> Result<()> {
         let r = r?;
@@ -317,6 +342,16 @@ pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
             "IK med",
             "length→pruned",
             "checks"
+        );
+    }
+    if !ctx.json {
+        println!(
+            "IK-RRT goals: randomized IK {} (grids loaded before timing)",
+            if grids.0.is_some() {
+                "filtered by ARMAR's arm reachability grids (000 §II-D, §III-B)"
+            } else {
+                "unfiltered (--no-reachability)"
+            }
         );
     }
     use GraspAlgorithm::{IkRrt as Ik, JPlusRrt as JPlus};
@@ -341,7 +376,14 @@ pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
                 .enumerate()
             {
                 let name = format!("{label}, {what}");
-                add(reach_row(scene, alg, &name, paper[k], target[k], a))?;
+                add(reach_row(
+                    scene,
+                    (alg, &grids),
+                    &name,
+                    paper[k],
+                    target[k],
+                    a,
+                ))?;
             }
         }
     }
@@ -366,12 +408,19 @@ pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
                 .enumerate()
             {
                 let name = format!("{label}, {what}");
-                add(regrasp_row(scene, alg, &name, paper[k], target[k], a))?;
+                add(regrasp_row(
+                    scene,
+                    (alg, &grids),
+                    &name,
+                    paper[k],
+                    target[k],
+                    a,
+                ))?;
             }
         }
     }
     if want("kitchen task") {
-        add(kitchen_row(&kitchen, a))?;
+        add(kitchen_row(&kitchen, &grids, a))?;
     }
     if want("Bimanual") {
         add(bimanual_row(ctx, a))?;

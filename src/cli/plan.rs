@@ -14,6 +14,7 @@ use manyhands::collision::CollisionWorld;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use manyhands::planning::grasping::arm_grid;
 use manyhands::planning::task::{
     bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
     KitchenTask, RegraspTask, TaskPlan,
@@ -42,6 +43,38 @@ pub struct Common {
     pub no_prune: bool,
 }
 
+/// The arm grids that filter IK-RRT's randomized IK (000 §II-D, §III-B).
+#[derive(Args, Debug)]
+pub struct ArmGridArgs {
+    /// Folder caching the arm reachability grids (built on first use).
+    #[arg(long, default_value = "data/reach")]
+    pub grid_dir: PathBuf,
+    /// Run the randomized IK unfiltered (no arm grid).
+    #[arg(long)]
+    pub no_reachability: bool,
+}
+
+impl ArmGridArgs {
+    /// The grid of `robot`'s arm `group`, unless switched off.
+    fn grid(
+        &self,
+        s: &Scene,
+        robot: &str,
+        group: &str,
+    ) -> Result<Option<Arc<manyhands::reachability::ReachabilityGrid>>> {
+        if self.no_reachability {
+            return Ok(None);
+        }
+        let cache = GridCache::new(Some(self.grid_dir.clone()));
+        Ok(arm_grid(
+            &cache,
+            &CollisionWorld::from_scene(s),
+            robot,
+            group,
+        )?)
+    }
+}
+
 #[derive(Subcommand, Debug)]
 pub enum PlanCmd {
     /// Grasp an object with one hand (IK-RRT, 000 Alg. 3, or J+-RRT, Alg. 1–2).
@@ -58,6 +91,8 @@ pub enum PlanCmd {
         /// ik-rrt or j-plus-rrt.
         #[arg(long, default_value = "ik-rrt", value_parser = parse_algorithm)]
         planner: GraspAlgorithm,
+        #[command(flatten)]
+        grids: ArmGridArgs,
         #[command(flatten)]
         common: Common,
     },
@@ -81,6 +116,8 @@ pub enum PlanCmd {
         #[arg(long, default_value = "ik-rrt", value_parser = parse_algorithm)]
         planner: GraspAlgorithm,
         #[command(flatten)]
+        grids: ArmGridArgs,
+        #[command(flatten)]
         common: Common,
     },
     /// The kitchen task (000 §VI-C): grasp the wok with the right hand, re-grasp to the left,
@@ -88,6 +125,8 @@ pub enum PlanCmd {
     Kitchen {
         #[arg(long, default_value = "kitchen")]
         scene: String,
+        #[command(flatten)]
+        grids: ArmGridArgs,
         #[command(flatten)]
         common: Common,
     },
@@ -163,17 +202,22 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
             group,
             object,
             planner: algorithm,
+            grids,
             common,
         } => {
             let s = ctx.scene(scene)?;
             let (planner, ik) = settings(common, 0.1)?;
+            let grid = match algorithm {
+                GraspAlgorithm::IkRrt => grids.grid(&s, robot, group)?,
+                GraspAlgorithm::JPlusRrt => None,
+            };
             let mut term = termination(common)?;
             let plan = reach_task(
                 &s,
                 robot,
                 group,
                 object,
-                None,
+                grid,
                 *algorithm,
                 planner,
                 ik,
@@ -189,16 +233,22 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
             object,
             held,
             planner: algorithm,
+            grids,
             common,
         } => {
             let s = ctx.scene(scene)?;
             let (planner, ik) = settings(common, 0.1)?;
+            let receiver = split_hand(receiver, "receiver")?;
+            let grid = match algorithm {
+                GraspAlgorithm::IkRrt => grids.grid(&s, &receiver.0, &receiver.1)?,
+                GraspAlgorithm::JPlusRrt => None,
+            };
             let task = RegraspTask {
                 giver: split_hand(giver, "giver")?,
-                receiver: split_hand(receiver, "receiver")?,
+                receiver,
                 object: object.clone(),
                 held: held.clone(),
-                grid: None,
+                grid,
                 algorithm: *algorithm,
                 planner,
                 ik,
@@ -207,13 +257,22 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
             let plan = regrasp_task(&s, &task, &mut term, common.seed)?;
             (s, plan, String::new())
         }
-        PlanCmd::Kitchen { scene, common } => {
+        PlanCmd::Kitchen {
+            scene,
+            grids,
+            common,
+        } => {
             let s = ctx.scene(scene)?;
             let (planner, ik) = settings(common, 0.1)?;
+            let base = KitchenTask::armar_wok();
             let task = KitchenTask {
                 planner,
                 ik,
-                ..KitchenTask::armar_wok()
+                grids: (
+                    grids.grid(&s, &base.robot, &base.first)?,
+                    grids.grid(&s, &base.robot, &base.second)?,
+                ),
+                ..base
             };
             let mut term = termination(common)?;
             let plan = kitchen_task(&s, &task, &mut term, common.seed)?;

@@ -370,7 +370,8 @@ macro_rules! grasp_settings {
 grasp_settings!(ReachPlan, RegraspPlan, KitchenTaskPlan, BimanualPlan);
 
 /// `kind: reach` — grasp an object of the scene with one hand (IK-RRT, 000 Alg. 3, or J+-RRT,
-/// Alg. 1–2).
+/// Alg. 1–2). IK-RRT's randomized IK is filtered by the arm's reachability grid (000 §II-D),
+/// built on first use and cached under the data folder.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ReachPlan {
@@ -430,7 +431,8 @@ pub struct HandRef {
 
 /// `kind: regrasp` — dual-arm re-grasping (000 §V) or a hand-off between two robots
 /// (000 §VI-D): the object goes from the giver's hand to the receiver's (grasped first when it
-/// rests on something).
+/// rests on something). Dual-arm IK-RRT filters its IK by the receiver arm's reachability grid
+/// (000 §III-B), built on first use and cached under the data folder.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RegraspPlan {
@@ -464,7 +466,8 @@ pub struct RegraspPlan {
 
 /// `kind: kitchen_task` — paper 000's kitchen experiment (§VI-C) on a kitchen-like scene:
 /// `armar` grasps the wok with the right hand, re-grasps it to the left, moves the right arm
-/// away and places the wok on a shelf of the cabinet.
+/// away and places the wok on a shelf of the cabinet. The IK is filtered by both arms'
+/// reachability grids, built on first use and cached under the data folder.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct KitchenTaskPlan {

@@ -25,6 +25,7 @@ use super::queries::{apply_config, placement_base};
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
 use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use crate::planning::grasping::arm_grid;
 use crate::planning::task::{
     bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
     KitchenTask, RegraspTask,
@@ -518,9 +519,24 @@ enum GraspJob {
     },
 }
 
+/// The arm grid of `robot`'s chain `group` (built on first use, then read from the data
+/// folder), reported as the job's "reachability grids" phase.
+fn arm_grid_of(
+    ctx: &mut JobContext,
+    grids: &GridCache,
+    s: &Scene,
+    robot: &str,
+    group: &str,
+) -> Result<Option<Arc<crate::reachability::ReachabilityGrid>>, JobFailure> {
+    ctx.progress(json!({"phase": "reachability grids", "group": group}));
+    arm_grid(grids, &CollisionWorld::from_scene(s), robot, group).map_err(plan_failure)
+}
+
 struct GraspWork {
     scene: Arc<Scene>,
     job: GraspJob,
+    /// The arm grids filtering IK-RRT's randomized IK (000 §II-D, §III-B).
+    grids: Arc<GridCache>,
     planner: IkRrtSettings,
     ik: RandomizedIkSettings,
     seed: u64,
@@ -594,6 +610,7 @@ fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Pr
         work: Box::new(GraspWork {
             scene,
             job,
+            grids: catalog.grids(),
             planner,
             ik,
             seed,
@@ -614,18 +631,32 @@ impl JobWork for GraspWork {
                 object,
                 algorithm,
             } => {
+                let grid = match algorithm {
+                    GraspAlgorithm::IkRrt => arm_grid_of(ctx, &w.grids, s, robot, group)?,
+                    GraspAlgorithm::JPlusRrt => None,
+                };
                 ctx.progress(json!({"phase": "planning", "planner": algorithm}));
                 reach_task(
-                    s, robot, group, object, None, *algorithm, w.planner, w.ik, &mut term, w.seed,
+                    s, robot, group, object, grid, *algorithm, w.planner, w.ik, &mut term, w.seed,
                 )
             }
             GraspJob::Regrasp(t) => {
+                let mut t = t.clone();
+                if t.algorithm == GraspAlgorithm::IkRrt {
+                    let (robot, group) = &t.receiver;
+                    t.grid = arm_grid_of(ctx, &w.grids, s, robot, group)?;
+                }
                 ctx.progress(json!({"phase": "planning", "planner": t.algorithm}));
-                regrasp_task(s, t, &mut term, w.seed)
+                regrasp_task(s, &t, &mut term, w.seed)
             }
             GraspJob::Kitchen(t) => {
+                let mut t = t.clone();
+                t.grids = (
+                    arm_grid_of(ctx, &w.grids, s, &t.robot, &t.first)?,
+                    arm_grid_of(ctx, &w.grids, s, &t.robot, &t.second)?,
+                );
                 ctx.progress(json!({"phase": "planning", "planner": "kitchen_task"}));
-                kitchen_task(s, t, &mut term, w.seed)
+                kitchen_task(s, &t, &mut term, w.seed)
             }
             GraspJob::Bimanual {
                 robot,
