@@ -10,6 +10,10 @@
 //! `pair_can_touch`). Every primitive is inflated by 1e-9 m, so
 //! whenever [`super::ExactChecker`] reports a collision this checker does too; the largest
 //! over-approximation is reported by [`FastChecker::max_overapproximation`] (≈ 0 without meshes).
+//!
+//! Its segment check ([`FastChecker::segment_free`], `sweep.rs`) answers exactly as checking
+//! every state at the resolution, but proves runs of states free together with bounds on how far
+//! each body can move.
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -864,9 +868,10 @@ impl FastChecker {
             if f.fixed.iter().any(|&(v, x)| q[v].to_bits() != x.to_bits()) {
                 // Moved outside the active variables: freeze at this configuration instead.
                 let active = f.active.clone();
-                let checks = self.checks;
+                let (checks, skip) = (self.checks, self.skip_inflation);
                 *self = FastChecker::build(&self.world.clone(), self.settings, Some((&active, q)));
                 self.checks = checks;
+                self.skip_inflation = skip;
             }
             if let Some(p) = self.frozen.as_ref().and_then(|f| f.constant_hit) {
                 return Some(p);

@@ -103,7 +103,7 @@ impl Sweep {
             cum_len += chain.len() as u32 - first + 1;
         }
         // Computed links from each body's mount up to the root (chain entry k is the joint
-        // whose child is `up[k]`).
+        // whose child is `up[k]`: the checker's models are reduced, every joint in them moves).
         let up: Vec<Vec<usize>> = c
             .moving
             .iter()
