@@ -143,6 +143,42 @@ impl Prim {
         }
     }
 
+    /// The primitive grown by `d` (radii and half extents): it contains every point within
+    /// `d` of the original.
+    #[inline]
+    fn inflated(&self, d: f64) -> Prim {
+        match *self {
+            Prim::Sphere { c, r } => Prim::Sphere { c, r: r + d },
+            Prim::Obb { c, rot, half } => Prim::Obb {
+                c,
+                rot,
+                half: half.add_scalar(d),
+            },
+            Prim::Cylinder { c, rot, r, h } => Prim::Cylinder {
+                c,
+                rot,
+                r: r + d,
+                h: h + d,
+            },
+            Prim::Capsule { c, rot, r, h } => Prim::Capsule {
+                c,
+                rot,
+                r: r + d,
+                h,
+            },
+        }
+    }
+
+    /// This primitive when `d` is 0, else it grown by `d` (made once, kept in `cache`).
+    #[inline(always)]
+    fn grown<'a>(&'a self, d: f64, cache: &'a mut Option<Prim>) -> &'a Prim {
+        if d > 0.0 {
+            cache.get_or_insert_with(|| self.inflated(d))
+        } else {
+            self
+        }
+    }
+
     /// Centre of the primitive (of its bounding sphere).
     #[inline]
     fn centre(&self) -> &Vector3<f64> {
@@ -910,6 +946,12 @@ impl FastChecker {
 
     /// Whether the primitives of moving bodies `a` and `b` collide (bounding spheres overlap).
     fn moving_prims_hit(&mut self, a: usize, b: usize) -> bool {
+        self.moving_prims_hit_by(a, b, 0.0)
+    }
+
+    /// Whether the primitives of moving bodies `a` and `b` touch with those of `a` grown by
+    /// `d` ≥ 0 (the relative motion of the two in a segment check).
+    fn moving_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
         self.ensure_prims(a);
         self.ensure_prims(b);
         let (ma, mb) = (&self.moving[a], &self.moving[b]);
@@ -921,8 +963,11 @@ impl FastChecker {
         let (rad_a, rad_b) = (&self.prim_radius[ra], &self.prim_radius[rb]);
         // Primitive bounding spheres first: most primitive pairs of two nearby bodies are apart.
         pa.iter().zip(rad_a).any(|(x, &xr)| {
+            let mut grown = None;
             pb.iter().zip(rad_b).any(|(y, &yr)| {
-                (x.centre() - y.centre()).norm_squared() <= (xr + yr) * (xr + yr) && prims_hit(x, y)
+                let r = xr + yr + d;
+                (x.centre() - y.centre()).norm_squared() <= r * r
+                    && prims_hit(x.grown(d, &mut grown), y)
             })
         })
     }
@@ -939,15 +984,21 @@ impl FastChecker {
 
     /// Whether the primitives of moving body `a` and fixed body `b` collide.
     fn static_prims_hit(&mut self, a: usize, b: usize) -> bool {
+        self.static_prims_hit_by(a, b, 0.0)
+    }
+
+    /// Whether the primitives of moving body `a`, grown by `d` ≥ 0, touch fixed body `b`.
+    fn static_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
         self.ensure_prims(a);
         let ma = &self.moving[a];
         let range = ma.start..ma.start + ma.local.len();
         let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
         let s = &self.statics[b];
         for (x, &xr) in pa.iter().zip(rad) {
-            let xc = x.centre();
+            let (xc, r) = (x.centre(), xr + d);
+            let mut grown = None;
             for (y, lo, hi) in &s.prims {
-                if dist2_point_aabb(xc, lo, hi) <= xr * xr && prims_hit(x, y) {
+                if dist2_point_aabb(xc, lo, hi) <= r * r && prims_hit(x.grown(d, &mut grown), y) {
                     return true;
                 }
             }

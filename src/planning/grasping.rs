@@ -168,6 +168,22 @@ pub fn arm_grid(
         .map_err(|e| PlanError::InvalidInput(format!("reachability grid of '{arm_group}': {e}")))
 }
 
+/// IK-RRT over `space` of `world` and the goal sampler `goals` makes from a clone of its
+/// collision model (building the model is most of a query's setup).
+fn ik_rrt_sharing_checker<G>(
+    world: &CollisionWorld,
+    space: &JointSpace,
+    planner: IkRrtSettings,
+    goals: impl FnOnce(FastChecker) -> G,
+) -> Result<(IkRrt, G), PlanError> {
+    let checker = space_checker(world, space);
+    let g = goals(checker.clone());
+    Ok((
+        IkRrt::with_checker(space.clone(), world, checker, planner)?,
+        g,
+    ))
+}
+
 impl ReachProblem {
     /// Grasp `object` (a fixed body of `world`, with grasps in `scene`) with the hand at the tip of
     /// `group` of robot `robot`, from world configuration `world_q`.
@@ -271,10 +287,9 @@ impl ReachProblem {
         planner: IkRrtSettings,
         ik: RandomizedIkSettings,
     ) -> Result<(IkRrt, ArmGoals), PlanError> {
-        let checker = space_checker(&self.world, &self.space);
-        let goals = self.goals_with(grid, ik, checker.clone());
-        let rrt = IkRrt::with_checker(self.space.clone(), &self.world, checker, planner)?;
-        Ok((rrt, goals))
+        ik_rrt_sharing_checker(&self.world, &self.space, planner, |c| {
+            self.goals_with(grid, ik, c)
+        })
     }
 
     fn goals_with(
@@ -457,10 +472,9 @@ impl HandOffProblem {
         planner: IkRrtSettings,
         ik: RandomizedIkSettings,
     ) -> Result<(IkRrt, HandOffGoals), PlanError> {
-        let checker = space_checker(&self.world, &self.space);
-        let goals = self.goals_with(grid, ik, checker.clone());
-        let rrt = IkRrt::with_checker(self.space.clone(), &self.world, checker, planner)?;
-        Ok((rrt, goals))
+        ik_rrt_sharing_checker(&self.world, &self.space, planner, |c| {
+            self.goals_with(grid, ik, c)
+        })
     }
 
     fn goals_with(

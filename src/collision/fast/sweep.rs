@@ -16,9 +16,7 @@
 //! Owns the sweep model and its buffers; works on the checker's prepared frames and must not
 //! depend on planning.
 
-use nalgebra::Vector3;
-
-use super::{dist2_point_aabb, prims_hit, FastChecker, Prim};
+use super::{dist2_point_aabb, FastChecker};
 
 /// What an inflated check of one state found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -200,34 +198,6 @@ impl Sweep {
             };
             self.pair_d[pi] = d;
             self.pair_reach2[pi] = reach * reach;
-        }
-    }
-}
-
-impl Prim {
-    /// The primitive grown by `d` (radii and half extents): it contains every point within
-    /// `d` of the original.
-    #[inline]
-    fn inflated(&self, d: f64) -> Prim {
-        match *self {
-            Prim::Sphere { c, r } => Prim::Sphere { c, r: r + d },
-            Prim::Obb { c, rot, half } => Prim::Obb {
-                c,
-                rot,
-                half: half.add_scalar(d),
-            },
-            Prim::Cylinder { c, rot, r, h } => Prim::Cylinder {
-                c,
-                rot,
-                r: r + d,
-                h: h + d,
-            },
-            Prim::Capsule { c, rot, r, h } => Prim::Capsule {
-                c,
-                rot,
-                r: r + d,
-                h,
-            },
         }
     }
 }
@@ -432,49 +402,5 @@ impl FastChecker {
         } else {
             Inflated::Free
         }
-    }
-
-    /// Whether the primitives of moving body `a`, grown by `d`, touch fixed body `b`.
-    fn static_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
-        self.ensure_prims(a);
-        let ma = &self.moving[a];
-        let range = ma.start..ma.start + ma.local.len();
-        let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
-        let st = &self.statics[b];
-        for (x, &xr) in pa.iter().zip(rad) {
-            let xc: &Vector3<f64> = x.centre();
-            let r = xr + d;
-            let mut grown = None;
-            for (y, lo, hi) in &st.prims {
-                if dist2_point_aabb(xc, lo, hi) <= r * r
-                    && prims_hit(grown.get_or_insert_with(|| x.inflated(d)), y)
-                {
-                    return true;
-                }
-            }
-        }
-        false
-    }
-
-    /// Whether the primitives of moving bodies `a` and `b` touch with those of `a` grown by
-    /// `d` (the relative motion of the two).
-    fn moving_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
-        self.ensure_prims(a);
-        self.ensure_prims(b);
-        let (ma, mb) = (&self.moving[a], &self.moving[b]);
-        let (ra, rb) = (
-            ma.start..ma.start + ma.local.len(),
-            mb.start..mb.start + mb.local.len(),
-        );
-        let (pa, pb) = (&self.world_prims[ra.clone()], &self.world_prims[rb.clone()]);
-        let (rad_a, rad_b) = (&self.prim_radius[ra], &self.prim_radius[rb]);
-        pa.iter().zip(rad_a).any(|(x, &xr)| {
-            let mut grown = None;
-            pb.iter().zip(rad_b).any(|(y, &yr)| {
-                let r = xr + yr + d;
-                (x.centre() - y.centre()).norm_squared() <= r * r
-                    && prims_hit(grown.get_or_insert_with(|| x.inflated(d)), y)
-            })
-        })
     }
 }
