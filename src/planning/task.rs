@@ -66,10 +66,10 @@ impl GraspAlgorithm {
         }
     }
 
-    fn j_plus(planner: &IkRrtSettings) -> JPlusRrtSettings {
+    fn j_plus(planner: &IkRrtSettings, base: JPlusRrtSettings) -> JPlusRrtSettings {
         JPlusRrtSettings {
             rrt: planner.rrt,
-            ..JPlusRrtSettings::default()
+            ..base
         }
     }
 
@@ -89,7 +89,8 @@ impl GraspAlgorithm {
                 rrt.plan(&p.start, &mut goals, term, seed)
             }
             GraspAlgorithm::JPlusRrt => {
-                JPlusRrt::for_problem(p, Self::j_plus(&planner))?.plan(&p.start, term, seed)
+                JPlusRrt::for_problem(p, Self::j_plus(&planner, JPlusRrtSettings::default()))?
+                    .plan(&p.start, term, seed)
             }
         }
     }
@@ -109,9 +110,11 @@ impl GraspAlgorithm {
                 let (mut rrt, mut goals) = h.ik_rrt(grid, planner, ik)?;
                 rrt.plan(&h.start, &mut goals, term, seed)
             }
-            GraspAlgorithm::JPlusRrt => {
-                DualArmJPlusRrt::for_problem(h, Self::j_plus(&planner))?.plan(&h.start, term, seed)
-            }
+            GraspAlgorithm::JPlusRrt => DualArmJPlusRrt::for_problem(
+                h,
+                Self::j_plus(&planner, JPlusRrtSettings::dual_arm()),
+            )?
+            .plan(&h.start, term, seed),
         }
     }
 }
