@@ -29,8 +29,8 @@ use crate::kinematics::randomized::{
 };
 use crate::kinematics::FkPath;
 use crate::model::Scene;
-use crate::reachability::queries::{arm_grid_group, end_effector_at, grasp_set, GraspSet};
-use crate::reachability::{hand_links, GridCache, GridRecipe, ReachabilityGrid};
+use crate::reachability::queries::{end_effector_at, grasp_set, GraspSet};
+use crate::reachability::{hand_links, GridCache, ReachabilityGrid};
 
 /// One hand: a "free joints + S-R-S arm" chain of a robot of the world, its end effector and the
 /// links that may touch what it grasps.
@@ -147,7 +147,7 @@ pub struct ReachProblem {
     pub start: Vec<f64>,
 }
 
-/// The reachability grid of the arm of `group` (shoulder → TCP, [`GridRecipe::arm`]) of robot
+/// The reachability grid of the arm of `group` ([`GridCache::arm_grid`]) of robot
 /// instance `robot` in `world`, from `cache` (built and stored on first use): the filter of the
 /// randomized IK that feeds IK-RRT's goal trees (000 §II-D; the dual-arm IK of §III-B). `None`
 /// when the robot has no SRDF group for that arm chain (the IK then runs unfiltered).
@@ -158,14 +158,9 @@ pub fn arm_grid(
     group: &str,
 ) -> Result<Option<Arc<ReachabilityGrid>>, PlanError> {
     let hand = Hand::new(world, robot, group)?;
-    let model = world.robots[hand.robot].robot.clone();
-    let Some(arm_group) = arm_grid_group(&model, &hand.arm) else {
-        return Ok(None);
-    };
     cache
-        .get(&model, &arm_group, GridRecipe::arm())
-        .map(Some)
-        .map_err(|e| PlanError::InvalidInput(format!("reachability grid of '{arm_group}': {e}")))
+        .arm_grid(&world.robots[hand.robot].robot, &hand.arm)
+        .map_err(|e| PlanError::InvalidInput(format!("reachability grid of '{group}': {e}")))
 }
 
 /// IK-RRT over `space` of `world` and the goal sampler `goals` makes from a clone of its

@@ -8,6 +8,8 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use super::grid::{chain_hash, GridParams, ReachError, ReachabilityGrid};
+use super::queries::arm_grid_group;
+use crate::kinematics::randomized::ArmChain;
 use crate::kinematics::Chain;
 use crate::model::Robot;
 
@@ -60,6 +62,19 @@ impl GridCache {
         GridCache {
             dir,
             grids: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// The grid of an arm chain (shoulder → TCP, [`GridRecipe::arm`]): the randomized IK's
+    /// filter (000 §II-D, §III-B). `None` when `robot` has no SRDF group for that chain.
+    pub fn arm_grid(
+        &self,
+        robot: &Arc<Robot>,
+        arm: &ArmChain,
+    ) -> Result<Option<Arc<ReachabilityGrid>>, ReachError> {
+        match arm_grid_group(robot, arm) {
+            Some(group) => self.get(robot, &group, GridRecipe::arm()).map(Some),
+            None => Ok(None),
         }
     }
 

@@ -19,8 +19,8 @@ use crate::kinematics::randomized::{
     ArmChain, IkCounters, RandomizedIkError, RandomizedIkSettings,
 };
 use crate::model::{Robot, Scene};
-use crate::reachability::cache::{GridCache, GridRecipe};
-use crate::reachability::queries::{arm_grid_group, QueryError, SingleArmProblem};
+use crate::reachability::cache::GridCache;
+use crate::reachability::queries::{QueryError, SingleArmProblem};
 use crate::reachability::ReachabilityGrid;
 
 use super::error::{ApiError, ApiResult, ErrorBody};
@@ -153,12 +153,8 @@ pub fn arm_grid(
     robot: &Arc<Robot>,
     arm: &ArmChain,
 ) -> ApiResult<Option<Arc<ReachabilityGrid>>> {
-    let Some(group) = arm_grid_group(robot, arm) else {
-        return Ok(None);
-    };
     grids
-        .get(robot, &group, GridRecipe::arm())
-        .map(Some)
+        .arm_grid(robot, arm)
         .map_err(|e| ApiError::invalid("reachability", e.to_string()))
 }
 
