@@ -432,7 +432,13 @@ impl Tree {
             *v = self.states[it as usize * self.dim + best_dim];
         }
         vals.sort_by(|a, b| a.total_cmp(b));
-        let value = vals[BUCKET / 2];
+        // The median, unless it equals the least value (more than half the states share it):
+        // then the next larger value, so that neither side is empty whenever the coordinate
+        // varies at all.
+        let mut value = vals[BUCKET / 2];
+        if value <= vals[0] {
+            value = vals.iter().copied().find(|&v| v > vals[0]).unwrap_or(value);
+        }
         let mut lo_leaf = ([0u32; BUCKET], 0u8);
         let mut hi_leaf = ([0u32; BUCKET], 0u8);
         for &it in &items {
@@ -753,5 +759,45 @@ mod tests {
         }
         assert_eq!(t.nearest(&[1.04; 7]), t.nearest_linear(&[1.04; 7]));
         assert_eq!(t.nearest(&[1.04; 7]).map(|x| x.0), Some(10));
+    }
+
+    /// States that share a coordinate value — J+-RRT goal extensions move one arm and leave
+    /// the other variables exactly as they were — still split: a leaf whose widest coordinate
+    /// has more than half its values at the minimum splits just above it, so no distinct state
+    /// lands on the overflow list (which every query scans). With the plain median split, most
+    /// of these states overflowed.
+    #[test]
+    fn kd_splits_states_that_share_coordinates() {
+        use rand::{Rng, SeedableRng};
+        let mut t = Tree::new(&[1.0; 6]);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut q = [0.0f64; 6];
+        for _ in 0..4000 {
+            // Coordinate 0 is the widest and at 0 in 60 % of the states; the others tell
+            // every state apart.
+            q[0] = if rng.random::<f64>() < 0.6 {
+                0.0
+            } else {
+                rng.random_range(0.0..1.0)
+            };
+            for v in q[1..].iter_mut() {
+                *v = rng.random_range(-0.001..0.001);
+            }
+            t.add(&q, NO_PARENT);
+        }
+        assert!(
+            t.kd_overflow.is_empty(),
+            "{} distinct states overflowed",
+            t.kd_overflow.len()
+        );
+        for _ in 0..200 {
+            for v in q.iter_mut() {
+                *v = rng.random_range(-1.2..1.2);
+            }
+            assert_eq!(
+                t.nearest(&q).map(|x| x.1),
+                t.nearest_linear(&q).map(|x| x.1)
+            );
+        }
     }
 }
