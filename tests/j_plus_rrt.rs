@@ -9,7 +9,11 @@ use common::{assert_exactly_free, check_reach, far_wok_problem, pose_close, scen
 
 use std::time::{Duration, Instant};
 
+use nalgebra::{Translation3, Vector3};
+
 use manyhands::collision::CollisionWorld;
+use manyhands::geometry::Pose;
+use manyhands::kinematics::pose_error;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{
@@ -152,7 +156,7 @@ fn dual_arm_j_plus_rrt_regrasps_the_wok() {
     )
     .expect("hand-off problem");
     let mut planner =
-        DualArmJPlusRrt::for_problem(&h, JPlusRrtSettings::default()).expect("planner");
+        DualArmJPlusRrt::for_problem(&h, JPlusRrtSettings::dual_arm()).expect("planner");
     let mut first = None;
     for seed in 0..2 {
         let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
@@ -181,4 +185,119 @@ fn dual_arm_j_plus_rrt_regrasps_the_wok() {
         .expect("b");
     assert_eq!(a.path, b.path);
     assert_eq!(a.goal_index, b.goal_index);
+}
+
+/// Whether some state of `path` before its last puts `tcp(state)` within J+-RRT's goal threshold
+/// (1 cm, 2°) of `pre(state)`.
+fn passes_pregrasp(
+    path: &[Vec<f64>],
+    tcp_and_pre: impl Fn(&[f64]) -> (Pose, Pose),
+    s: &JPlusRrtSettings,
+) -> bool {
+    path[..path.len() - 1].iter().any(|q| {
+        let (tcp, pre) = tcp_and_pre(q);
+        let (ep, ea) = pose_error(&tcp, &pre);
+        ep <= s.goal_position + 1e-9 && ea <= s.goal_angle + 1e-9
+    })
+}
+
+/// `pose · Translation(offset)`.
+fn offset(pose: &Pose, o: &Vector3<f64>) -> Pose {
+    pose * Pose::from_parts(Translation3::from(*o), nalgebra::UnitQuaternion::identity())
+}
+
+/// Goal extensions approach a grasp through its pre-grasp pose (the scene's 8 cm
+/// `pregrasp_offset` of the wok grasps): the unpruned path of J+-RRT passes within the goal
+/// threshold of the reached grasp's pre-grasp pose before it ends at the grasp, and so does
+/// the receiver's TCP on the held object in dual-arm J+-RRT. Offsets of the wrong number or not
+/// finite are input errors, and so is `p_extend_from_new` outside \[0, 1\].
+#[test]
+fn j_plus_rrt_approaches_grasps_through_their_pregrasp_pose() {
+    let p = reach_problem("kitchen");
+    assert!(p.pregrasp_offsets.iter().all(|o| o.norm() > 0.05));
+    let mut settings = JPlusRrtSettings::default();
+    settings.rrt.shortcut = None;
+    let mut planner = JPlusRrt::for_problem(&p, settings).expect("planner");
+    for seed in 0..4 {
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        let r = planner.plan(&p.start, &mut term, seed).expect("plan");
+        check_reach(&p, &r);
+        let g = r.goal_index;
+        let pre = offset(&(p.object_pose * p.grasps[g]), &p.pregrasp_offsets[g]);
+        assert!(
+            passes_pregrasp(
+                &r.path,
+                |q| (p.hand.tcp_pose(&p.world, &p.space.to_world(q)), pre),
+                &settings
+            ),
+            "seed {seed}: the path does not pass the pre-grasp pose of grasp {g}"
+        );
+    }
+
+    let s = scene("kitchen");
+    let world = CollisionWorld::from_scene(&s);
+    let r = IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default())
+        .expect("planner")
+        .plan(
+            &p.start,
+            &mut p.goals(None, RandomizedIkSettings::default()),
+            &mut Termination::new(),
+            3,
+        )
+        .expect("grasp");
+    let wq2 = p.space.to_world(r.path.last().expect("path"));
+    let h = HandOffProblem::new(
+        &s,
+        &world,
+        &wq2,
+        ("armar", "torso_right_arm"),
+        ("armar", "torso_left_arm"),
+        "wok",
+        p.grasps[r.goal_index],
+    )
+    .expect("hand-off problem");
+    let mut settings = JPlusRrtSettings::dual_arm();
+    settings.rrt.shortcut = None;
+    let mut planner = DualArmJPlusRrt::for_problem(&h, settings).expect("planner");
+    for seed in 0..3 {
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        let r = planner.plan(&h.start, &mut term, seed).expect("plan");
+        let g = r.goal_index;
+        let pre = offset(&h.grasps[g], &h.pregrasp_offsets[g]);
+        assert!(
+            passes_pregrasp(
+                &r.path,
+                |q| {
+                    let w = h.space.to_world(q);
+                    let obj = h.giver.tcp_pose(&h.world, &w) * h.held.inverse();
+                    (h.receiver.tcp_pose(&h.world, &w), obj * pre)
+                },
+                &settings
+            ),
+            "seed {seed}: the receiver does not pass the pre-grasp pose of grasp {g}"
+        );
+        assert_exactly_free(&h.world, &h.space, &r.path);
+    }
+
+    let planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
+    let short = &p.pregrasp_offsets[1..];
+    assert!(matches!(
+        planner.with_pregrasp_offsets(short),
+        Err(PlanError::InvalidInput(_))
+    ));
+    let mut nan = p.pregrasp_offsets.clone();
+    nan[0].x = f64::NAN;
+    let planner = DualArmJPlusRrt::for_problem(&h, JPlusRrtSettings::dual_arm()).expect("p");
+    assert!(matches!(
+        planner.with_pregrasp_offsets(&nan[..h.grasps.len()]),
+        Err(PlanError::InvalidInput(_))
+    ));
+    let bad = JPlusRrtSettings {
+        p_extend_from_new: 1.5,
+        ..JPlusRrtSettings::dual_arm()
+    };
+    assert!(matches!(
+        DualArmJPlusRrt::for_problem(&h, bad),
+        Err(PlanError::InvalidInput(_))
+    ));
 }

@@ -7,9 +7,6 @@ use super::fk::joint_motion;
 use crate::geometry::Pose;
 use crate::model::{JointKind, Robot};
 
-/// Joint axis in the base frame, a point on it, Jacobian column, multiplier, joint kind.
-type AxisEntry = (Vector3<f64>, Vector3<f64>, usize, f64, JointKind);
-
 /// A serial chain between two links of a robot.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chain {
@@ -75,14 +72,14 @@ impl Chain {
         jac
     }
 
-    /// Jacobian into a preallocated 6 × n matrix.
+    /// Jacobian into a preallocated 6 × n matrix, in one pass along the chain with no buffer: a
+    /// revolute joint's column is `(z × (tip − p), z)`, which is `(z × tip − z × p, z)`; the
+    /// pass adds `−z × p` and `z` (times the mimic multiplier) as it meets each joint and, once
+    /// the tip is known, adds `(Σ z) × tip` to the linear rows. Prismatic joints add `z` to the
+    /// linear rows only.
     pub fn jacobian_into(&self, robot: &Robot, q: &[f64], jac: &mut Matrix6xX<f64>) {
         jac.fill(0.0);
-        // Joint frames along the chain.
         let mut pose = Pose::identity();
-        let mut axes: [AxisEntry; 64] =
-            [(Vector3::zeros(), Vector3::zeros(), 0, 0.0, JointKind::Fixed); 64];
-        let mut n = 0;
         for &ji in &self.joints {
             let j = &robot.joints[ji];
             let frame = pose * j.origin;
@@ -93,15 +90,18 @@ impl Chain {
                     _ => (usize::MAX, 0.0),
                 };
                 if let Some(col) = self.vars.iter().position(|&v| v == var) {
-                    if n < axes.len() {
-                        axes[n] = (
-                            frame.rotation * j.axis.into_inner(),
-                            frame.translation.vector,
-                            col,
-                            mul,
-                            j.kind,
-                        );
-                        n += 1;
+                    let z = frame.rotation * j.axis.into_inner() * mul;
+                    let lin = match j.kind {
+                        JointKind::Prismatic => z,
+                        _ => -z.cross(&frame.translation.vector),
+                    };
+                    for r in 0..3 {
+                        jac[(r, col)] += lin[r];
+                    }
+                    if j.kind != JointKind::Prismatic {
+                        for r in 0..3 {
+                            jac[(r + 3, col)] += z[r];
+                        }
                     }
                 }
                 pose = frame * joint_motion(j.kind, &j.axis, robot.joint_value(ji, q));
@@ -110,14 +110,11 @@ impl Chain {
             }
         }
         let tip = pose.translation.vector;
-        for &(z, p, col, mul, kind) in &axes[..n] {
-            let (lin, ang) = match kind {
-                JointKind::Prismatic => (z, Vector3::zeros()),
-                _ => (z.cross(&(tip - p)), z),
-            };
+        for col in 0..jac.ncols() {
+            let w = Vector3::new(jac[(3, col)], jac[(4, col)], jac[(5, col)]);
+            let t = w.cross(&tip);
             for r in 0..3 {
-                jac[(r, col)] += mul * lin[r];
-                jac[(r + 3, col)] += mul * ang[r];
+                jac[(r, col)] += t[r];
             }
         }
     }

@@ -17,6 +17,7 @@
 
 use std::sync::Arc;
 
+use nalgebra::Vector3;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
@@ -143,6 +144,9 @@ pub struct ReachProblem {
     /// TCP poses in the object frame that count as goals, with their names.
     pub grasps: Vec<Pose>,
     pub grasp_names: Vec<String>,
+    /// Translation of each goal's pre-grasp TCP pose in its TCP frame (the scene's
+    /// `pregrasp_offset`; zero for place goals): J+-RRT approaches a grasp through it.
+    pub pregrasp_offsets: Vec<Vector3<f64>>,
     /// Start state (space coordinates).
     pub start: Vec<f64>,
 }
@@ -213,6 +217,7 @@ impl ReachProblem {
             object_pose,
             grasps: set.tcps,
             grasp_names: set.names,
+            pregrasp_offsets: set.pregrasp_offsets,
             start,
         })
     }
@@ -255,6 +260,7 @@ impl ReachProblem {
             grasp_names: (0..place_poses.len())
                 .map(|i| format!("place_{i}"))
                 .collect(),
+            pregrasp_offsets: vec![Vector3::zeros(); place_poses.len()],
             start,
         })
     }
@@ -389,6 +395,9 @@ pub struct HandOffProblem {
     /// The receiver's grasps (TCP in the object frame) and their names.
     pub grasps: Vec<Pose>,
     pub grasp_names: Vec<String>,
+    /// Translation of each receiver grasp's pre-grasp TCP pose in its TCP frame (the scene's
+    /// `pregrasp_offset`): dual-arm J+-RRT approaches a grasp through it.
+    pub pregrasp_offsets: Vec<Vector3<f64>>,
     pub start: Vec<f64>,
 }
 
@@ -446,6 +455,7 @@ impl HandOffProblem {
             held,
             grasps: set.tcps,
             grasp_names: set.names,
+            pregrasp_offsets: set.pregrasp_offsets,
             start,
         })
     }

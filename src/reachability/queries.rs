@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+use nalgebra::Vector3;
 use rand::Rng;
 use thiserror::Error;
 
@@ -60,6 +61,9 @@ pub struct GraspSet {
     pub names: Vec<String>,
     /// TCP poses in the object frame.
     pub tcps: Vec<Pose>,
+    /// Translation of each grasp's pre-grasp TCP pose in its TCP frame (the scene's
+    /// `pregrasp_offset`): where the hand approaches the grasp from.
+    pub pregrasp_offsets: Vec<Vector3<f64>>,
 }
 
 /// The grasps of `object` for end effector `end_effector`.
@@ -74,12 +78,14 @@ pub fn grasp_set(scene: &Scene, object: &str, end_effector: &str) -> Result<Gras
         indices: Vec::new(),
         names: Vec::new(),
         tcps: Vec::new(),
+        pregrasp_offsets: Vec::new(),
     };
     for (i, g) in o.grasps.iter().enumerate() {
         if g.end_effector == end_effector {
             gs.indices.push(i);
             gs.names.push(g.name.clone());
             gs.tcps.push(g.tcp);
+            gs.pregrasp_offsets.push(g.pregrasp_offset);
         }
     }
     if gs.tcps.is_empty() {
