@@ -74,7 +74,9 @@
 //! over the tree and lets them continue where the previous one stopped. Measured with `bench
 //! planners --only "dual-arm J+" --runs 40 --time-limit 2` (80 runs, failures counted as ∞):
 //! p_ExtendToGoal 0.3 alone: median 660 ms, 54 of 80 solved; + pre-grasp approach: 331 ms,
-//! 53; + newest node 0.5: 159 ms, 71; + p_ExtendToGoal 1: 50 ms, 79 of 80. Newest-node
+//! 53; + newest node 0.5: 159 ms, 71; + p_ExtendToGoal 1: 50 ms, 79 of 80; + 3 cm steps
+//! (`max_step_position`, 2 cm in [`Default`]): 27 ms, 79 (2.5, 4 and 5 cm: 35, 41, 44 ms;
+//! seeds 1000–1039: 72 → 53 ms with 3 cm; 12° instead of 8° steps: no change). Newest-node
 //! probabilities 0.3 and 0.7 gave 97 and 63 ms; drawing the start among 64 or 256 random nodes,
 //! children inheriting their parent's exclusions, letting the other arm go on alone when one
 //! is blocked, and retrying a colliding step with the elbow swung (analytic IK at ψ ± 0.2–0.9
@@ -155,13 +157,14 @@ impl Default for JPlusRrtSettings {
 
 impl JPlusRrtSettings {
     /// The defaults of the dual-arm planner ([`DualArmJPlusRrt`]): a goal extension in every
-    /// iteration (p_ExtendToGoal 1), started from the node the iteration's random extension
-    /// added with probability 0.5 (`p_extend_from_new`), the rest as [`Default`]. See the
-    /// module docs for the measurements.
+    /// iteration (p_ExtendToGoal 1), started from the newest node of the tree with probability
+    /// 0.5 (`p_extend_from_new`), 3 cm J+ steps, the rest as [`Default`]. See the module docs
+    /// for the measurements.
     pub fn dual_arm() -> JPlusRrtSettings {
         JPlusRrtSettings {
             p_extend_to_goal: 1.0,
             p_extend_from_new: 0.5,
+            max_step_position: 0.03,
             ..JPlusRrtSettings::default()
         }
     }

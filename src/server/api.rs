@@ -408,7 +408,8 @@ pub enum GraspPlannerName {
     /// IK-RRT (Alg. 3) / dual-arm IK-RRT (§V-B).
     #[default]
     IkRrt,
-    /// J+-RRT (Alg. 1–2) / dual-arm J+-RRT (Alg. 4–5); `p_ik` and `ik_tries` do not apply.
+    /// J+-RRT (Alg. 1–2) / dual-arm J+-RRT (Alg. 4–5), approaching each grasp through its
+    /// pre-grasp pose (the grasp's `pregrasp_offset`); `p_ik` and `ik_tries` do not apply.
     JPlusRrt,
 }
 
