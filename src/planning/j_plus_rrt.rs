@@ -956,11 +956,12 @@ impl<C: SegmentChecker> JPlusRrt<C> {
                 return (GoalExt::Stopped, g);
             }
             let (ep, ea) = pose_error(&pose, &target);
-            if ep <= s.goal_position && ea <= s.goal_angle && target != grasp {
-                target = grasp;
-                continue;
-            }
             if ep <= s.goal_position && ea <= s.goal_angle {
+                if target != grasp {
+                    // Pre-grasp pose reached: now the grasp.
+                    target = grasp;
+                    continue;
+                }
                 if core.converge(hand, &target, stats) {
                     core.load_new();
                     let p = hand.tcp(&core.wq);
