@@ -326,3 +326,40 @@ fn plan_reach_and_regrasp_with_and_without_the_arm_grid() {
     assert!(built >= 2, "{built} grids in {grid_dir}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `plan regrasp --planner j-plus-rrt`: J+-RRT grasps the wok with the right hand and dual-arm
+/// J+-RRT (000 Alg. 4–5) hands it to the left: grasp, grasp, release.
+#[test]
+fn plan_regrasp_with_dual_arm_j_plus_rrt() {
+    let v = json(&[
+        "plan",
+        "regrasp",
+        "--json",
+        "--seed",
+        "3",
+        "--planner",
+        "j-plus-rrt",
+    ]);
+    let planners: Vec<&str> = v["phases"]
+        .as_array()
+        .expect("phases")
+        .iter()
+        .filter_map(|p| p["planner"].as_str())
+        .collect();
+    assert_eq!(planners, vec!["j_plus_rrt", "dual_arm_j_plus_rrt"], "{v}");
+    let events: Vec<(&str, &str)> = v["events"]
+        .as_array()
+        .expect("events")
+        .iter()
+        .filter_map(|e| Some((e["kind"].as_str()?, e["end_effector"].as_str()?)))
+        .collect();
+    assert_eq!(
+        events,
+        vec![
+            ("grasp", "right_hand"),
+            ("grasp", "left_hand"),
+            ("release", "right_hand")
+        ],
+        "{v}"
+    );
+}

@@ -107,6 +107,39 @@ async fn grasp_planners_over_http() {
         .collect();
     assert_eq!(kinds, vec!["armar_a", "armar_b", "armar_a"]);
 
+    // Re-grasp of the kitchen wok from the right hand to the left with the J+ planners (000
+    // Alg. 1–2 to grasp, dual-arm J+-RRT, Alg. 4–5, to re-grasp): grasp, grasp, release.
+    let req = json!({"kind": "regrasp", "scene": "kitchen",
+        "giver": {"robot": "armar", "group": "torso_right_arm"},
+        "receiver": {"robot": "armar", "group": "torso_left_arm"},
+        "object": "wok", "planner": "j_plus_rrt", "seed": 4, "time_limit": 20});
+    let (s, v) = h.post("/v1/plans?wait=60", &req).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    let r = &v["result"];
+    let planners: Vec<&str> = r["phases"]
+        .as_array()
+        .expect("phases")
+        .iter()
+        .filter_map(|p| p["planner"].as_str())
+        .collect();
+    assert_eq!(planners, vec!["j_plus_rrt", "dual_arm_j_plus_rrt"], "{r}");
+    let events: Vec<(&str, &str)> = r["events"]
+        .as_array()
+        .expect("events")
+        .iter()
+        .filter_map(|e| Some((e["kind"].as_str()?, e["end_effector"].as_str()?)))
+        .collect();
+    assert_eq!(
+        events,
+        vec![
+            ("grasp", "right_hand"),
+            ("grasp", "left_hand"),
+            ("release", "right_hand")
+        ],
+        "{r}"
+    );
+
     let (s, v) = h
         .post(
             "/v1/plans?wait=60",
