@@ -347,9 +347,15 @@ impl HandKin {
         self.base * self.tip_path.pose(&wq[self.offset..self.offset + self.dof])
     }
 
-    /// One damped-least-squares step (000 Alg. 2 line 7, Alg. 5 line 4): writes into `dq` (space
-    /// dimensions; zero outside the hand's columns) the joint motion that moves the TCP by the
-    /// world-frame twist (`lin`, `ang`) to first order. False when `J Jᵀ + λ² I` is singular.
+    /// The Jacobian at world configuration `wq` (robot root frame), kept for
+    /// [`HandKin::dls_solve`].
+    #[inline]
+    fn update_jacobian(&mut self, wq: &[f64]) {
+        let rq = &wq[self.offset..self.offset + self.dof];
+        self.chain.jacobian_into(&self.robot, rq, &mut self.jac);
+    }
+
+    /// [`HandKin::update_jacobian`] then [`HandKin::dls_solve`].
     #[inline]
     fn dls_step(
         &mut self,
@@ -357,11 +363,26 @@ impl HandKin {
         lin: &Vector3<f64>,
         ang: &Vector3<f64>,
         damping: f64,
+        dq: &mut [f64],
+    ) -> bool {
+        self.update_jacobian(wq);
+        self.dls_solve(lin, ang, damping, 0, dq)
+    }
+
+    /// One damped-least-squares step (000 Alg. 2 line 7, Alg. 5 line 4) with the Jacobian of
+    /// the last [`HandKin::update_jacobian`]: writes into `dq` (space dimensions; zero outside
+    /// the hand's columns and for the `locked` dimensions) the joint motion that moves the TCP
+    /// by the world-frame twist (`lin`, `ang`) to first order. False when `J Jᵀ + λ² I` is
+    /// singular.
+    #[inline]
+    fn dls_solve(
+        &self,
+        lin: &Vector3<f64>,
+        ang: &Vector3<f64>,
+        damping: f64,
         locked: u64,
         dq: &mut [f64],
     ) -> bool {
-        let rq = &wq[self.offset..self.offset + self.dof];
-        self.chain.jacobian_into(&self.robot, rq, &mut self.jac);
         // The Jacobian is in the robot root frame.
         let r = self.base.rotation.inverse();
         let (l, a) = (r * lin, r * ang);
@@ -629,8 +650,9 @@ impl<C: SegmentChecker> Core<C> {
         self.load_cur();
         let damping = self.settings.damping;
         let mut locked = 0u64;
+        kin.update_jacobian(&self.wq);
         for _ in 0..=LIMIT_LOCK_ROUNDS {
-            if !kin.dls_step(&self.wq, lin, ang, damping, locked, &mut self.dq) {
+            if !kin.dls_solve(lin, ang, damping, locked, &mut self.dq) {
                 return false;
             }
             let space = self.validator.space();
@@ -720,8 +742,8 @@ impl<C: SegmentChecker> Core<C> {
             let lin = target.translation.vector - tcp.translation.vector;
             let ang = rotation_vector(&(target.rotation * tcp.rotation.inverse()));
             stats.jacobian_steps += 1;
-            if !kin.dls_step(&self.wq, &lin, &ang, 0.0, 0, &mut self.dq)
-                && !kin.dls_step(&self.wq, &lin, &ang, 1e-9, 0, &mut self.dq)
+            if !kin.dls_step(&self.wq, &lin, &ang, 0.0, &mut self.dq)
+                && !kin.dls_solve(&lin, &ang, 1e-9, 0, &mut self.dq)
             {
                 return false;
             }
