@@ -1,5 +1,7 @@
 //! The `manyhands` command on real inputs: robot show, fk, ik, check, scene random-boxes, plan.
 
+mod common;
+
 use std::process::Command;
 
 use serde_json::Value;
@@ -331,7 +333,7 @@ fn plan_reach_and_regrasp_with_and_without_the_arm_grid() {
 /// J+-RRT (000 Alg. 4–5) hands it to the left: grasp, grasp, release.
 #[test]
 fn plan_regrasp_with_dual_arm_j_plus_rrt() {
-    let v = json(&[
+    common::assert_j_plus_regrasp_plan(&json(&[
         "plan",
         "regrasp",
         "--json",
@@ -339,27 +341,5 @@ fn plan_regrasp_with_dual_arm_j_plus_rrt() {
         "3",
         "--planner",
         "j-plus-rrt",
-    ]);
-    let planners: Vec<&str> = v["phases"]
-        .as_array()
-        .expect("phases")
-        .iter()
-        .filter_map(|p| p["planner"].as_str())
-        .collect();
-    assert_eq!(planners, vec!["j_plus_rrt", "dual_arm_j_plus_rrt"], "{v}");
-    let events: Vec<(&str, &str)> = v["events"]
-        .as_array()
-        .expect("events")
-        .iter()
-        .filter_map(|e| Some((e["kind"].as_str()?, e["end_effector"].as_str()?)))
-        .collect();
-    assert_eq!(
-        events,
-        vec![
-            ("grasp", "right_hand"),
-            ("grasp", "left_hand"),
-            ("release", "right_hand")
-        ],
-        "{v}"
-    );
+    ]));
 }

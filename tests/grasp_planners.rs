@@ -5,7 +5,9 @@
 //! object included.
 
 mod common;
-use common::{assert_exactly_free, check_reach, far_wok_problem, pose_close, scene};
+use common::{
+    assert_exactly_free, check_handoff, check_reach, far_wok_problem, kitchen_wok_handoff, scene,
+};
 
 use std::time::{Duration, Instant};
 
@@ -152,29 +154,8 @@ fn ik_rrt_fails_cleanly_for_an_unreachable_object() {
 
 #[test]
 fn dual_arm_ik_rrt_regrasps_the_wok() {
-    let s = scene("kitchen");
-    let world = CollisionWorld::from_scene(&s);
-    let wq = CollisionWorld::start_config(&s);
     // First grasp the wok with the right hand, then re-grasp it with the left.
-    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
-    let mut planner =
-        IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default()).expect("planner");
-    let mut goals = p.goals(None, ik_settings());
-    let r = planner
-        .plan(&p.start, &mut goals, &mut Termination::new(), 3)
-        .expect("grasp");
-    let wq2 = p.space.to_world(r.path.last().expect("path"));
-    let held = p.grasps[r.goal_index];
-    let h = HandOffProblem::new(
-        &s,
-        &world,
-        &wq2,
-        ("armar", "torso_right_arm"),
-        ("armar", "torso_left_arm"),
-        "wok",
-        held,
-    )
-    .expect("hand-off problem");
+    let h = kitchen_wok_handoff();
     let mut planner =
         IkRrt::new(h.space.clone(), &h.world, IkRrtSettings::default()).expect("planner");
     for seed in 0..3 {
@@ -190,12 +171,7 @@ fn dual_arm_ik_rrt_regrasps_the_wok() {
             r.stats.iterations,
             r.stats.ik_solutions
         );
-        assert_eq!(r.path[0], h.start);
-        let last = h.space.to_world(r.path.last().expect("path"));
-        let obj = h.giver.tcp_pose(&h.world, &last) * h.held.inverse();
-        let tcp = h.receiver.tcp_pose(&h.world, &last);
-        assert!(pose_close(&tcp, &(obj * h.grasps[r.goal_index]), 1e-6));
-        assert_exactly_free(&h.world, &h.space, &r.path);
+        check_handoff(&h, &r);
     }
 }
 

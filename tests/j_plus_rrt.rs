@@ -5,7 +5,7 @@
 //! 5 mm / 0.5° — held object included.
 
 mod common;
-use common::{assert_exactly_free, check_reach, far_wok_problem, pose_close, scene};
+use common::{check_handoff, check_reach, far_wok_problem, kitchen_wok_handoff, scene};
 
 use std::time::{Duration, Instant};
 
@@ -14,11 +14,9 @@ use nalgebra::{Translation3, Vector3};
 use manyhands::collision::CollisionWorld;
 use manyhands::geometry::Pose;
 use manyhands::kinematics::pose_error;
-use manyhands::kinematics::randomized::RandomizedIkSettings;
-use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::grasping::ReachProblem;
 use manyhands::planning::{
-    DualArmJPlusRrt, IkRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, PlanError, PlanResult,
-    Termination,
+    DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings, PlanError, PlanResult, Termination,
 };
 
 fn reach_problem(scene_name: &str) -> ReachProblem {
@@ -129,32 +127,8 @@ fn j_plus_rrt_rejects_bad_input() {
 
 #[test]
 fn dual_arm_j_plus_rrt_regrasps_the_wok() {
-    let s = scene("kitchen");
-    let world = CollisionWorld::from_scene(&s);
-    let wq = CollisionWorld::start_config(&s);
     // First grasp the wok with the right hand (IK-RRT), then re-grasp it with the left (J+).
-    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
-    let mut planner =
-        IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default()).expect("planner");
-    let ik = RandomizedIkSettings {
-        max_tries: 50,
-        ..RandomizedIkSettings::default()
-    };
-    let mut goals = p.goals(None, ik);
-    let r = planner
-        .plan(&p.start, &mut goals, &mut Termination::new(), 3)
-        .expect("grasp");
-    let wq2 = p.space.to_world(r.path.last().expect("path"));
-    let h = HandOffProblem::new(
-        &s,
-        &world,
-        &wq2,
-        ("armar", "torso_right_arm"),
-        ("armar", "torso_left_arm"),
-        "wok",
-        p.grasps[r.goal_index],
-    )
-    .expect("hand-off problem");
+    let h = kitchen_wok_handoff();
     let mut planner =
         DualArmJPlusRrt::for_problem(&h, JPlusRrtSettings::dual_arm()).expect("planner");
     let mut first = None;
@@ -166,16 +140,7 @@ fn dual_arm_j_plus_rrt_regrasps_the_wok() {
             .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         let ms = t.elapsed().as_secs_f64() * 1e3;
         report(&format!("dual-arm J+ seed {seed}"), ms, &r);
-        assert_eq!(r.path[0], h.start);
-        let last = h.space.to_world(r.path.last().expect("path"));
-        let obj = h.giver.tcp_pose(&h.world, &last) * h.held.inverse();
-        let tcp = h.receiver.tcp_pose(&h.world, &last);
-        assert!(
-            pose_close(&tcp, &(obj * h.grasps[r.goal_index]), 1e-6),
-            "seed {seed}: the receiver does not reach grasp {}",
-            r.goal_index
-        );
-        assert_exactly_free(&h.world, &h.space, &r.path);
+        check_handoff(&h, &r);
         first.get_or_insert(r);
     }
     // Same seed, same path.
@@ -234,28 +199,7 @@ fn j_plus_rrt_approaches_grasps_through_their_pregrasp_pose() {
         );
     }
 
-    let s = scene("kitchen");
-    let world = CollisionWorld::from_scene(&s);
-    let r = IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default())
-        .expect("planner")
-        .plan(
-            &p.start,
-            &mut p.goals(None, RandomizedIkSettings::default()),
-            &mut Termination::new(),
-            3,
-        )
-        .expect("grasp");
-    let wq2 = p.space.to_world(r.path.last().expect("path"));
-    let h = HandOffProblem::new(
-        &s,
-        &world,
-        &wq2,
-        ("armar", "torso_right_arm"),
-        ("armar", "torso_left_arm"),
-        "wok",
-        p.grasps[r.goal_index],
-    )
-    .expect("hand-off problem");
+    let h = kitchen_wok_handoff();
     let mut settings = JPlusRrtSettings::dual_arm();
     settings.rrt.shortcut = None;
     let mut planner = DualArmJPlusRrt::for_problem(&h, settings).expect("planner");
@@ -276,7 +220,7 @@ fn j_plus_rrt_approaches_grasps_through_their_pregrasp_pose() {
             ),
             "seed {seed}: the receiver does not pass the pre-grasp pose of grasp {g}"
         );
-        assert_exactly_free(&h.world, &h.space, &r.path);
+        check_handoff(&h, &r);
     }
 
     let planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");

@@ -116,29 +116,7 @@ async fn grasp_planners_over_http() {
     let (s, v) = h.post("/v1/plans?wait=60", &req).await;
     assert_eq!(s, StatusCode::OK, "{v}");
     assert_eq!(v["state"], "succeeded", "{v}");
-    let r = &v["result"];
-    let planners: Vec<&str> = r["phases"]
-        .as_array()
-        .expect("phases")
-        .iter()
-        .filter_map(|p| p["planner"].as_str())
-        .collect();
-    assert_eq!(planners, vec!["j_plus_rrt", "dual_arm_j_plus_rrt"], "{r}");
-    let events: Vec<(&str, &str)> = r["events"]
-        .as_array()
-        .expect("events")
-        .iter()
-        .filter_map(|e| Some((e["kind"].as_str()?, e["end_effector"].as_str()?)))
-        .collect();
-    assert_eq!(
-        events,
-        vec![
-            ("grasp", "right_hand"),
-            ("grasp", "left_hand"),
-            ("release", "right_hand")
-        ],
-        "{r}"
-    );
+    common::assert_j_plus_regrasp_plan(&v["result"]);
 
     let (s, v) = h
         .post(

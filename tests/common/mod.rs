@@ -8,9 +8,10 @@ use std::path::PathBuf;
 
 use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};
 use manyhands::geometry::Pose;
+use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::{load_robot_dir, Scene};
-use manyhands::planning::grasping::ReachProblem;
-use manyhands::planning::{JointSpace, PlanResult};
+use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::{IkRrt, IkRrtSettings, JointSpace, PlanResult, Termination};
 
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -61,6 +62,50 @@ pub fn check_reach(p: &ReachProblem, r: &PlanResult) {
     assert_exactly_free(&p.world, &p.space, &r.path);
 }
 
+/// The kitchen re-grasp: armar's right hand (hip + arm) grasps the wok first (IK-RRT, seed 3,
+/// at most 50 IK tries per query), then the left hand is to take it over.
+pub fn kitchen_wok_handoff() -> HandOffProblem {
+    let s = scene("kitchen");
+    let world = CollisionWorld::from_scene(&s);
+    let wq = CollisionWorld::start_config(&s);
+    let p = ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("p");
+    let ik = RandomizedIkSettings {
+        max_tries: 50,
+        ..RandomizedIkSettings::default()
+    };
+    let r = IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default())
+        .expect("planner")
+        .plan(&p.start, &mut p.goals(None, ik), &mut Termination::new(), 3)
+        .expect("grasp");
+    let wq2 = p.space.to_world(r.path.last().expect("path"));
+    HandOffProblem::new(
+        &s,
+        &world,
+        &wq2,
+        ("armar", "torso_right_arm"),
+        ("armar", "torso_left_arm"),
+        "wok",
+        p.grasps[r.goal_index],
+    )
+    .expect("hand-off problem")
+}
+
+/// A re-grasp plan of `h`: starts at the start, its last state puts the receiver's TCP exactly
+/// (1e-6) at grasp `goal_index` on the object where the giver holds it, and it is within limits
+/// and collision-free under the exact checker (held object included).
+pub fn check_handoff(h: &HandOffProblem, r: &PlanResult) {
+    assert_eq!(r.path[0], h.start, "path must start at the start");
+    let last = h.space.to_world(r.path.last().expect("non-empty path"));
+    let obj = h.giver.tcp_pose(&h.world, &last) * h.held.inverse();
+    let tcp = h.receiver.tcp_pose(&h.world, &last);
+    assert!(
+        pose_close(&tcp, &(obj * h.grasps[r.goal_index]), 1e-6),
+        "the receiver does not reach grasp {}",
+        r.goal_index
+    );
+    assert_exactly_free(&h.world, &h.space, &r.path);
+}
+
 /// The kitchen wok moved 3 m away from armar: no grasp of `torso_right_arm` is reachable.
 pub fn far_wok_problem() -> ReachProblem {
     let s = scene("kitchen");
@@ -73,4 +118,36 @@ pub fn far_wok_problem() -> ReachProblem {
     world.statics[wi].pose.translation.vector.y += 3.0;
     let wq = CollisionWorld::start_config(&s);
     ReachProblem::grasp(&s, &world, &wq, "armar", "torso_right_arm", "wok").expect("problem")
+}
+
+/// A kitchen re-grasp plan (server or CLI JSON) made with the J+ planners: J+-RRT grasps with
+/// the right hand, dual-arm J+-RRT hands the wok to the left; events grasp (right), grasp
+/// (left), release (right).
+pub fn assert_j_plus_regrasp_plan(plan: &serde_json::Value) {
+    let planners: Vec<&str> = plan["phases"]
+        .as_array()
+        .expect("phases")
+        .iter()
+        .filter_map(|p| p["planner"].as_str())
+        .collect();
+    assert_eq!(
+        planners,
+        vec!["j_plus_rrt", "dual_arm_j_plus_rrt"],
+        "{plan}"
+    );
+    let events: Vec<(&str, &str)> = plan["events"]
+        .as_array()
+        .expect("events")
+        .iter()
+        .filter_map(|e| Some((e["kind"].as_str()?, e["end_effector"].as_str()?)))
+        .collect();
+    assert_eq!(
+        events,
+        vec![
+            ("grasp", "right_hand"),
+            ("grasp", "left_hand"),
+            ("release", "right_hand")
+        ],
+        "{plan}"
+    );
 }
