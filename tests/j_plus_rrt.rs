@@ -245,3 +245,50 @@ fn j_plus_rrt_approaches_grasps_through_their_pregrasp_pose() {
         Err(PlanError::InvalidInput(_))
     ));
 }
+
+/// Restarts (`restart_nodes`): the search starts over with a new tree once the tree holds more
+/// than that many nodes, counts it, and still returns a checked plan — the same plan for the
+/// same seed. A setting of 1–9 is an input error.
+#[test]
+fn dual_arm_j_plus_rrt_restarts_with_a_new_tree() {
+    let h = kitchen_wok_handoff();
+    let settings = JPlusRrtSettings {
+        restart_nodes: 300,
+        ..JPlusRrtSettings::dual_arm()
+    };
+    let mut planner = DualArmJPlusRrt::for_problem(&h, settings).expect("planner");
+    let mut restarted = 0;
+    for seed in 0..6 {
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(10));
+        let r = planner.plan(&h.start, &mut term, seed).expect("plan");
+        check_handoff(&h, &r);
+        // At most one iteration's nodes beyond the limit: one random extension and one goal
+        // extension (two J+ steps per step pair, and the final snap).
+        let bound = 300 + 1 + 2 * settings.max_goal_steps as usize + 1;
+        assert!(
+            r.stats.start_tree_size <= bound,
+            "seed {seed}: tree of {} nodes",
+            r.stats.start_tree_size
+        );
+        eprintln!(
+            "seed {seed}: {} restarts, {} iterations, tree {}",
+            r.stats.restarts, r.stats.iterations, r.stats.start_tree_size
+        );
+        if r.stats.restarts > 0 {
+            restarted += 1;
+            let again = planner
+                .plan(&h.start, &mut Termination::new(), seed)
+                .expect("again");
+            assert_eq!(again.path, r.path, "seed {seed}");
+        }
+    }
+    assert!(restarted >= 2, "only {restarted} of 6 runs restarted");
+    let bad = JPlusRrtSettings {
+        restart_nodes: 5,
+        ..JPlusRrtSettings::dual_arm()
+    };
+    assert!(matches!(
+        DualArmJPlusRrt::for_problem(&h, bad),
+        Err(PlanError::InvalidInput(_))
+    ));
+}

@@ -43,6 +43,8 @@ pub struct PlanStats {
     pub ik_calls: u64,
     /// Jacobian pseudoinverse steps (J+-RRT family, 000 Alg. 2 and 5).
     pub jacobian_steps: u64,
+    /// Times the search started over with a new tree (J+-RRT family, `restart_nodes`).
+    pub restarts: u64,
 }
 
 impl PlanStats {
@@ -65,6 +67,7 @@ impl PlanStats {
             "ik_solutions": self.ik_solutions,
             "ik_calls": self.ik_calls,
             "jacobian_steps": self.jacobian_steps,
+            "restarts": self.restarts,
         })
     }
 }
