@@ -98,14 +98,29 @@ fn j_plus_rrt_fails_cleanly_for_an_unreachable_object() {
 #[test]
 fn j_plus_rrt_rejects_bad_input() {
     let p = reach_problem("kitchen");
-    let bad = JPlusRrtSettings {
-        p_extend_to_goal: 0.0,
-        ..JPlusRrtSettings::default()
-    };
-    assert!(matches!(
-        JPlusRrt::for_problem(&p, bad),
-        Err(PlanError::InvalidInput(_))
-    ));
+    let d = JPlusRrtSettings::default();
+    for bad in [
+        JPlusRrtSettings {
+            p_extend_to_goal: 0.0,
+            ..d
+        },
+        JPlusRrtSettings {
+            p_extend_from_new: 1.5,
+            ..d
+        },
+        JPlusRrtSettings {
+            restart_nodes: 5,
+            ..d
+        },
+    ] {
+        assert!(
+            matches!(
+                JPlusRrt::for_problem(&p, bad),
+                Err(PlanError::InvalidInput(_))
+            ),
+            "{bad:?}"
+        );
+    }
     let mut planner = JPlusRrt::new(
         p.space.clone(),
         &p.world,
@@ -175,7 +190,7 @@ fn offset(pose: &Pose, o: &Vector3<f64>) -> Pose {
 /// `pregrasp_offset` of the wok grasps): the unpruned path of J+-RRT passes within the goal
 /// threshold of the reached grasp's pre-grasp pose before it ends at the grasp, and so does
 /// the receiver's TCP on the held object in dual-arm J+-RRT. Offsets of the wrong number or not
-/// finite are input errors, and so is `p_extend_from_new` outside \[0, 1\].
+/// finite are input errors.
 #[test]
 fn j_plus_rrt_approaches_grasps_through_their_pregrasp_pose() {
     let p = reach_problem("kitchen");
@@ -236,19 +251,11 @@ fn j_plus_rrt_approaches_grasps_through_their_pregrasp_pose() {
         planner.with_pregrasp_offsets(&nan[..h.grasps.len()]),
         Err(PlanError::InvalidInput(_))
     ));
-    let bad = JPlusRrtSettings {
-        p_extend_from_new: 1.5,
-        ..JPlusRrtSettings::dual_arm()
-    };
-    assert!(matches!(
-        DualArmJPlusRrt::for_problem(&h, bad),
-        Err(PlanError::InvalidInput(_))
-    ));
 }
 
 /// Restarts (`restart_nodes`): the search starts over with a new tree once the tree holds more
 /// than that many nodes, counts it, and still returns a checked plan — the same plan for the
-/// same seed. A setting of 1–9 is an input error.
+/// same seed (a setting of 1–9 is an input error: `j_plus_rrt_rejects_bad_input`).
 #[test]
 fn dual_arm_j_plus_rrt_restarts_with_a_new_tree() {
     let h = kitchen_wok_handoff();
@@ -283,12 +290,4 @@ fn dual_arm_j_plus_rrt_restarts_with_a_new_tree() {
         }
     }
     assert!(restarted >= 2, "only {restarted} of 6 runs restarted");
-    let bad = JPlusRrtSettings {
-        restart_nodes: 5,
-        ..JPlusRrtSettings::dual_arm()
-    };
-    assert!(matches!(
-        DualArmJPlusRrt::for_problem(&h, bad),
-        Err(PlanError::InvalidInput(_))
-    ));
 }
