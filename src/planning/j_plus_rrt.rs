@@ -117,10 +117,10 @@ pub struct JPlusRrtSettings {
     /// Probability of an `ExtendToGoal` after the random extension of an iteration (000 Alg. 1
     /// line 4, p_ExtendToGoal; the paper gives no value).
     pub p_extend_to_goal: f64,
-    /// Probability that a goal extension starts from the node the same iteration's random
-    /// extension just added (when it added one not excluded for the grasp drawn) instead of the
-    /// node nearest the grasp (000 Alg. 2 line 2, Alg. 4 line 2). 0: always the nearest, as in
-    /// the paper.
+    /// Probability that a goal extension starts from the newest node of the tree (the node this
+    /// iteration's random extension added, else the last node of the previous goal extension),
+    /// when it is not excluded for the grasp drawn, instead of the node nearest the grasp (000
+    /// Alg. 2 line 2, Alg. 4 line 2). 0: always the nearest, as in the paper.
     pub p_extend_from_new: f64,
     /// Restart: once the tree holds more than this many nodes, the search starts over from the
     /// start with a new tree (the random stream goes on, so a seed still gives one answer).
