@@ -621,11 +621,16 @@ impl<C: SegmentChecker> Core<C> {
             });
         }
         self.nodes.reset(goals);
+        self.add_root(start, pose);
+        Ok(())
+    }
+
+    /// Adds `start` as the root of the (empty) tree, with its workspace pose.
+    fn add_root(&mut self, start: &[f64], pose: impl Fn(&[f64]) -> Pose) {
         self.q_cur.copy_from_slice(start);
         self.load_cur();
         let p = pose(&self.wq);
         self.nodes.add(start, NO_PARENT, p);
-        Ok(())
     }
 
     /// Restart (see [`JPlusRrtSettings::restart_nodes`]): once the tree holds more than
@@ -643,10 +648,7 @@ impl<C: SegmentChecker> Core<C> {
         }
         stats.restarts += 1;
         self.nodes.clear();
-        self.q_cur.copy_from_slice(start);
-        self.load_cur();
-        let p = pose(&self.wq);
-        self.nodes.add(start, NO_PARENT, p);
+        self.add_root(start, pose);
     }
 
     /// `ExtendRandomly` (000 Alg. 1 line 3): one RRT EXTEND toward a uniform sample; a new node
