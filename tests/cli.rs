@@ -286,34 +286,13 @@ fn plan_reach_and_regrasp_with_and_without_the_arm_grid() {
     let dir = std::env::temp_dir().join(format!("manyhands-cli-grids-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let grid_dir = dir.to_string_lossy().into_owned();
-    for args in [
-        vec![
-            "plan",
-            "reach",
-            "--json",
-            "--seed",
-            "2",
-            "--grid-dir",
-            &grid_dir,
-        ],
-        vec![
-            "plan",
-            "reach",
-            "--json",
-            "--seed",
-            "2",
-            "--no-reachability",
-        ],
-        vec![
-            "plan",
-            "regrasp",
-            "--json",
-            "--seed",
-            "1",
-            "--grid-dir",
-            &grid_dir,
-        ],
+    for (command, seed, extra) in [
+        ("reach", "2", vec!["--grid-dir", &grid_dir]),
+        ("reach", "2", vec!["--no-reachability"]),
+        ("regrasp", "1", vec!["--grid-dir", &grid_dir]),
     ] {
+        let mut args = vec!["plan", command, "--json", "--seed", seed];
+        args.extend(extra);
         let v = json(&args);
         let waypoints = v["waypoints"].as_array().expect("waypoints");
         assert!(waypoints.len() >= 2, "{args:?}");

@@ -355,67 +355,60 @@ pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
         );
     }
     use GraspAlgorithm::{IkRrt as Ik, JPlusRrt as JPlus};
-    let single = [
+    type RowFn = fn(
+        &Scene,
+        (GraspAlgorithm, &ArmGrids),
+        &str,
+        &'static str,
+        &'static str,
+        &PlannersBenchArgs,
+    ) -> Result<Row>;
+    /// Row builder, algorithm, label, paper figures and targets (no obstacle, obstacle).
+    type GraspRow = (
+        RowFn,
+        GraspAlgorithm,
+        &'static str,
+        [&'static str; 2],
+        [&'static str; 2],
+    );
+    let grasp_rows: [GraspRow; 4] = [
         (
+            reach_row,
             Ik,
             "IK-RRT reach wok",
             ["140 ms", "480 ms"],
             ["≤ 1 ms", "≤ 5 ms"],
         ),
         (
+            reach_row,
             JPlus,
             "J+-RRT reach wok",
             ["2 032 ms", "18 390 ms"],
             ["≤ 20 ms", "≤ 200 ms"],
         ),
-    ];
-    for (alg, label, paper, target) in single {
-        if want(label) {
-            for (k, (scene, what)) in [(&kitchen, "no obstacle"), (&obstacle, "obstacle")]
-                .into_iter()
-                .enumerate()
-            {
-                let name = format!("{label}, {what}");
-                add(reach_row(
-                    scene,
-                    (alg, &grids),
-                    &name,
-                    paper[k],
-                    target[k],
-                    a,
-                ))?;
-            }
-        }
-    }
-    let dual = [
         (
+            regrasp_row,
             Ik,
             "dual-arm IK-RRT regrasp",
             ["278 ms", "469 ms"],
             ["≤ 5 ms", "≤ 5 ms"],
         ),
         (
+            regrasp_row,
             JPlus,
             "dual-arm J+-RRT regrasp",
             ["1 662 ms", "5 192 ms"],
             ["≤ 60 ms", "≤ 60 ms"],
         ),
     ];
-    for (alg, label, paper, target) in dual {
+    for (row, alg, label, paper, target) in grasp_rows {
         if want(label) {
             for (k, (scene, what)) in [(&kitchen, "no obstacle"), (&obstacle, "obstacle")]
                 .into_iter()
                 .enumerate()
             {
                 let name = format!("{label}, {what}");
-                add(regrasp_row(
-                    scene,
-                    (alg, &grids),
-                    &name,
-                    paper[k],
-                    target[k],
-                    a,
-                ))?;
+                add(row(scene, (alg, &grids), &name, paper[k], target[k], a))?;
             }
         }
     }
