@@ -255,8 +255,8 @@ fn rotation_vector(q: &UnitQuaternion<f64>) -> Vector3<f64> {
 }
 
 /// `acos(x)` for `x` in \[0, 1\] by Abramowitz & Stegun 4.4.46 (`sqrt(1 − x)` times a degree-7
-/// polynomial, error ≤ 2·10⁻⁸ rad): the nearest-node scan calls it once per node, and the libm
-/// call was a third of the scan.
+/// polynomial, error ≤ 2·10⁻⁸ rad): the nearest-node scan calls it once per node, and libm's
+/// acos was 3–7 % of short and 23 % of long dual-arm J+ runs under perf.
 #[inline]
 fn acos_unit(x: f64) -> f64 {
     const A: [f64; 8] = [
