@@ -8,6 +8,7 @@ mod grasp;
 mod load_http;
 mod loadtest;
 mod mbm;
+mod multi_robot;
 mod plan;
 mod query;
 mod reach;

@@ -132,6 +132,9 @@ pub enum PlanCmd {
     },
     /// Bimanual IK-RRT (002 Alg. 2): platform + hip + both arms (20 DoF for ARMAR) to a two-hand
     /// grasp, goals from IkDualArm with base placement.
+    /// Multi-Robot-RRT (002 Alg. 3): one Bimanual IK-RRT worker per robot, a collector scoring
+    /// grasp wrench spaces and rejecting deadlocks, then phase-space scheduling (002 §V).
+    MultiRobot(MultiRobotArgs),
     Bimanual {
         #[arg(long, default_value = "kitchen")]
         scene: String,
@@ -154,6 +157,52 @@ pub enum PlanCmd {
     },
 }
 
+/// Multi-Robot-RRT arguments (002 Alg. 3 + §V).
+#[derive(Args, Debug)]
+pub struct MultiRobotArgs {
+    #[arg(long, default_value = "kitchen_two")]
+    pub scene: String,
+    /// Robot instances, comma-separated (default: every robot of the scene).
+    #[arg(long, value_delimiter = ',')]
+    pub robots: Vec<String>,
+    #[arg(long, default_value = "torso_left_arm")]
+    pub left: String,
+    #[arg(long, default_value = "torso_right_arm")]
+    pub right: String,
+    #[arg(long, default_value = "table")]
+    pub object: String,
+    /// Minimum grasp score s_min (ε of all contacts' wrench space must exceed it).
+    #[arg(long, default_value_t = 0.0)]
+    pub s_min: f64,
+    /// Friction coefficient μ of the score.
+    #[arg(long, default_value_t = 0.5)]
+    pub mu: f64,
+    /// Friction cone edges of the score.
+    #[arg(long, default_value_t = 8)]
+    pub cone_edges: usize,
+    /// Torque scale λ of the score (default 1 / the object's radius).
+    #[arg(long)]
+    pub lambda: Option<f64>,
+    /// Workers stepped round-robin on one thread: same seed, same plan.
+    #[arg(long)]
+    pub deterministic: bool,
+    /// Most solutions per worker.
+    #[arg(long, default_value_t = 32)]
+    pub max_solutions: usize,
+    /// Write the phase space (002 Fig. 9) as SVG.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// Also sample the schedule every that many seconds.
+    #[arg(long)]
+    pub sample_period: Option<f64>,
+    #[arg(long, default_value = "data/reach")]
+    pub grid_dir: PathBuf,
+    #[arg(long, default_value_t = 400_000)]
+    pub grid_samples: u64,
+    #[command(flatten)]
+    pub common: Common,
+}
+
 fn parse_algorithm(s: &str) -> Result<GraspAlgorithm, String> {
     GraspAlgorithm::parse(s).ok_or_else(|| format!("'{s}': expected ik-rrt or j-plus-rrt"))
 }
@@ -165,7 +214,10 @@ fn split_hand(s: &str, what: &str) -> Result<(String, String)> {
     Ok((r.to_string(), g.to_string()))
 }
 
-fn settings(c: &Common, default_p_ik: f64) -> Result<(IkRrtSettings, RandomizedIkSettings)> {
+pub(super) fn settings(
+    c: &Common,
+    default_p_ik: f64,
+) -> Result<(IkRrtSettings, RandomizedIkSettings)> {
     let p_ik = c.p_ik.unwrap_or(default_p_ik);
     if !(0.0..=1.0).contains(&p_ik) {
         bail!("p_ik: {p_ik} must be within [0, 1]");
@@ -187,7 +239,7 @@ fn settings(c: &Common, default_p_ik: f64) -> Result<(IkRrtSettings, RandomizedI
     Ok((planner, ik))
 }
 
-fn termination(c: &Common) -> Result<Termination> {
+pub(super) fn termination(c: &Common) -> Result<Termination> {
     if !(c.time_limit.is_finite() && c.time_limit > 0.0 && c.time_limit <= 3600.0) {
         bail!("time_limit: {} s must be within (0, 3600]", c.time_limit);
     }
@@ -196,6 +248,7 @@ fn termination(c: &Common) -> Result<Termination> {
 
 pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
     let (scene, plan, extra): (Scene, TaskPlan, String) = match cmd {
+        PlanCmd::MultiRobot(a) => return super::multi_robot::plan(ctx, a),
         PlanCmd::Reach {
             scene,
             robot,

@@ -62,6 +62,10 @@ pub struct CollisionWorld {
     pub attached: Vec<AttachedBody>,
     /// Extra pairs never checked (e.g. the hand and the object it is about to grasp).
     pub allowed: Vec<(BodyId, BodyId)>,
+    /// Only pairs of bodies of *different* robots (links and what they hold) are checked: no
+    /// self pairs and no fixed bodies. The world of the multi-robot checks (paper 002 §IV-C,
+    /// §V), where each robot's own motion was already checked against itself and the scene.
+    pub robots_only: bool,
 }
 
 impl CollisionWorld {
@@ -99,6 +103,7 @@ impl CollisionWorld {
             statics,
             attached: Vec::new(),
             allowed: Vec::new(),
+            robots_only: false,
         }
     }
 
@@ -114,6 +119,91 @@ impl CollisionWorld {
             statics: Vec::new(),
             attached: Vec::new(),
             allowed: Vec::new(),
+            robots_only: false,
+        }
+    }
+
+    /// The same robots and held objects, checked against each other only (see
+    /// [`CollisionWorld::robots_only`]): fixed bodies dropped.
+    pub fn between_robots(&self) -> CollisionWorld {
+        CollisionWorld {
+            robots: self.robots.clone(),
+            statics: Vec::new(),
+            attached: self.attached.clone(),
+            allowed: self
+                .allowed
+                .iter()
+                .copied()
+                .filter(|(a, b)| !matches!(a, BodyId::Static(_)) && !matches!(b, BodyId::Static(_)))
+                .collect(),
+            robots_only: true,
+        }
+    }
+
+    /// Some robots of this world (`keep`, in that order, their variables laid out from offset 0)
+    /// in its fixed bodies, with what they hold and the allowed pairs among the kept bodies.
+    /// `subset(&[r])` is the world one robot plans in when the others are ignored (002 §IV: each
+    /// Bimanual IK-RRT worker plans in the static environment). `None` for an unknown or
+    /// repeated index.
+    pub fn subset(&self, keep: &[usize]) -> Option<CollisionWorld> {
+        let mut new_index = vec![None; self.robots.len()];
+        let mut robots = Vec::with_capacity(keep.len());
+        let mut offset = 0;
+        for (i, &r) in keep.iter().enumerate() {
+            let mut placed = self.robots.get(r)?.clone();
+            if new_index[r].replace(i).is_some() {
+                return None;
+            }
+            placed.offset = offset;
+            offset += placed.robot.dof();
+            robots.push(placed);
+        }
+        let mut att_map = vec![None; self.attached.len()];
+        let mut attached = Vec::new();
+        for (i, a) in self.attached.iter().enumerate() {
+            if let Some(r) = new_index[a.robot] {
+                att_map[i] = Some(attached.len());
+                let mut a = a.clone();
+                a.robot = r;
+                attached.push(a);
+            }
+        }
+        let map = |id: BodyId| -> Option<BodyId> {
+            match id {
+                BodyId::Link { robot, link } => {
+                    new_index[robot].map(|robot| BodyId::Link { robot, link })
+                }
+                BodyId::Static(s) => Some(BodyId::Static(s)),
+                BodyId::Attached(a) => att_map[a].map(BodyId::Attached),
+            }
+        };
+        let allowed = self
+            .allowed
+            .iter()
+            .filter_map(|&(a, b)| Some((map(a)?, map(b)?)))
+            .collect();
+        Some(CollisionWorld {
+            robots,
+            statics: self.statics.clone(),
+            attached,
+            allowed,
+            robots_only: self.robots_only,
+        })
+    }
+
+    /// The world configuration of [`Self::subset`]`(keep)` taken from one of this world.
+    pub fn subset_config(&self, keep: &[usize], q: &[f64]) -> Vec<f64> {
+        keep.iter()
+            .flat_map(|&r| self.robot_config(r, q).iter().copied())
+            .collect()
+    }
+
+    /// The robot instance a moving body belongs to (`None` for fixed bodies).
+    pub fn owner(&self, id: BodyId) -> Option<usize> {
+        match id {
+            BodyId::Link { robot, .. } => Some(robot),
+            BodyId::Attached(a) => Some(self.attached[a].robot),
+            BodyId::Static(_) => None,
         }
     }
 
@@ -251,7 +341,7 @@ impl CollisionWorld {
         }
         let moving = bodies.len();
         for (s, st) in self.statics.iter().enumerate() {
-            if !st.shapes.is_empty() {
+            if !st.shapes.is_empty() && !self.robots_only {
                 bodies.push(BodyId::Static(s));
             }
         }
@@ -266,6 +356,9 @@ impl CollisionWorld {
         }
         for i in 0..moving {
             for j in i + 1..moving {
+                if self.robots_only && self.owner(bodies[i]) == self.owner(bodies[j]) {
+                    continue;
+                }
                 if !self.is_allowed(bodies[i], bodies[j]) {
                     out.push((bodies[i], bodies[j]));
                 }

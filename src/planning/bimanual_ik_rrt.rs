@@ -168,7 +168,12 @@ impl BimanualProblem {
         let tr: Vec<Pose> = rset.tcps.iter().map(|g| object_pose * g).collect();
         let off = placed.offset;
         let robot_q = &world_q[off..off + model.dof()];
-        let centre = [object_pose.translation.x, object_pose.translation.y];
+        // The maps are laid out in the base variables' (x, y), which are the world's only when
+        // the robot is placed at the world origin: the object's position in the placement frame.
+        let c = placed
+            .base
+            .inverse_transform_point(&object_pose.translation.vector.into());
+        let centre = [c.x, c.y];
         let t0 = Instant::now();
         let map_of = |grid: &ReachabilityGrid, t: &[Pose]| {
             inverse_map(

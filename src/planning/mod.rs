@@ -16,6 +16,8 @@ pub mod grasping;
 mod ik_rrt;
 pub mod j_plus_rrt;
 pub mod mbm;
+pub mod multi_robot_rrt;
+pub mod phase_space;
 mod result;
 mod rng;
 mod rrt_connect;

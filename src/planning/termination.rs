@@ -178,6 +178,12 @@ impl Termination {
         self.iterations
     }
 
+    /// Time left before the time limit (`None` without one).
+    pub fn remaining(&self) -> Option<Duration> {
+        self.deadline
+            .map(|d| d.saturating_duration_since(Instant::now()))
+    }
+
     /// Time since the clock start.
     pub fn elapsed(&self) -> Duration {
         self.start.elapsed()

@@ -54,7 +54,8 @@ impl InverseMap {
         }
     }
 
-    /// World (x, y) of a cell centre and the yaw of a bin.
+    /// (x, y) of a cell centre and the yaw of a bin, as values of the base variables (the world's
+    /// only for a robot placed at the world origin).
     pub fn cell_pose(&self, ix: usize, iy: usize, iw: usize) -> (f64, f64, f64) {
         (
             self.origin[0] + (ix as f64 + 0.5) * self.cell,

@@ -1,0 +1,961 @@
+//! Multi-Robot-RRT (paper 002 = Vahrenkamp et al. 2010, §IV-B/C, Alg. 3): n mobile two-armed
+//! robots grasp one object together.
+//!
+//! One Bimanual IK-RRT worker per robot ([`super::bimanual_ik_rrt`], 002 Alg. 2) plans in the
+//! static environment — the other robots are ignored, as in the paper — and keeps producing
+//! solution trajectories until it is stopped: each solution is a new Bimanual IK-RRT search with
+//! the worker's next seed (the maps and grasp sets are built once per worker); a solution whose
+//! grasp pair and final configuration repeat an earlier one of the same worker is dropped, so
+//! every stored solution is distinct. (The paper does not say whether a sub-planner keeps its
+//! trees between solutions; a fresh search per solution keeps each one a plain Alg. 2 run.)
+//!
+//! A **collector** (the calling thread) receives every new solution over a channel and evaluates
+//! only the combinations it enables — the new s_k with every stored solution of each other robot,
+//! each combination once — cheapest test first (Alg. 3 lines 7–10):
+//! 1. the final configurations of all robots do not collide with each other;
+//! 2. the **grasp score** — the Ferrari–Canny ε of the L1 wrench space of all contacts of all
+//!    hands ([`crate::grasp`], centre of mass and λ = 1 / radius of the object, 002 §IV-B) —
+//!    exceeds s_min;
+//! 3. the **deadlock check** (002 eq. 2): for every robot k, its start and its goal configuration
+//!    collide with no configuration on any other robot's trajectory, checked as continuous motion
+//!    ([`crate::collision::FastChecker::motion_certified`] on the robots alone, links and what
+//!    they hold). Then sequential execution is always possible.
+//!
+//! Tests 1 and 3 are pairwise, so their verdicts are cached per pair of solutions. On the first
+//! combination that passes, every worker is stopped and the trajectories are scheduled for
+//! simultaneous execution by [`super::phase_space`] (002 §V). The time limit and the stop flag
+//! reach every worker through its [`Termination`] (one atomic load per iteration) and the
+//! collector through a 1 ms receive timeout, so all stop within a few milliseconds.
+//!
+//! **Threads.** Parallel mode (the default): one OS thread per worker inside a
+//! `std::thread::scope` (a rayon scope would starve workers when there are more robots than
+//! pool threads, since workers only end when stopped) and the collector on the calling thread;
+//! results depend on timing. Deterministic mode: the workers are stepped round-robin on the
+//! calling thread, one solution per step with per-worker seeded streams, and the collector
+//! evaluates after each step, so request + seed → the same plan.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use nalgebra::Vector3;
+
+use super::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use super::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory, Schedule};
+use super::{IkRrtSettings, PlanError, PlanStats, StopReason, Termination};
+use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use crate::grasp::{grasp_contacts, grasp_quality, object_centre, object_radius, Contact};
+use crate::grasp::{GraspQuality, WrenchSpaceSettings};
+use crate::kinematics::randomized::RandomizedIkSettings;
+use crate::model::Scene;
+use crate::reachability::ReachabilityGrid;
+
+/// Settings of Multi-Robot-RRT.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MultiRobotSettings {
+    /// Minimum grasp score s_min (Alg. 3 line 10): a combination passes when ε > s_min.
+    pub s_min: f64,
+    /// Wrench space of the score (μ, cone edges; λ `None` = 1 / the object's radius).
+    pub wrench: WrenchSpaceSettings,
+    /// The workers' Bimanual IK-RRT (p_IK 0.03 in 002 §VI).
+    pub planner: IkRrtSettings,
+    pub ik: RandomizedIkSettings,
+    pub maps: BimanualSettings,
+    /// Most solutions a worker stores (it stops producing after that).
+    pub max_solutions: usize,
+    /// Round-robin on one thread, reproducible (module documentation).
+    pub deterministic: bool,
+    pub phase: PhaseSpaceSettings,
+}
+
+impl Default for MultiRobotSettings {
+    fn default() -> Self {
+        MultiRobotSettings {
+            s_min: 0.0,
+            wrench: WrenchSpaceSettings::default(),
+            planner: super::bimanual_ik_rrt::paper_settings(),
+            ik: RandomizedIkSettings::default(),
+            maps: BimanualSettings::default(),
+            max_solutions: 32,
+            deterministic: false,
+            phase: PhaseSpaceSettings::default(),
+        }
+    }
+}
+
+/// Most robots of one Multi-Robot-RRT problem.
+pub const MAX_ROBOTS: usize = 8;
+
+/// One robot of a Multi-Robot-RRT problem: its worker's Bimanual IK-RRT problem.
+pub struct MultiRobotMember {
+    /// Index of the robot in the problem's world.
+    pub robot: usize,
+    pub name: String,
+    pub problem: BimanualProblem,
+    /// Contacts (object frame) of each left and right grasp.
+    left_contacts: Vec<Vec<Contact>>,
+    right_contacts: Vec<Vec<Contact>>,
+}
+
+/// n robots of a scene grasping one object together.
+pub struct MultiRobotProblem {
+    /// The scene's world (all robots, the object resting).
+    pub world: CollisionWorld,
+    pub world_q: Vec<f64>,
+    pub object: String,
+    pub members: Vec<MultiRobotMember>,
+    /// Object centre of mass and radius (object frame), for the score.
+    centre: Vector3<f64>,
+    radius: f64,
+    /// Time spent on the inverse maps of all robots.
+    pub map_time: Duration,
+}
+
+/// The robots of a [`MultiRobotProblem`]: instance name, left and right chain groups (from the
+/// platform), and their reachability grids.
+pub struct MemberSpec<'a> {
+    pub robot: &'a str,
+    pub left: &'a str,
+    pub right: &'a str,
+    pub grids: (&'a ReachabilityGrid, &'a ReachabilityGrid),
+}
+
+impl MultiRobotProblem {
+    /// The problem of `members` grasping `object` of `scene`, every robot from its scene start.
+    pub fn new(
+        scene: &Scene,
+        members: &[MemberSpec<'_>],
+        object: &str,
+        maps: BimanualSettings,
+    ) -> Result<MultiRobotProblem, PlanError> {
+        if members.is_empty() || members.len() > MAX_ROBOTS {
+            return Err(PlanError::InvalidInput(format!(
+                "robots: 1 to {MAX_ROBOTS} robots, got {}",
+                members.len()
+            )));
+        }
+        let world = CollisionWorld::from_scene(scene);
+        let world_q = CollisionWorld::start_config(scene);
+        let obj = scene.object(object).ok_or_else(|| {
+            PlanError::InvalidInput(format!("object: the scene has no object '{object}'"))
+        })?;
+        let (centre, _) = object_centre(&obj.body.shapes);
+        let radius = object_radius(&obj.body.shapes, &centre);
+        let t0 = Instant::now();
+        let mut out: Vec<MultiRobotMember> = Vec::with_capacity(members.len());
+        for (k, m) in members.iter().enumerate() {
+            let r = world
+                .robots
+                .iter()
+                .position(|p| p.name == m.robot)
+                .ok_or_else(|| {
+                    PlanError::InvalidInput(format!(
+                        "robots[{k}].name: the scene has no robot '{}'",
+                        m.robot
+                    ))
+                })?;
+            if out.iter().any(|o| o.robot == r) {
+                return Err(PlanError::InvalidInput(format!(
+                    "robots[{k}].name: robot '{}' given twice",
+                    m.robot
+                )));
+            }
+            let sub = world
+                .subset(&[r])
+                .ok_or_else(|| PlanError::InvalidInput(format!("robots[{k}]: robot index {r}")))?;
+            let sub_q = world.subset_config(&[r], &world_q);
+            let problem = BimanualProblem::new(
+                scene,
+                &sub,
+                &sub_q,
+                m.robot,
+                (m.left, m.right),
+                object,
+                m.grids,
+                maps,
+            )
+            .map_err(|e| match e {
+                PlanError::InvalidInput(s) => PlanError::InvalidInput(format!("robots[{k}]: {s}")),
+                e => PlanError::InPhase {
+                    phase: format!("robot '{}'", m.robot),
+                    error: Box::new(e),
+                },
+            })?;
+            let contacts = |names: &[String]| -> Vec<Vec<Contact>> {
+                names
+                    .iter()
+                    .map(|n| {
+                        obj.grasps
+                            .iter()
+                            .find(|g| &g.name == n)
+                            .map(grasp_contacts)
+                            .unwrap_or_default()
+                    })
+                    .collect()
+            };
+            out.push(MultiRobotMember {
+                robot: r,
+                name: m.robot.to_string(),
+                left_contacts: contacts(&problem.left_names),
+                right_contacts: contacts(&problem.right_names),
+                problem,
+            });
+        }
+        Ok(MultiRobotProblem {
+            world,
+            world_q,
+            object: object.to_string(),
+            members: out,
+            centre,
+            radius,
+            map_time: t0.elapsed(),
+        })
+    }
+
+    /// The grasp score of a combination: ε of all contacts of all hands (002 §IV-B).
+    pub fn score(
+        &self,
+        grasps: &[(usize, usize)],
+        wrench: &WrenchSpaceSettings,
+    ) -> Result<GraspQuality, PlanError> {
+        let mut contacts = Vec::new();
+        for (m, &(l, r)) in self.members.iter().zip(grasps) {
+            contacts.extend_from_slice(&m.left_contacts[l]);
+            contacts.extend_from_slice(&m.right_contacts[r]);
+        }
+        let settings = WrenchSpaceSettings {
+            lambda: wrench
+                .lambda
+                .or_else(|| (self.radius > 0.0).then(|| 1.0 / self.radius)),
+            ..*wrench
+        };
+        grasp_quality(&contacts, &self.centre, &settings)
+            .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))
+    }
+}
+
+/// A solution trajectory of one worker.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// Index of the member (worker).
+    pub member: usize,
+    /// The robot's configurations (all its variables), start to goal.
+    pub path: Vec<Vec<f64>>,
+    /// Left and right grasp indices.
+    pub grasps: (usize, usize),
+    pub stats: PlanStats,
+}
+
+/// Why a combination was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Rejection {
+    /// The final configurations of two robots collide.
+    Collision,
+    /// The grasp score is not above s_min.
+    Score,
+    /// 002 eq. 2 fails.
+    Deadlock,
+}
+
+/// Per-worker statistics (002 Tables I and II, per sub-planner).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WorkerStats {
+    pub name: String,
+    /// Bimanual IK-RRT searches started.
+    pub searches: u64,
+    /// Searches that ended with a solution (distinct or not).
+    pub solved: u64,
+    /// Distinct solution trajectories delivered.
+    pub solutions: u64,
+    /// IK results: valid goal configurations added to the goal trees.
+    pub ik_results: u64,
+    pub collision_checks: u64,
+    pub time: Duration,
+}
+
+/// Statistics of one Multi-Robot-RRT run (002 Tables I and II).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MultiRobotStats {
+    /// Until the accepted combination (workers and collector).
+    pub planning_time: Duration,
+    /// Phase-space scheduling.
+    pub phase_space_time: Duration,
+    pub total_time: Duration,
+    pub workers: Vec<WorkerStats>,
+    /// n-handed grasp configurations (combinations) checked, and rejected by reason.
+    pub combinations: u64,
+    pub rejected_collision: u64,
+    pub rejected_score: u64,
+    pub rejected_deadlock: u64,
+    /// Collector collision checks (final poses and deadlock, certified segments count one each).
+    pub collector_checks: u64,
+    /// Scoring: calls and total time.
+    pub scores: u64,
+    pub score_time: Duration,
+    pub best_score: f64,
+}
+
+impl MultiRobotStats {
+    /// Sum of IK results over workers.
+    pub fn ik_results(&self) -> u64 {
+        self.workers.iter().map(|w| w.ik_results).sum()
+    }
+    /// Sum of solution trajectories over workers.
+    pub fn solutions(&self) -> u64 {
+        self.workers.iter().map(|w| w.solutions).sum()
+    }
+    /// Collision checks of workers and collector.
+    pub fn collision_checks(&self) -> u64 {
+        self.workers.iter().map(|w| w.collision_checks).sum::<u64>() + self.collector_checks
+    }
+}
+
+/// What the collector reports while it runs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MultiRobotEvent<'a> {
+    /// A worker delivered a new solution.
+    Solution { robot: &'a str, count: u64 },
+    /// A combination was checked.
+    Combination {
+        checked: u64,
+        rejected: Option<Rejection>,
+        score: Option<f64>,
+        best: f64,
+    },
+    /// A combination passed; scheduling starts.
+    Scheduling,
+}
+
+/// The accepted combination, its schedule and the statistics.
+#[derive(Debug, Clone)]
+pub struct MultiRobotPlan {
+    /// Per member: its solution.
+    pub solutions: Vec<Solution>,
+    pub score: GraspQuality,
+    pub schedule: Schedule,
+    pub stats: MultiRobotStats,
+}
+
+/// Pairwise verdict caches and checkers of the collector.
+struct Collector<'p> {
+    p: &'p MultiRobotProblem,
+    s_min: f64,
+    wrench: WrenchSpaceSettings,
+    solutions: Vec<Vec<Solution>>,
+    /// Per pair (a < b) of members: a checker of the two robots alone.
+    pair: HashMap<(usize, usize), (FastChecker, Vec<f64>)>,
+    /// (a, i, b, j) → final configurations collide.
+    goal_hit: HashMap<(usize, usize, usize, usize), bool>,
+    /// (a, i, b, j) → deadlock (either way).
+    dead: HashMap<(usize, usize, usize, usize), bool>,
+    stats: MultiRobotStats,
+}
+
+impl<'p> Collector<'p> {
+    fn new(p: &'p MultiRobotProblem, settings: &MultiRobotSettings) -> Collector<'p> {
+        let n = p.members.len();
+        let mut pair = HashMap::new();
+        for a in 0..n {
+            for b in a + 1..n {
+                let keep = [p.members[a].robot, p.members[b].robot];
+                if let Some(w) = p.world.subset(&keep) {
+                    let between = w.between_robots();
+                    let q = p.world.subset_config(&keep, &p.world_q);
+                    pair.insert((a, b), (FastChecker::new(&between), q));
+                }
+            }
+        }
+        Collector {
+            p,
+            s_min: settings.s_min,
+            wrench: settings.wrench,
+            solutions: vec![Vec::new(); n],
+            pair,
+            goal_hit: HashMap::new(),
+            dead: HashMap::new(),
+            stats: MultiRobotStats {
+                workers: p
+                    .members
+                    .iter()
+                    .map(|m| WorkerStats {
+                        name: m.name.clone(),
+                        ..WorkerStats::default()
+                    })
+                    .collect(),
+                best_score: 0.0,
+                ..MultiRobotStats::default()
+            },
+        }
+    }
+
+    /// Whether `qa` of member a and `qb` of member b collide (`a < b`).
+    fn pair_state_hits(&mut self, a: usize, b: usize, qa: &[f64], qb: &[f64]) -> bool {
+        let Some((c, q)) = self.pair.get_mut(&(a, b)) else {
+            return false;
+        };
+        let na = qa.len();
+        q[..na].copy_from_slice(qa);
+        q[na..].copy_from_slice(qb);
+        self.stats.collector_checks += 1;
+        !c.is_free(q)
+    }
+
+    /// Whether member `fixed` at `c` collides with member `moving` anywhere along `path`
+    /// (continuous motion).
+    fn config_hits_path(
+        &mut self,
+        fixed: usize,
+        c: &[f64],
+        moving: usize,
+        path: &[Vec<f64>],
+    ) -> bool {
+        let (a, b) = (fixed.min(moving), fixed.max(moving));
+        let Some((checker, q)) = self.pair.get_mut(&(a, b)) else {
+            return false;
+        };
+        let split = if fixed < moving {
+            c.len()
+        } else {
+            path[0].len()
+        };
+        let mut qa = q.clone();
+        let mut qb = q.clone();
+        let load = |dst: &mut Vec<f64>, m: &[f64]| {
+            if fixed < moving {
+                dst[..split].copy_from_slice(c);
+                dst[split..].copy_from_slice(m);
+            } else {
+                dst[..split].copy_from_slice(m);
+                dst[split..].copy_from_slice(c);
+            }
+        };
+        if path.len() == 1 {
+            load(&mut qa, &path[0]);
+            self.stats.collector_checks += 1;
+            return !checker.is_free(&qa);
+        }
+        for w in path.windows(2) {
+            load(&mut qa, &w[0]);
+            load(&mut qb, &w[1]);
+            self.stats.collector_checks += 1;
+            if !checker.motion_certified(&qa, &qb) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Stores a new solution and checks the combinations it enables; the first that passes.
+    fn add(
+        &mut self,
+        s: Solution,
+        progress: &mut dyn FnMut(MultiRobotEvent<'_>),
+    ) -> Option<(Vec<usize>, GraspQuality)> {
+        let k = s.member;
+        self.solutions[k].push(s);
+        let sk = self.solutions[k].len() - 1;
+        let n = self.solutions.len();
+        if (0..n).any(|j| j != k && self.solutions[j].is_empty()) {
+            return None;
+        }
+        // Every combination with sk at k: a mixed-radix counter over the others.
+        let others: Vec<usize> = (0..n).filter(|&j| j != k).collect();
+        let mut idx = vec![0usize; n];
+        idx[k] = sk;
+        loop {
+            let verdict = self.check(&idx);
+            self.stats.combinations += 1;
+            let (rejected, score) = match &verdict {
+                Ok(q) => (None, Some(q.epsilon)),
+                Err((r, sc)) => (Some(*r), *sc),
+            };
+            if let Some(e) = score {
+                self.stats.best_score = self.stats.best_score.max(e);
+            }
+            match rejected {
+                Some(Rejection::Collision) => self.stats.rejected_collision += 1,
+                Some(Rejection::Score) => self.stats.rejected_score += 1,
+                Some(Rejection::Deadlock) => self.stats.rejected_deadlock += 1,
+                None => {}
+            }
+            progress(MultiRobotEvent::Combination {
+                checked: self.stats.combinations,
+                rejected,
+                score,
+                best: self.stats.best_score,
+            });
+            if let Ok(q) = verdict {
+                return Some((idx, q));
+            }
+            // Next combination.
+            let mut carry = true;
+            for &j in &others {
+                if !carry {
+                    break;
+                }
+                idx[j] += 1;
+                if idx[j] < self.solutions[j].len() {
+                    carry = false;
+                } else {
+                    idx[j] = 0;
+                }
+            }
+            if carry {
+                return None;
+            }
+        }
+    }
+
+    /// One combination: final poses, score, deadlock (cheapest first).
+    fn check(&mut self, idx: &[usize]) -> Result<GraspQuality, (Rejection, Option<f64>)> {
+        let n = idx.len();
+        for a in 0..n {
+            for b in a + 1..n {
+                let key = (a, idx[a], b, idx[b]);
+                let hit = match self.goal_hit.get(&key) {
+                    Some(&h) => h,
+                    None => {
+                        let qa = self.solutions[a][idx[a]]
+                            .path
+                            .last()
+                            .cloned()
+                            .unwrap_or_default();
+                        let qb = self.solutions[b][idx[b]]
+                            .path
+                            .last()
+                            .cloned()
+                            .unwrap_or_default();
+                        let h = self.pair_state_hits(a, b, &qa, &qb);
+                        self.goal_hit.insert(key, h);
+                        h
+                    }
+                };
+                if hit {
+                    return Err((Rejection::Collision, None));
+                }
+            }
+        }
+        let grasps: Vec<(usize, usize)> =
+            (0..n).map(|k| self.solutions[k][idx[k]].grasps).collect();
+        let t = Instant::now();
+        let q = self.p.score(&grasps, &self.wrench);
+        self.stats.scores += 1;
+        self.stats.score_time += t.elapsed();
+        let q = match q {
+            Ok(q) if q.force_closure && q.epsilon > self.s_min => q,
+            Ok(q) => return Err((Rejection::Score, Some(q.epsilon))),
+            Err(_) => return Err((Rejection::Score, None)),
+        };
+        for a in 0..n {
+            for b in a + 1..n {
+                let key = (a, idx[a], b, idx[b]);
+                let dead = match self.dead.get(&key) {
+                    Some(&d) => d,
+                    None => {
+                        let d = self.deadlock(a, idx[a], b, idx[b]);
+                        self.dead.insert(key, d);
+                        d
+                    }
+                };
+                if dead {
+                    return Err((Rejection::Deadlock, Some(q.epsilon)));
+                }
+            }
+        }
+        Ok(q)
+    }
+
+    /// 002 eq. 2 for the pair (a, b): a's start and goal against b's trajectory, and b's
+    /// against a's.
+    fn deadlock(&mut self, a: usize, i: usize, b: usize, j: usize) -> bool {
+        let pa = self.solutions[a][i].path.clone();
+        let pb = self.solutions[b][j].path.clone();
+        for (fixed, c, moving, path) in [
+            (a, &pa[0], b, &pb),
+            (a, &pa[pa.len() - 1], b, &pb),
+            (b, &pb[0], a, &pa),
+            (b, &pb[pb.len() - 1], a, &pa),
+        ] {
+            if self.config_hits_path(fixed, c, moving, path) {
+                return true;
+            }
+        }
+        false
+    }
+}
+
+/// One worker's source of solutions: successive Bimanual IK-RRT searches with seeds
+/// `seed_of(seed, member, attempt)`, repeats dropped.
+struct Worker<'p> {
+    member: usize,
+    p: &'p MultiRobotMember,
+    seed: u64,
+    attempt: u64,
+    delivered: Vec<((usize, usize), Vec<f64>)>,
+    stats: WorkerStats,
+}
+
+/// A seed per (run seed, member, attempt): SplitMix64 of the three.
+fn seed_of(seed: u64, member: usize, attempt: u64) -> u64 {
+    let mut z = seed
+        ^ (member as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ attempt.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl<'p> Worker<'p> {
+    /// Runs searches until one gives a new distinct solution, or the termination ends; `None`
+    /// when stopped.
+    fn next(&mut self, s: &MultiRobotSettings, term: &mut Termination) -> Option<Solution> {
+        loop {
+            if term.should_stop_now() {
+                return None;
+            }
+            let seed = seed_of(self.seed, self.member, self.attempt);
+            self.attempt += 1;
+            self.stats.searches += 1;
+            let t = Instant::now();
+            let r = self.p.problem.plan(s.planner, s.ik, term, seed);
+            self.stats.time += t.elapsed();
+            match r {
+                Ok(r) => {
+                    self.stats.solved += 1;
+                    self.stats.ik_results += r.stats.ik_solutions;
+                    self.stats.collision_checks += r.stats.collision_checks;
+                    let grasps = self.p.problem.decode(r.goal_index);
+                    let path = self.p.problem.space.path_to_world(&r.path);
+                    let goal = path.last().cloned().unwrap_or_default();
+                    let repeat = self.delivered.iter().any(|(g, q)| {
+                        *g == grasps && q.iter().zip(&goal).all(|(a, b)| (a - b).abs() < 1e-3)
+                    });
+                    if repeat {
+                        continue;
+                    }
+                    self.delivered.push((grasps, goal));
+                    self.stats.solutions += 1;
+                    return Some(Solution {
+                        member: self.member,
+                        path,
+                        grasps,
+                        stats: r.stats,
+                    });
+                }
+                Err(e) => {
+                    if let Some(st) = e.stats() {
+                        self.stats.ik_results += st.ik_solutions;
+                        self.stats.collision_checks += st.collision_checks;
+                    }
+                    match e {
+                        PlanError::Timeout { .. } | PlanError::Stopped { .. } => return None,
+                        // A search that ended otherwise (no goal found this time): try again.
+                        _ => continue,
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Runs Multi-Robot-RRT (002 Alg. 3) and schedules the accepted trajectories (002 §V).
+pub fn multi_robot_rrt(
+    p: &MultiRobotProblem,
+    settings: &MultiRobotSettings,
+    term: &mut Termination,
+    seed: u64,
+    progress: &mut dyn FnMut(MultiRobotEvent<'_>),
+) -> Result<MultiRobotPlan, PlanError> {
+    let t0 = Instant::now();
+    if !(settings.s_min.is_finite() && settings.s_min >= 0.0) {
+        return Err(PlanError::InvalidInput(
+            "s_min: must be finite and ≥ 0".into(),
+        ));
+    }
+    if settings.max_solutions == 0 {
+        return Err(PlanError::InvalidInput("max_solutions: must be ≥ 1".into()));
+    }
+    settings
+        .wrench
+        .validate()
+        .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+    let mut collector = Collector::new(p, settings);
+    let mut workers: Vec<Worker<'_>> = p
+        .members
+        .iter()
+        .enumerate()
+        .map(|(k, m)| Worker {
+            member: k,
+            p: m,
+            seed,
+            attempt: 0,
+            delivered: Vec::new(),
+            stats: WorkerStats {
+                name: m.name.clone(),
+                ..WorkerStats::default()
+            },
+        })
+        .collect();
+    let found = if settings.deterministic {
+        deterministic(&mut collector, &mut workers, settings, term, progress)
+    } else {
+        parallel(&mut collector, &mut workers, settings, term, progress)
+    };
+    let mut stats = std::mem::take(&mut collector.stats);
+    for (s, w) in stats.workers.iter_mut().zip(&workers) {
+        *s = w.stats.clone();
+    }
+    stats.planning_time = t0.elapsed();
+    let Some((idx, score)) = found else {
+        let ps = PlanStats {
+            time: t0.elapsed(),
+            collision_checks: stats.collision_checks(),
+            ik_solutions: stats.ik_results(),
+            ..PlanStats::default()
+        };
+        let reason = term.reason().unwrap_or(StopReason::IterationLimit);
+        return Err(match reason {
+            StopReason::IterationLimit => PlanError::InvalidGoal {
+                count: stats.combinations as usize,
+                reason: format!(
+                    "every worker stored {} solutions and no combination passed ({} by collision, {} by score, {} by deadlock)",
+                    settings.max_solutions,
+                    stats.rejected_collision,
+                    stats.rejected_score,
+                    stats.rejected_deadlock
+                ),
+            },
+            r => PlanError::stopped(r, ps),
+        });
+    };
+    progress(MultiRobotEvent::Scheduling);
+    let solutions: Vec<Solution> = idx
+        .iter()
+        .enumerate()
+        .map(|(k, &i)| collector.solutions[k][i].clone())
+        .collect();
+    let t1 = Instant::now();
+    let trajectories: Vec<RobotTrajectory> = solutions
+        .iter()
+        .map(|s| RobotTrajectory {
+            robot: p.members[s.member].robot,
+            waypoints: s.path.clone(),
+            accelerations: None,
+        })
+        .collect();
+    let mut ps = PhaseSpace::new(&p.world, &p.world_q, &trajectories)?;
+    let schedule = ps
+        .plan(&settings.phase, term, seed)
+        .map_err(|e| PlanError::InPhase {
+            phase: "phase space".into(),
+            error: Box::new(e),
+        })?;
+    stats.phase_space_time = t1.elapsed();
+    stats.total_time = t0.elapsed();
+    Ok(MultiRobotPlan {
+        solutions,
+        score,
+        schedule,
+        stats,
+    })
+}
+
+fn deterministic(
+    c: &mut Collector<'_>,
+    workers: &mut [Worker<'_>],
+    s: &MultiRobotSettings,
+    term: &mut Termination,
+    progress: &mut dyn FnMut(MultiRobotEvent<'_>),
+) -> Option<(Vec<usize>, GraspQuality)> {
+    loop {
+        let mut any = false;
+        for w in workers.iter_mut() {
+            if w.stats.solutions as usize >= s.max_solutions {
+                continue;
+            }
+            any = true;
+            let sol = w.next(s, term)?;
+            progress(MultiRobotEvent::Solution {
+                robot: &w.stats.name,
+                count: w.stats.solutions,
+            });
+            if let Some(r) = c.add(sol, progress) {
+                return Some(r);
+            }
+        }
+        if !any {
+            return None;
+        }
+    }
+}
+
+fn parallel(
+    c: &mut Collector<'_>,
+    workers: &mut [Worker<'_>],
+    s: &MultiRobotSettings,
+    term: &mut Termination,
+    progress: &mut dyn FnMut(MultiRobotEvent<'_>),
+) -> Option<(Vec<usize>, GraspQuality)> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = mpsc::channel::<Solution>();
+    let limit = term.remaining();
+    std::thread::scope(|scope| {
+        for w in workers.iter_mut() {
+            let tx = tx.clone();
+            let stop = stop.clone();
+            scope.spawn(move || {
+                let mut t = Termination::new().with_stop_flag(stop.clone());
+                if let Some(l) = limit {
+                    t = t.with_time_limit(l);
+                }
+                while (w.stats.solutions as usize) < s.max_solutions {
+                    match w.next(s, &mut t) {
+                        Some(sol) => {
+                            if tx.send(sol).is_err() {
+                                break;
+                            }
+                        }
+                        None => break,
+                    }
+                }
+            });
+        }
+        drop(tx);
+        let mut result = None;
+        let mut counts = vec![0u64; c.solutions.len()];
+        loop {
+            if term.should_stop_now() {
+                break;
+            }
+            match rx.recv_timeout(Duration::from_millis(1)) {
+                Ok(sol) => {
+                    counts[sol.member] += 1;
+                    progress(MultiRobotEvent::Solution {
+                        robot: &c.p.members[sol.member].name,
+                        count: counts[sol.member],
+                    });
+                    if let Some(r) = c.add(sol, progress) {
+                        result = Some(r);
+                        break;
+                    }
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Err(mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+        }
+        stop.store(true, Ordering::Relaxed);
+        result
+    })
+}
+
+impl MultiRobotStats {
+    /// JSON with times in milliseconds (002 Tables I and II's columns and the per-worker rows).
+    pub fn to_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        json!({
+            "planning_time_ms": ms(self.planning_time),
+            "phase_space_time_ms": ms(self.phase_space_time),
+            "total_time_ms": ms(self.total_time),
+            "ik_results": self.ik_results(),
+            "solution_trajectories": self.solutions(),
+            "collision_checks": self.collision_checks(),
+            "combinations_checked": self.combinations,
+            "rejected": {
+                "collision": self.rejected_collision,
+                "score": self.rejected_score,
+                "deadlock": self.rejected_deadlock,
+            },
+            "best_score": self.best_score,
+            "scores": self.scores,
+            "score_time_ms_mean": if self.scores > 0 { ms(self.score_time) / self.scores as f64 } else { 0.0 },
+            "workers": self.workers.iter().map(|w| json!({
+                "robot": w.name,
+                "searches": w.searches,
+                "solved": w.solved,
+                "solutions": w.solutions,
+                "ik_results": w.ik_results,
+                "collision_checks": w.collision_checks,
+                "time_ms": ms(w.time),
+            })).collect::<Vec<_>>(),
+        })
+    }
+}
+
+impl MultiRobotPlan {
+    /// The answer of a Multi-Robot-RRT plan (CLI `plan multi-robot --json` and the HTTP job
+    /// kind `multi_robot`): every robot's trajectory and grasps, the score, the schedule on one
+    /// clock (`sample_period`: also samples every that many seconds), grasp events and the
+    /// statistics.
+    pub fn to_json(&self, p: &MultiRobotProblem, sample_period: Option<f64>) -> serde_json::Value {
+        use serde_json::json;
+        let names: Vec<String> = self
+            .solutions
+            .iter()
+            .map(|s| p.members[s.member].name.clone())
+            .collect();
+        let robots: Vec<_> = self
+            .solutions
+            .iter()
+            .map(|s| {
+                let m = &p.members[s.member];
+                let placed = &p.world.robots[m.robot];
+                let vars: Vec<&str> = (0..placed.robot.dof())
+                    .map(|v| placed.robot.var_name(v))
+                    .collect();
+                json!({
+                    "name": m.name,
+                    "variables": vars,
+                    "waypoints": s.path,
+                    "grasps": {
+                        "left": m.problem.left_names[s.grasps.0],
+                        "right": m.problem.right_names[s.grasps.1],
+                    },
+                    "left_end_effector": m.problem.left.end_effector,
+                    "right_end_effector": m.problem.right.end_effector,
+                    "stats": s.stats.to_json(),
+                })
+            })
+            .collect();
+        let mut events = Vec::new();
+        for s in &self.solutions {
+            let m = &p.members[s.member];
+            for (ee, g) in [
+                (
+                    &m.problem.left.end_effector,
+                    &m.problem.left_names[s.grasps.0],
+                ),
+                (
+                    &m.problem.right.end_effector,
+                    &m.problem.right_names[s.grasps.1],
+                ),
+            ] {
+                events.push(json!({
+                    "time": self.schedule.duration,
+                    "kind": "grasp",
+                    "robot": m.name,
+                    "end_effector": ee,
+                    "object": p.object,
+                    "grasp": g,
+                }));
+            }
+        }
+        json!({
+            "object": p.object,
+            "robots": robots,
+            "score": {
+                "epsilon": self.score.epsilon,
+                "force_closure": self.score.force_closure,
+                "rank": self.score.rank,
+                "wrenches": self.score.wrenches,
+                "lambda": self.score.lambda,
+            },
+            "schedule": self.schedule.to_json(&names, sample_period),
+            "events": events,
+            "stats": self.stats.to_json(),
+        })
+    }
+}
