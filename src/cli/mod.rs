@@ -72,6 +72,9 @@ pub enum Command {
         #[command(subcommand)]
         cmd: plan::PlanCmd,
     },
+    /// Phase-space scheduling (002 §V) of given trajectories, one per robot of a scene: the
+    /// `schedule` job's JSON body in (text, `@FILE` or `-`), its answer out.
+    Schedule(multi_robot::ScheduleArgs),
     /// Grasp IK queries run locally with the HTTP endpoints' JSON bodies: ik-grasp, ik-dual-arm,
     /// ik-base-placement.
     Query(query::QueryArgs),
@@ -131,5 +134,6 @@ pub fn run() -> Result<()> {
         Command::Bench { cmd } => bench::run(&ctx, cmd),
         Command::Plan { cmd } => plan::run(&ctx, cmd),
         Command::Query(a) => query::run(&ctx, a),
+        Command::Schedule(a) => multi_robot::schedule(&ctx, a),
     }
 }

@@ -1,20 +1,18 @@
 //! `manyhands plan multi-robot`: Multi-Robot-RRT (002 Alg. 3) with phase-space scheduling
 //! (002 §V) on a scene; the JSON answer is the HTTP job kind `multi_robot`'s result.
 
-use std::sync::Arc;
-
 use anyhow::{anyhow, Result};
+use clap::Args;
 
 use super::commands::Ctx;
 use super::plan::{settings, termination, MultiRobotArgs};
 use manyhands::grasp::WrenchSpaceSettings;
 use manyhands::model::Scene;
 use manyhands::planning::multi_robot_rrt::{
-    multi_robot_rrt, MemberSpec, MultiRobotEvent, MultiRobotPlan, MultiRobotProblem,
-    MultiRobotSettings,
+    multi_robot_rrt, MultiRobotEvent, MultiRobotPlan, MultiRobotProblem, MultiRobotSettings,
 };
 use manyhands::planning::phase_space::{phase_space_svg, PhaseSpace, RobotTrajectory};
-use manyhands::reachability::{GridCache, GridRecipe, ReachabilityGrid};
+use manyhands::reachability::{GridCache, GridRecipe};
 
 /// The robot instances of a request: the given names, else every robot of the scene.
 pub fn robot_names(scene: &Scene, given: &[String]) -> Vec<String> {
@@ -25,48 +23,6 @@ pub fn robot_names(scene: &Scene, given: &[String]) -> Vec<String> {
     }
 }
 
-/// Builds the problem with grids from `cache` (built on first use).
-pub fn problem(
-    scene: &Scene,
-    names: &[String],
-    left: &str,
-    right: &str,
-    object: &str,
-    cache: &GridCache,
-    recipe: GridRecipe,
-) -> Result<MultiRobotProblem> {
-    let mut grids: Vec<(Arc<ReachabilityGrid>, Arc<ReachabilityGrid>)> = Vec::new();
-    for n in names {
-        let model = scene
-            .robots
-            .iter()
-            .find(|r| &r.name == n)
-            .ok_or_else(|| anyhow!("robots: the scene has no robot '{n}'"))?
-            .robot
-            .clone();
-        grids.push((
-            cache.get(&model, left, recipe)?,
-            cache.get(&model, right, recipe)?,
-        ));
-    }
-    let specs: Vec<MemberSpec<'_>> = names
-        .iter()
-        .zip(&grids)
-        .map(|(n, (gl, gr))| MemberSpec {
-            robot: n,
-            left,
-            right,
-            grids: (gl, gr),
-        })
-        .collect();
-    Ok(MultiRobotProblem::new(
-        scene,
-        &specs,
-        object,
-        Default::default(),
-    )?)
-}
-
 pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
     let scene = ctx.scene(&a.scene)?;
     let names = robot_names(&scene, &a.robots);
@@ -75,7 +31,16 @@ pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
         samples: a.grid_samples,
         ..GridRecipe::default()
     };
-    let p = problem(&scene, &names, &a.left, &a.right, &a.object, &cache, recipe)?;
+    let p = MultiRobotProblem::with_grids(
+        &scene,
+        &names,
+        &a.left,
+        &a.right,
+        &a.object,
+        &cache,
+        recipe,
+        Default::default(),
+    )?;
     let (planner, ik) = settings(&a.common, 0.03)?;
     let s = MultiRobotSettings {
         s_min: a.s_min,
@@ -166,4 +131,30 @@ fn summary(p: &MultiRobotProblem, plan: &MultiRobotPlan) -> String {
             .collect::<Vec<_>>()
     );
     s
+}
+
+#[derive(Args, Debug)]
+pub struct ScheduleArgs {
+    /// The request body of job kind `schedule`: JSON text, `@FILE`, or `-` for standard input.
+    pub body: String,
+    /// Most seconds the search may take (the server's `--max-plan-seconds`).
+    #[arg(long, default_value_t = 60.0)]
+    pub max_seconds: f64,
+}
+
+pub fn schedule(ctx: &Ctx, a: &ScheduleArgs) -> Result<()> {
+    let text = super::query::body_text(&a.body)?;
+    let req: manyhands::server::multi_robot::ScheduleRequest = super::query::parse(&text)?;
+    let scene = std::sync::Arc::new(ctx.scene(&req.scene)?);
+    let v = manyhands::server::multi_robot::schedule_locally(&req, scene, a.max_seconds)
+        .map_err(|e| anyhow!("{e}"))?;
+    ctx.print(&v, || {
+        format!(
+            "schedule: {}, {} knots, {:.2} s",
+            v["method"].as_str().unwrap_or(""),
+            v["points"].as_array().map_or(0, |p| p.len()),
+            v["duration"].as_f64().unwrap_or(0.0)
+        )
+    });
+    Ok(())
 }

@@ -41,7 +41,7 @@ pub struct QueryArgs {
     pub data_dir: PathBuf,
 }
 
-fn body_text(b: &str) -> Result<String> {
+pub(super) fn body_text(b: &str) -> Result<String> {
     if b == "-" {
         let mut s = String::new();
         std::io::stdin().read_to_string(&mut s)?;
@@ -53,7 +53,7 @@ fn body_text(b: &str) -> Result<String> {
     }
 }
 
-fn parse<T: DeserializeOwned>(text: &str) -> Result<T> {
+pub(super) fn parse<T: DeserializeOwned>(text: &str) -> Result<T> {
     let de = &mut serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize(de).map_err(|e| {
         let path = e.path().to_string();

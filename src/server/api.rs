@@ -532,16 +532,20 @@ pub enum PlanRequest {
     Regrasp(RegraspPlan),
     KitchenTask(KitchenTaskPlan),
     Bimanual(BimanualPlan),
+    MultiRobot(super::multi_robot::MultiRobotRequest),
+    Schedule(super::multi_robot::ScheduleRequest),
 }
 
 impl PlanRequest {
-    pub const KINDS: [&'static str; 6] = [
+    pub const KINDS: [&'static str; 8] = [
         "joint_space",
         "collision_sweep",
         "reach",
         "regrasp",
         "kitchen_task",
         "bimanual",
+        "multi_robot",
+        "schedule",
     ];
 
     pub fn kind(&self) -> &'static str {
@@ -552,6 +556,8 @@ impl PlanRequest {
             PlanRequest::Regrasp(_) => "regrasp",
             PlanRequest::KitchenTask(_) => "kitchen_task",
             PlanRequest::Bimanual(_) => "bimanual",
+            PlanRequest::MultiRobot(_) => "multi_robot",
+            PlanRequest::Schedule(_) => "schedule",
         }
     }
 }

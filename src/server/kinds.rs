@@ -96,7 +96,7 @@ pub struct Prepared {
 /// Default time limit of a job when the request gives none, in seconds.
 pub const DEFAULT_TIME_LIMIT: f64 = 10.0;
 
-fn time_limit(t: Option<f64>, max: f64) -> ApiResult<f64> {
+pub(super) fn time_limit(t: Option<f64>, max: f64) -> ApiResult<f64> {
     match t {
         None => Ok(DEFAULT_TIME_LIMIT.min(max)),
         Some(t) if t.is_finite() && t > 0.0 => Ok(t.min(max)),
@@ -116,6 +116,10 @@ pub fn prepare(req: &PlanRequest, catalog: &Catalog, max_seconds: f64) -> ApiRes
         | PlanRequest::Regrasp(_)
         | PlanRequest::KitchenTask(_)
         | PlanRequest::Bimanual(_) => prepare_grasp(req, catalog, max_seconds),
+        PlanRequest::MultiRobot(r) => {
+            super::multi_robot::prepare_multi_robot(r, catalog, max_seconds)
+        }
+        PlanRequest::Schedule(r) => super::multi_robot::prepare_schedule(r, catalog, max_seconds),
     }
 }
 
@@ -231,7 +235,7 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
     })
 }
 
-fn plan_failure(e: PlanError) -> JobFailure {
+pub(super) fn plan_failure(e: PlanError) -> JobFailure {
     let code = match e.root() {
         PlanError::InvalidInput(_) => "invalid_input",
         PlanError::InvalidStart { .. } => "invalid_start",
@@ -432,7 +436,7 @@ impl JobWork for SweepWork {
 // ---------------------------------------------------------------- grasp planners (000, 002)
 
 /// Planner settings of a grasp request, validated.
-fn grasp_settings(
+pub(super) fn grasp_settings(
     s: &GraspPlanSettings,
     default_p_ik: f64,
     max: f64,
@@ -467,7 +471,7 @@ fn grasp_settings(
 }
 
 /// Checks that `robot` is an instance of `scene` whose model has chain group `group`.
-fn check_hand(scene: &Scene, robot: &str, group: &str, field: &str) -> ApiResult<()> {
+pub(super) fn check_hand(scene: &Scene, robot: &str, group: &str, field: &str) -> ApiResult<()> {
     let p = scene
         .robots
         .iter()
@@ -490,7 +494,7 @@ fn check_hand(scene: &Scene, robot: &str, group: &str, field: &str) -> ApiResult
     Ok(())
 }
 
-fn check_object(scene: &Scene, object: &str) -> ApiResult<()> {
+pub(super) fn check_object(scene: &Scene, object: &str) -> ApiResult<()> {
     if scene.object(object).is_none() {
         return Err(ApiError::invalid(
             "object",

@@ -21,6 +21,7 @@ pub mod grasp_quality;
 pub mod jobs;
 pub mod kinds;
 pub mod metrics;
+pub mod multi_robot;
 pub mod openapi;
 pub mod plans;
 pub mod pool;

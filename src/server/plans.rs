@@ -88,6 +88,8 @@ pub fn parse_plan_request(v: Value) -> ApiResult<PlanRequest> {
         "regrasp" => Ok(PlanRequest::Regrasp(de_kind(v)?)),
         "kitchen_task" => Ok(PlanRequest::KitchenTask(de_kind(v)?)),
         "bimanual" => Ok(PlanRequest::Bimanual(de_kind(v)?)),
+        "multi_robot" => Ok(PlanRequest::MultiRobot(de_kind(v)?)),
+        "schedule" => Ok(PlanRequest::Schedule(de_kind(v)?)),
         k => Err(ApiError::invalid(
             "kind",
             format!("unknown kind '{k}'; one of {:?}", PlanRequest::KINDS),

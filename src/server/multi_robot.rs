@@ -1,0 +1,581 @@
+//! Job kinds `multi_robot` (Multi-Robot-RRT, 002 Alg. 3, with phase-space scheduling, 002 §V)
+//! and `schedule` (the phase-space scheduler alone, for trajectories planned anywhere): request
+//! types, validation against the catalog and the work run on a planner thread.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+use utoipa::ToSchema;
+
+use super::catalog::Catalog;
+use super::error::{ApiError, ApiResult};
+use super::kinds::{
+    check_hand, check_object, grasp_settings, plan_failure, time_limit, JobContext, JobFailure,
+    JobWork, Prepared,
+};
+use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use crate::grasp::{WrenchSpaceSettings, MAX_CONE_EDGES, MIN_CONE_EDGES};
+use crate::model::Scene;
+use crate::planning::multi_robot_rrt::{
+    multi_robot_rrt, MultiRobotEvent, MultiRobotProblem, MultiRobotSettings, Rejection, MAX_ROBOTS,
+};
+use crate::planning::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory};
+use crate::reachability::{GridCache, GridRecipe};
+
+/// `kind: multi_robot` — Multi-Robot-RRT (002 Alg. 3): one Bimanual IK-RRT worker per robot,
+/// a collector scoring the wrench space of all hands' contacts (ε > `s_min`) and rejecting
+/// deadlocks (002 eq. 2), then phase-space scheduling (002 §V) so that all robots move at the
+/// same time. The answer holds every robot's trajectory, the schedule on one clock, the phase
+/// path and the statistics of 002 Tables I–II.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MultiRobotRequest {
+    pub scene: String,
+    /// Robot instances of the scene (default: all of them).
+    #[serde(default)]
+    pub robots: Option<Vec<String>>,
+    /// Left and right chain groups from the platform (default `torso_left_arm`,
+    /// `torso_right_arm`).
+    #[serde(default)]
+    pub left: Option<String>,
+    #[serde(default)]
+    pub right: Option<String>,
+    pub object: String,
+    /// Minimum grasp score s_min: ε of the L1 wrench space of all contacts must exceed it
+    /// (default 0: any force-closure combination).
+    #[serde(default)]
+    pub s_min: Option<f64>,
+    /// Friction coefficient μ of the score (default 0.5).
+    #[serde(default)]
+    pub mu: Option<f64>,
+    /// Friction cone edges of the score (3..=32, default 8).
+    #[serde(default)]
+    pub cone_edges: Option<usize>,
+    /// Torque scale λ of the score (default 1 / the object's radius).
+    #[serde(default)]
+    pub lambda: Option<f64>,
+    /// Probability of an IK query per worker iteration (default 0.03, 002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the workers' paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+    /// Most solution trajectories per worker (1..=256, default 32).
+    #[serde(default)]
+    pub max_solutions: Option<usize>,
+    /// Workers stepped round-robin on one thread, so request + seed give the same plan
+    /// (default false: one thread per worker).
+    #[serde(default)]
+    pub deterministic: Option<bool>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+}
+
+/// One robot's trajectory for `kind: schedule`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ScheduleTrajectory {
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// The variables the waypoints give, as `joint` or `robot/joint` (a `joint_space` answer's
+    /// `joints`); the others keep the robot's scene start values. Default: all of the robot's
+    /// variables in model order.
+    #[serde(default)]
+    pub joints: Option<Vec<String>>,
+    /// Waypoints (at least one), each with one value per joint of `joints`.
+    pub path: Vec<Vec<f64>>,
+    /// Acceleration limits by joint name (rad/s² or m/s²); joints not named use
+    /// `max_acceleration`. Without either, only velocity limits (URDF) are respected.
+    #[serde(default)]
+    pub accelerations: Option<HashMap<String, f64>>,
+    #[serde(default)]
+    pub max_acceleration: Option<f64>,
+}
+
+/// `kind: schedule` — phase-space scheduling (002 §V, Alg. 4) of given joint trajectories, one
+/// per robot of a scene, for simultaneous execution: a monotone phase path from all-start to
+/// all-goal whose every segment is proven collision-free between the robots, timed on one
+/// clock within the joints' velocity (and given acceleration) limits. Each trajectory must be
+/// free in the scene on its own (refused with 422 naming the robot and waypoint otherwise).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ScheduleRequest {
+    pub scene: String,
+    pub trajectories: Vec<ScheduleTrajectory>,
+    /// ε_extend of Alg. 4 in phase units (0.001..=1, default 0.1).
+    #[serde(default)]
+    pub extend: Option<f64>,
+    /// Fall back to one robot after the other when the search fails (default true).
+    #[serde(default)]
+    pub sequential_fallback: Option<bool>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+}
+
+/// Most waypoints of one trajectory of a `schedule` request.
+pub const MAX_WAYPOINTS: usize = 10_000;
+
+fn check_sample_period(p: Option<f64>) -> ApiResult<Option<f64>> {
+    match p {
+        None => Ok(None),
+        Some(p) if p.is_finite() && (0.001..=10.0).contains(&p) => Ok(Some(p)),
+        Some(p) => Err(ApiError::invalid(
+            "sample_period",
+            format!("{p} is not within [0.001, 10] seconds"),
+        )),
+    }
+}
+
+// ---------------------------------------------------------------- multi_robot
+
+struct MultiRobotWork {
+    scene: Arc<Scene>,
+    names: Vec<String>,
+    left: String,
+    right: String,
+    object: String,
+    grids: Arc<GridCache>,
+    settings: MultiRobotSettings,
+    seed: u64,
+    sample_period: Option<f64>,
+}
+
+pub fn prepare_multi_robot(
+    r: &MultiRobotRequest,
+    catalog: &Catalog,
+    max: f64,
+) -> ApiResult<Prepared> {
+    let settings = crate::server::api::GraspPlanSettings {
+        time_limit: r.time_limit,
+        seed: r.seed,
+        p_ik: r.p_ik,
+        ik_tries: r.ik_tries,
+        simplify: r.simplify,
+    };
+    let (limit, seed, planner, ik) = grasp_settings(&settings, 0.03, max)?;
+    let entry = catalog.scene(&r.scene, "scene")?;
+    let scene = entry.scene.clone();
+    let names: Vec<String> = match &r.robots {
+        Some(n) => n.clone(),
+        None => scene.robots.iter().map(|p| p.name.clone()).collect(),
+    };
+    if names.is_empty() || names.len() > MAX_ROBOTS {
+        return Err(ApiError::invalid(
+            "robots",
+            format!("1 to {MAX_ROBOTS} robots, got {}", names.len()),
+        ));
+    }
+    let left = r.left.clone().unwrap_or_else(|| "torso_left_arm".into());
+    let right = r.right.clone().unwrap_or_else(|| "torso_right_arm".into());
+    for (i, n) in names.iter().enumerate() {
+        if names[..i].contains(n) {
+            return Err(ApiError::invalid(
+                format!("robots[{i}]"),
+                format!("robot '{n}' is given twice"),
+            ));
+        }
+        check_hand(&scene, n, &left, "left.").map_err(|e| e.at(format!("robots[{i}]")))?;
+        check_hand(&scene, n, &right, "right.").map_err(|e| e.at(format!("robots[{i}]")))?;
+    }
+    check_object(&scene, &r.object)?;
+    let s_min = r.s_min.unwrap_or(0.0);
+    if !(s_min.is_finite() && s_min >= 0.0) {
+        return Err(ApiError::invalid("s_min", format!("{s_min} is not ≥ 0")));
+    }
+    let wrench = WrenchSpaceSettings {
+        mu: r.mu.unwrap_or(0.5),
+        cone_edges: r.cone_edges.unwrap_or(8),
+        lambda: r.lambda,
+        soft_finger: None,
+    };
+    if let Err(e) = wrench.validate() {
+        return Err(ApiError::invalid(e.field().to_string(), e.to_string()));
+    }
+    if !(MIN_CONE_EDGES..=MAX_CONE_EDGES).contains(&wrench.cone_edges) {
+        return Err(ApiError::invalid("cone_edges", "out of range"));
+    }
+    let max_solutions = r.max_solutions.unwrap_or(32);
+    if !(1..=256).contains(&max_solutions) {
+        return Err(ApiError::invalid(
+            "max_solutions",
+            format!("{max_solutions} is not within [1, 256]"),
+        ));
+    }
+    let sample_period = check_sample_period(r.sample_period)?;
+    Ok(Prepared {
+        work: Box::new(MultiRobotWork {
+            scene,
+            names,
+            left,
+            right,
+            object: r.object.clone(),
+            grids: catalog.grids(),
+            settings: MultiRobotSettings {
+                s_min,
+                wrench,
+                planner,
+                ik,
+                max_solutions,
+                deterministic: r.deterministic.unwrap_or(false),
+                ..MultiRobotSettings::default()
+            },
+            seed,
+            sample_period,
+        }),
+        time_limit: limit,
+    })
+}
+
+impl JobWork for MultiRobotWork {
+    fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
+        let w = *self;
+        ctx.progress(json!({"phase": "reachability grids"}));
+        let p = MultiRobotProblem::with_grids(
+            &w.scene,
+            &w.names,
+            &w.left,
+            &w.right,
+            &w.object,
+            &w.grids,
+            GridRecipe::default(),
+            Default::default(),
+        )
+        .map_err(plan_failure)?;
+        if ctx.stopped() {
+            return Err(plan_failure(crate::planning::PlanError::stopped(
+                crate::planning::StopReason::Requested,
+                Default::default(),
+            )));
+        }
+        ctx.progress(json!({"phase": "planning", "planner": "multi_robot_rrt"}));
+        let mut term = ctx.termination();
+        let mut solutions: HashMap<String, u64> = HashMap::new();
+        let mut rejected = [0u64; 3];
+        let mut last = Instant::now() - Duration::from_secs(1);
+        let plan = {
+            let mut progress = |e: MultiRobotEvent<'_>| match e {
+                MultiRobotEvent::Solution { robot, count } => {
+                    solutions.insert(robot.to_string(), count);
+                    ctx.progress(json!({"phase": "planning", "event": "solution", "robot": robot, "solutions": solutions}));
+                }
+                MultiRobotEvent::Combination {
+                    checked,
+                    rejected: r,
+                    score,
+                    best,
+                } => {
+                    if let Some(r) = r {
+                        rejected[r as usize] += 1;
+                    }
+                    // At most one snapshot per 20 ms (the accepted one always).
+                    if r.is_none() || last.elapsed() >= Duration::from_millis(20) {
+                        last = Instant::now();
+                        ctx.progress(json!({
+                            "phase": "planning", "event": "combination", "solutions": solutions,
+                            "combinations_checked": checked,
+                            "rejected": {"collision": rejected[Rejection::Collision as usize],
+                                         "score": rejected[Rejection::Score as usize],
+                                         "deadlock": rejected[Rejection::Deadlock as usize]},
+                            "score": score, "best_score": best,
+                        }));
+                    }
+                }
+                MultiRobotEvent::Scheduling => {
+                    ctx.progress(json!({"phase": "phase space", "planner": "phase_space_rrt"}));
+                }
+            };
+            multi_robot_rrt(&p, &w.settings, &mut term, w.seed, &mut progress)
+        }
+        .map_err(plan_failure)?;
+        Ok(plan.to_json(&p, w.sample_period))
+    }
+}
+
+// ---------------------------------------------------------------- schedule
+
+struct ScheduleWork {
+    world: CollisionWorld,
+    world_q: Vec<f64>,
+    trajectories: Vec<RobotTrajectory>,
+    names: Vec<String>,
+    variables: Vec<Vec<String>>,
+    settings: PhaseSpaceSettings,
+    seed: u64,
+    sample_period: Option<f64>,
+}
+
+/// The trajectories of a `schedule` request resolved against its scene, each checked free in
+/// the scene on its own (joint limits, states and segments), or a 422 naming the robot and the
+/// waypoint.
+fn resolve_trajectories(
+    scene: &Scene,
+    world: &CollisionWorld,
+    world_q: &[f64],
+    given: &[ScheduleTrajectory],
+) -> ApiResult<(Vec<RobotTrajectory>, Vec<String>)> {
+    if given.is_empty() || given.len() > MAX_ROBOTS {
+        return Err(ApiError::invalid(
+            "trajectories",
+            format!("1 to {MAX_ROBOTS} trajectories, got {}", given.len()),
+        ));
+    }
+    let mut out = Vec::with_capacity(given.len());
+    let mut names = Vec::new();
+    for (i, t) in given.iter().enumerate() {
+        let f = |s: &str| format!("trajectories[{i}].{s}");
+        let r = world
+            .robots
+            .iter()
+            .position(|p| p.name == t.robot)
+            .ok_or_else(|| {
+                ApiError::invalid(
+                    f("robot"),
+                    format!("scene '{}' has no robot '{}'", scene.name, t.robot),
+                )
+            })?;
+        if names.contains(&t.robot) {
+            return Err(ApiError::invalid(
+                f("robot"),
+                format!("robot '{}' has two trajectories", t.robot),
+            ));
+        }
+        let placed = &world.robots[r];
+        let model = &placed.robot;
+        let dof = model.dof();
+        let vars: Vec<usize> = match &t.joints {
+            None => (0..dof).collect(),
+            Some(j) => j
+                .iter()
+                .enumerate()
+                .map(|(k, name)| {
+                    let bare = name.strip_prefix(&format!("{}/", t.robot)).unwrap_or(name);
+                    (0..dof)
+                        .find(|&v| model.var_name(v) == bare)
+                        .ok_or_else(|| {
+                            ApiError::invalid(
+                                f(&format!("joints[{k}]")),
+                                format!("robot '{}' has no variable '{name}'", t.robot),
+                            )
+                        })
+                })
+                .collect::<ApiResult<_>>()?,
+        };
+        if t.path.is_empty() || t.path.len() > MAX_WAYPOINTS {
+            return Err(ApiError::invalid(
+                f("path"),
+                format!("1 to {MAX_WAYPOINTS} waypoints, got {}", t.path.len()),
+            ));
+        }
+        let start = world.robot_config(r, world_q).to_vec();
+        let mut waypoints = Vec::with_capacity(t.path.len());
+        for (w, row) in t.path.iter().enumerate() {
+            if row.len() != vars.len() {
+                return Err(ApiError::invalid(
+                    f(&format!("path[{w}]")),
+                    format!("{} values for {} joints", row.len(), vars.len()),
+                ));
+            }
+            let mut q = start.clone();
+            for (k, (&v, &x)) in vars.iter().zip(row).enumerate() {
+                let l = model.var_limits(v);
+                if !x.is_finite() || (l.bounded && !(l.lower - 1e-9..=l.upper + 1e-9).contains(&x))
+                {
+                    return Err(ApiError::invalid(
+                        f(&format!("path[{w}][{k}]")),
+                        format!(
+                            "{} = {x} outside [{}, {}]",
+                            model.var_name(v),
+                            l.lower,
+                            l.upper
+                        ),
+                    ));
+                }
+                q[v] = x.clamp(l.lower, l.upper);
+            }
+            waypoints.push(q);
+        }
+        // Free in the scene on its own: this robot alone with the fixed bodies.
+        let Some(alone) = world.subset(&[r]) else {
+            return Err(ApiError::invalid(f("robot"), "unknown robot"));
+        };
+        let mut checker = FastChecker::new(&alone);
+        for (w, q) in waypoints.iter().enumerate() {
+            if let Some(c) = checker.first_contact(q) {
+                return Err(ApiError::invalid(
+                    f(&format!("path[{w}]")),
+                    format!(
+                        "robot '{}' collides at waypoint {w}: {} with {}",
+                        t.robot, c.a, c.b
+                    ),
+                ));
+            }
+        }
+        for (w, pair) in waypoints.windows(2).enumerate() {
+            if !checker.motion_certified(&pair[0], &pair[1]) {
+                return Err(ApiError::invalid(
+                    f(&format!("path[{}]", w + 1)),
+                    format!(
+                        "robot '{}': the motion from waypoint {w} to {} is not collision-free",
+                        t.robot,
+                        w + 1
+                    ),
+                ));
+            }
+        }
+        let accelerations = if t.accelerations.is_some() || t.max_acceleration.is_some() {
+            if let Some(a) = t.max_acceleration {
+                if !(a.is_finite() && a > 0.0) {
+                    return Err(ApiError::invalid(f("max_acceleration"), "must be > 0"));
+                }
+            }
+            let map = t.accelerations.clone().unwrap_or_default();
+            for (name, &a) in &map {
+                let bare = name.strip_prefix(&format!("{}/", t.robot)).unwrap_or(name);
+                if !(0..dof).any(|v| model.var_name(v) == bare) {
+                    return Err(ApiError::invalid(
+                        f(&format!("accelerations.{name}")),
+                        format!("robot '{}' has no variable '{name}'", t.robot),
+                    ));
+                }
+                if !(a.is_finite() && a > 0.0) {
+                    return Err(ApiError::invalid(
+                        f(&format!("accelerations.{name}")),
+                        "must be > 0",
+                    ));
+                }
+            }
+            let mut acc = Vec::with_capacity(dof);
+            for v in 0..dof {
+                let name = model.var_name(v);
+                let a = map
+                    .get(name)
+                    .or_else(|| map.get(&format!("{}/{name}", t.robot)))
+                    .copied()
+                    .or(t.max_acceleration)
+                    .ok_or_else(|| {
+                        ApiError::invalid(
+                            f("accelerations"),
+                            format!("no limit for '{name}' (give it or max_acceleration)"),
+                        )
+                    })?;
+                acc.push(a);
+            }
+            Some(acc)
+        } else {
+            None
+        };
+        names.push(t.robot.clone());
+        out.push(RobotTrajectory {
+            robot: r,
+            waypoints,
+            accelerations,
+        });
+    }
+    Ok((out, names))
+}
+
+pub fn prepare_schedule(r: &ScheduleRequest, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
+    let entry = catalog.scene(&r.scene, "scene")?;
+    schedule_work(r, entry.scene.clone(), max)
+}
+
+/// The work of a `schedule` request on `scene` (already resolved from `r.scene`).
+fn schedule_work(r: &ScheduleRequest, scene: Arc<Scene>, max: f64) -> ApiResult<Prepared> {
+    let limit = time_limit(r.time_limit, max)?;
+    let extend = r.extend.unwrap_or(0.1);
+    if !(extend.is_finite() && (0.001..=1.0).contains(&extend)) {
+        return Err(ApiError::invalid(
+            "extend",
+            format!("{extend} is not within [0.001, 1]"),
+        ));
+    }
+    let sample_period = check_sample_period(r.sample_period)?;
+    let world = CollisionWorld::from_scene(&scene);
+    let world_q = CollisionWorld::start_config(&scene);
+    let (trajectories, names) = resolve_trajectories(&scene, &world, &world_q, &r.trajectories)?;
+    let variables = trajectories
+        .iter()
+        .map(|t| {
+            let m = &world.robots[t.robot].robot;
+            (0..m.dof()).map(|v| m.var_name(v).to_string()).collect()
+        })
+        .collect();
+    Ok(Prepared {
+        work: Box::new(ScheduleWork {
+            world,
+            world_q,
+            trajectories,
+            names,
+            variables,
+            settings: PhaseSpaceSettings {
+                extend,
+                sequential_fallback: r.sequential_fallback.unwrap_or(true),
+                ..PhaseSpaceSettings::default()
+            },
+            seed: r.seed.unwrap_or(1),
+            sample_period,
+        }),
+        time_limit: limit,
+    })
+}
+
+/// Runs a schedule request to its JSON answer (the job kind `schedule` and the CLI
+/// `manyhands schedule`).
+fn run_schedule(
+    w: &ScheduleWork,
+    term: &mut crate::planning::Termination,
+) -> Result<Value, JobFailure> {
+    let mut ps = PhaseSpace::new(&w.world, &w.world_q, &w.trajectories).map_err(plan_failure)?;
+    let s = ps.plan(&w.settings, term, w.seed).map_err(plan_failure)?;
+    let mut v = s.to_json(&w.names, w.sample_period);
+    v["variables"] = json!(w.variables);
+    Ok(v)
+}
+
+impl JobWork for ScheduleWork {
+    fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
+        ctx.progress(
+            json!({"phase": "phase space", "planner": "phase_space_rrt", "robots": self.names}),
+        );
+        let mut term = ctx.termination();
+        run_schedule(&self, &mut term)
+    }
+}
+
+/// `manyhands schedule`: the `schedule` job's JSON request in, its answer out, without a
+/// server. Errors carry the field and reason as the HTTP 422 does.
+pub fn schedule_locally(
+    req: &ScheduleRequest,
+    scene: Arc<Scene>,
+    max_seconds: f64,
+) -> Result<Value, String> {
+    let prepared = schedule_work(req, scene, max_seconds).map_err(|e| e.to_string())?;
+    let limit = Duration::from_secs_f64(prepared.time_limit);
+    let mut ctx = JobContext::new(
+        Arc::new(std::sync::atomic::AtomicBool::new(false)),
+        limit,
+        Box::new(|_| {}),
+    );
+    prepared
+        .work
+        .run(&mut ctx)
+        .map_err(|f| format!("{}: {}", f.code, f.message))
+}

@@ -1,0 +1,317 @@
+//! Multi-Robot-RRT (002 Alg. 3) and phase-space scheduling (002 §V): schedules re-checked
+//! densely in time with the exact checker while every robot moves at once, velocity limits,
+//! monotone phases, the deterministic mode, one robot, and cancel.
+
+mod common;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker};
+use manyhands::planning::multi_robot_rrt::{
+    multi_robot_rrt, MultiRobotPlan, MultiRobotProblem, MultiRobotSettings,
+};
+use manyhands::planning::phase_space::{
+    PhaseSpace, PhaseSpaceSettings, RobotTrajectory, Schedule, ScheduleMethod,
+};
+use manyhands::planning::{PlanError, Termination};
+use manyhands::reachability::{GridCache, GridRecipe};
+
+/// Grids small enough for tests (built once per process, in memory).
+fn grids() -> &'static GridCache {
+    static CACHE: std::sync::OnceLock<GridCache> = std::sync::OnceLock::new();
+    CACHE.get_or_init(|| GridCache::new(None))
+}
+
+fn recipe() -> GridRecipe {
+    GridRecipe {
+        samples: 200_000,
+        ..GridRecipe::default()
+    }
+}
+
+fn problem(scene: &str, robots: &[&str]) -> MultiRobotProblem {
+    let s = common::scene(scene);
+    let names: Vec<String> = robots.iter().map(|r| r.to_string()).collect();
+    MultiRobotProblem::with_grids(
+        &s,
+        &names,
+        "torso_left_arm",
+        "torso_right_arm",
+        "table",
+        grids(),
+        recipe(),
+        Default::default(),
+    )
+    .expect("problem")
+}
+
+/// Samples the schedule every `dt` s and checks every instant with the exact checker in `world`
+/// (every robot at its scheduled configuration at once), and every velocity against the URDF
+/// limit (within 1e-6 relative).
+fn assert_schedule_free(
+    world: &CollisionWorld,
+    world_q: &[f64],
+    robots: &[usize],
+    s: &Schedule,
+    dt: f64,
+) {
+    let mut exact = ExactChecker::new(world);
+    let mut q = world_q.to_vec();
+    let samples = s.sample(dt);
+    assert!(samples.len() >= 2);
+    for (t, pos, vel) in &samples {
+        for (k, &r) in robots.iter().enumerate() {
+            let p = &world.robots[r];
+            q[p.offset..p.offset + p.robot.dof()].copy_from_slice(&pos[k]);
+            for (v, &x) in vel[k].iter().enumerate() {
+                let l = p.robot.var_limits(v).velocity;
+                if l.is_finite() && l > 0.0 {
+                    assert!(
+                        x.abs() <= l * (1.0 + 1e-6),
+                        "{}: {} velocity {x} over {l} at t = {t}",
+                        p.name,
+                        p.robot.var_name(v)
+                    );
+                }
+            }
+        }
+        if let Some(c) = exact.first_contact(&q) {
+            panic!(
+                "collision at t = {t:.4} s of {:.4}: {} with {}",
+                s.duration, c.a, c.b
+            );
+        }
+    }
+    // Monotone phases.
+    for w in s.phase_path.windows(2) {
+        assert!(
+            w[0].iter().zip(&w[1]).all(|(a, b)| a <= b),
+            "phase runs backwards: {w:?}"
+        );
+    }
+    assert!(s.phase_path[0].iter().all(|&p| p == 0.0));
+    assert!(s
+        .phase_path
+        .last()
+        .is_some_and(|p| p.iter().all(|&x| x == 1.0)));
+}
+
+fn assert_plan_valid(p: &MultiRobotProblem, plan: &MultiRobotPlan) {
+    // Robots against each other, all moving at the schedule's times, held nothing.
+    let robots: Vec<usize> = plan
+        .solutions
+        .iter()
+        .map(|s| p.members[s.member].robot)
+        .collect();
+    assert_schedule_free(
+        &p.world.between_robots(),
+        &p.world_q,
+        &robots,
+        &plan.schedule,
+        0.002,
+    );
+    assert!(plan.score.force_closure && plan.score.epsilon > 0.0);
+    // The schedule starts at every robot's start and ends at its solution's goal.
+    let first = &plan.schedule.knots[0];
+    let last = plan.schedule.knots.last().expect("knots");
+    for (k, s) in plan.solutions.iter().enumerate() {
+        assert_eq!(first.configs[k], s.path[0]);
+        assert_eq!(&last.configs[k], s.path.last().expect("path"));
+    }
+}
+
+/// Two ARMAR platforms whose straight paths cross at the same phase: the straight line in P
+/// collides, a schedule exists (one waits), and it is free when re-checked densely in time.
+#[test]
+fn crossing_trajectories_get_a_waiting_schedule() {
+    let s = common::scene("handoff");
+    let world = CollisionWorld::from_scene(&s);
+    let q0 = CollisionWorld::start_config(&s);
+    let dof = world.robots[0].robot.dof();
+    let model = &world.robots[0].robot;
+    let (bx, by) = (
+        model.var("base_x").expect("x"),
+        model.var("base_y").expect("y"),
+    );
+    let robot_q = |r: usize, x: f64, y: f64| {
+        let mut c = world.robot_config(r, &q0).to_vec();
+        c[bx] = x;
+        c[by] = y;
+        c
+    };
+    // armar_a (at the origin, facing +x) drives along y through (0.7, 0); armar_b (at 1.4,
+    // facing -x) drives along x through the same point.
+    let ta = RobotTrajectory {
+        robot: 0,
+        waypoints: vec![robot_q(0, 0.7, -1.3), robot_q(0, 0.7, 1.3)],
+        accelerations: None,
+    };
+    let tb = RobotTrajectory {
+        robot: 1,
+        waypoints: vec![robot_q(1, -0.6, 0.0), robot_q(1, 2.0, 0.0)],
+        accelerations: None,
+    };
+    assert_eq!(ta.waypoints[0].len(), dof);
+    let mut ps = PhaseSpace::new(&world, &q0, &[ta.clone(), tb.clone()]).expect("phase space");
+    assert!(
+        !ps.segment_valid(&[0.0, 0.0], &[1.0, 1.0]),
+        "the straight line must collide"
+    );
+    let sched = ps
+        .plan(&PhaseSpaceSettings::default(), &mut Termination::new(), 1)
+        .expect("schedule");
+    assert_ne!(sched.method, ScheduleMethod::Simultaneous);
+    assert!(sched.duration > 0.0);
+    assert_schedule_free(&world.between_robots(), &q0, &[0, 1], &sched, 0.002);
+    // With acceleration limits the schedule is slower, still free and starts and ends at rest.
+    let acc = vec![2.0; dof];
+    let with_acc: Vec<RobotTrajectory> = [ta, tb]
+        .into_iter()
+        .map(|t| RobotTrajectory {
+            accelerations: Some(acc.clone()),
+            ..t
+        })
+        .collect();
+    let mut ps = PhaseSpace::new(&world, &q0, &with_acc).expect("phase space");
+    let slow = ps
+        .plan(&PhaseSpaceSettings::default(), &mut Termination::new(), 1)
+        .expect("schedule");
+    assert!(slow.duration > sched.duration);
+    assert_schedule_free(&world.between_robots(), &q0, &[0, 1], &slow, 0.002);
+    let (_, v0) = slow.state_at(0.0);
+    let (_, v1) = slow.state_at(slow.duration);
+    assert!(v0.iter().chain(&v1).flatten().all(|v| v.abs() < 1e-9));
+}
+
+/// Sequential execution is refused when a robot's goal lies on the other's path (no schedule
+/// exists) — the condition the deadlock check rules out.
+#[test]
+fn blocked_goal_has_no_schedule() {
+    let s = common::scene("handoff");
+    let world = CollisionWorld::from_scene(&s);
+    let q0 = CollisionWorld::start_config(&s);
+    let model = &world.robots[0].robot;
+    let (bx, by) = (
+        model.var("base_x").expect("x"),
+        model.var("base_y").expect("y"),
+    );
+    let robot_q = |r: usize, x: f64, y: f64| {
+        let mut c = world.robot_config(r, &q0).to_vec();
+        c[bx] = x;
+        c[by] = y;
+        c
+    };
+    // armar_a ends at (0.7, 0), right on armar_b's path, and armar_b starts on armar_a's path.
+    let ta = RobotTrajectory {
+        robot: 0,
+        waypoints: vec![robot_q(0, 0.7, -1.3), robot_q(0, 0.7, 0.0)],
+        accelerations: None,
+    };
+    let tb = RobotTrajectory {
+        robot: 1,
+        waypoints: vec![robot_q(1, 0.7, 1.3), robot_q(1, 0.7, -1.3)],
+        accelerations: None,
+    };
+    let mut ps = PhaseSpace::new(&world, &q0, &[ta, tb]).expect("phase space");
+    let settings = PhaseSpaceSettings {
+        max_iterations: 300,
+        ..PhaseSpaceSettings::default()
+    };
+    let r = ps.plan(&settings, &mut Termination::new(), 1);
+    assert!(r.is_err(), "{r:?}");
+}
+
+fn settings(deterministic: bool) -> MultiRobotSettings {
+    MultiRobotSettings {
+        deterministic,
+        ..MultiRobotSettings::default()
+    }
+}
+
+#[test]
+fn two_robots_grasp_the_table_and_move_together() {
+    let p = problem("kitchen_two", &["armar_a", "armar_b"]);
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(60));
+    let plan = multi_robot_rrt(&p, &settings(true), &mut term, 3, &mut |_| {}).expect("plan");
+    assert_eq!(plan.solutions.len(), 2);
+    assert_plan_valid(&p, &plan);
+    // Each robot's own path is free in the scene (checked densely by the exact checker).
+    for s in &plan.solutions {
+        let m = &p.members[s.member];
+        let path: Vec<Vec<f64>> = s
+            .path
+            .iter()
+            .map(|q| m.problem.space.from_world(q))
+            .collect();
+        common::assert_exactly_free(&m.problem.world, &m.problem.space, &path);
+    }
+    // Deterministic: the same request and seed give the same plan.
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(60));
+    let again = multi_robot_rrt(&p, &settings(true), &mut term, 3, &mut |_| {}).expect("plan");
+    let key = |p: &MultiRobotPlan| -> Vec<_> {
+        p.solutions
+            .iter()
+            .map(|s| (s.member, s.grasps, s.path.clone()))
+            .collect()
+    };
+    assert_eq!(key(&again), key(&plan));
+    assert_eq!(again.schedule.phase_path, plan.schedule.phase_path);
+    assert_eq!(again.schedule.knots, plan.schedule.knots);
+    // The parallel mode solves it too.
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(60));
+    let par = multi_robot_rrt(&p, &settings(false), &mut term, 5, &mut |_| {}).expect("plan");
+    assert_plan_valid(&p, &par);
+}
+
+#[test]
+fn one_robot_is_a_bimanual_plan() {
+    let p = problem("kitchen", &["armar"]);
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(30));
+    let plan = multi_robot_rrt(&p, &settings(true), &mut term, 1, &mut |_| {}).expect("plan");
+    assert_eq!(plan.solutions.len(), 1);
+    assert_eq!(
+        plan.stats.combinations,
+        plan.stats.rejected_collision
+            + plan.stats.rejected_score
+            + plan.stats.rejected_deadlock
+            + 1
+    );
+    assert_eq!(plan.schedule.method, ScheduleMethod::Simultaneous);
+    let m = &p.members[0];
+    let (l, r) = plan.solutions[0].grasps;
+    assert!(m.problem.left_names[l].starts_with("table_l"));
+    assert!(m.problem.right_names[r].starts_with("table_r"));
+    assert_plan_valid(&p, &plan);
+}
+
+/// A score no combination reaches keeps the workers busy until the stop flag: all of them and
+/// the collector stop promptly.
+#[test]
+fn cancel_stops_every_worker() {
+    let p = problem("kitchen_two", &["armar_a", "armar_b"]);
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = MultiRobotSettings {
+        s_min: 1e9,
+        ..settings(false)
+    };
+    let flag = stop.clone();
+    let setter = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(300));
+        flag.store(true, Ordering::Relaxed);
+        Instant::now()
+    });
+    let mut term = Termination::new()
+        .with_time_limit(Duration::from_secs(60))
+        .with_stop_flag(stop);
+    let r = multi_robot_rrt(&p, &s, &mut term, 1, &mut |_| {});
+    let done = Instant::now();
+    let set = setter.join().expect("setter");
+    assert!(matches!(r, Err(PlanError::Stopped { .. })), "{r:?}");
+    let latency = done.saturating_duration_since(set);
+    assert!(
+        latency < Duration::from_millis(250),
+        "stopped {latency:?} after the flag"
+    );
+}
