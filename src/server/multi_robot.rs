@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -267,40 +267,41 @@ impl JobWork for MultiRobotWork {
         }
         ctx.progress(json!({"phase": "planning", "planner": "multi_robot_rrt"}));
         let mut term = ctx.termination();
+        // Snapshots are cumulative: the job keeps the latest (at most one per 50 ms).
         let mut solutions: HashMap<String, u64> = HashMap::new();
         let mut rejected = [0u64; 3];
-        let mut last = Instant::now() - Duration::from_secs(1);
+        let (mut checked, mut best) = (0u64, 0.0f64);
+        let mut phase = "planning";
         let plan = {
-            let mut progress = |e: MultiRobotEvent<'_>| match e {
-                MultiRobotEvent::Solution { robot, count } => {
-                    solutions.insert(robot.to_string(), count);
-                    ctx.progress(json!({"phase": "planning", "event": "solution", "robot": robot, "solutions": solutions}));
-                }
-                MultiRobotEvent::Combination {
-                    checked,
-                    rejected: r,
-                    score,
-                    best,
-                } => {
-                    if let Some(r) = r {
-                        rejected[r as usize] += 1;
+            let mut progress = |e: MultiRobotEvent<'_>| {
+                match e {
+                    MultiRobotEvent::Solution { robot, count } => {
+                        solutions.insert(robot.to_string(), count);
                     }
-                    // At most one snapshot per 20 ms (the accepted one always).
-                    if r.is_none() || last.elapsed() >= Duration::from_millis(20) {
-                        last = Instant::now();
-                        ctx.progress(json!({
-                            "phase": "planning", "event": "combination", "solutions": solutions,
-                            "combinations_checked": checked,
-                            "rejected": {"collision": rejected[Rejection::Collision as usize],
-                                         "score": rejected[Rejection::Score as usize],
-                                         "deadlock": rejected[Rejection::Deadlock as usize]},
-                            "score": score, "best_score": best,
-                        }));
+                    MultiRobotEvent::Combination {
+                        checked: c,
+                        rejected: r,
+                        best: b,
+                        ..
+                    } => {
+                        if let Some(r) = r {
+                            rejected[r as usize] += 1;
+                        }
+                        checked = c;
+                        best = b;
                     }
+                    MultiRobotEvent::Scheduling => phase = "phase space",
                 }
-                MultiRobotEvent::Scheduling => {
-                    ctx.progress(json!({"phase": "phase space", "planner": "phase_space_rrt"}));
-                }
+                ctx.progress(json!({
+                    "phase": phase,
+                    "planner": if phase == "planning" { "multi_robot_rrt" } else { "phase_space_rrt" },
+                    "solutions": solutions,
+                    "combinations_checked": checked,
+                    "rejected": {"collision": rejected[Rejection::Collision as usize],
+                                 "score": rejected[Rejection::Score as usize],
+                                 "deadlock": rejected[Rejection::Deadlock as usize]},
+                    "best_score": best,
+                }));
             };
             multi_robot_rrt(&p, &w.settings, &mut term, w.seed, &mut progress)
         }

@@ -159,6 +159,20 @@ class Client:
         t = None if wait is None else self.timeout + wait
         return self._request("POST", "/v1/plans" + q, request, timeout=t)[2]
 
+    def multi_robot(self, scene: str, obj: str, wait: Optional[float] = None, **kw: Any) -> Json:
+        """Job kind ``multi_robot``: Multi-Robot-RRT (paper 002 Alg. 3) with phase-space
+        scheduling; also ``robots``, ``s_min``, ``mu``, ``cone_edges``, ``lambda``, ``p_ik``,
+        ``deterministic``, ``seed``, ``time_limit``, ``sample_period``."""
+        return self.submit({"kind": "multi_robot", "scene": scene, "object": obj, **kw}, wait)
+
+    def schedule(self, scene: str, trajectories: List[Json], wait: Optional[float] = None,
+                 **kw: Any) -> Json:
+        """Job kind ``schedule``: phase-space scheduling (paper 002 §V) of ``trajectories``
+        (``[{"robot", "joints", "path"}]``, one per robot); also ``extend``, ``seed``,
+        ``time_limit``, ``sample_period``, ``sequential_fallback``."""
+        return self.submit({"kind": "schedule", "scene": scene, "trajectories": trajectories,
+                            **kw}, wait)
+
     def job(self, job_id: str) -> Json:
         return self._get(f"/v1/plans/{job_id}")
 

@@ -85,6 +85,20 @@ class ClientTest(unittest.TestCase):
         job = self.c.submit({**SWEEP, "samples": 10**9, "time_limit": 30})
         self.assertIn(self.c.cancel(job["id"])["state"], ("cancelled", "running"))
 
+    def test_multi_robot_and_schedule(self) -> None:
+        job = self.c.multi_robot("kitchen_two", "table", wait=60, seed=2, deterministic=True,
+                                 time_limit=60)
+        self.assertEqual(job["state"], "succeeded", job)
+        r = job["result"]
+        self.assertEqual(r["schedule"]["robots"], ["armar_a", "armar_b"])
+        trajs = [{"robot": x["name"], "joints": x["variables"], "path": x["waypoints"]}
+                 for x in r["robots"]]
+        job = self.c.schedule("kitchen_two", trajs, wait=30)
+        self.assertEqual(job["state"], "succeeded", job)
+        with self.assertRaises(ApiError) as e:
+            self.c.schedule("kitchen_two", [{"robot": "ghost", "path": [[0.0]]}])
+        self.assertEqual(e.exception.field, "trajectories[0].robot")
+
     def test_async(self) -> None:
         async def go() -> str:
             ac = AsyncClient(URL, token=os.environ.get("MANYHANDS_TOKEN"))

@@ -1,0 +1,108 @@
+//! Job kinds `multi_robot` and `schedule` over HTTP: the real server on an ephemeral loopback
+//! port, SSE events of a Multi-Robot-RRT job, and bad schedules refused with the field named.
+
+mod common;
+use common::server::{field, start};
+
+use std::time::Duration;
+
+use reqwest::StatusCode;
+use serde_json::{json, Value};
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn multi_robot_job_runs_end_to_end_with_events() {
+    let h = start("multi-robot").await;
+    let req = json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table",
+        "seed": 2, "deterministic": true, "time_limit": 60, "sample_period": 0.05});
+    let (s, v) = h.post("/v1/plans", &req).await;
+    assert_eq!(s, StatusCode::ACCEPTED, "{v}");
+    let id = v["id"].as_str().expect("id").to_string();
+    let mut resp = h
+        .http
+        .get(format!("{}/v1/plans/{id}/events", h.base))
+        .send()
+        .await
+        .expect("events");
+    assert_eq!(resp.status(), StatusCode::OK);
+    let mut text = String::new();
+    while let Some(chunk) = tokio::time::timeout(Duration::from_secs(90), resp.chunk())
+        .await
+        .expect("event in time")
+        .expect("chunk")
+    {
+        text.push_str(&String::from_utf8_lossy(&chunk));
+        if text.contains("event: end") {
+            break;
+        }
+    }
+    // Progress snapshots (the server keeps the latest, at most one per 50 ms).
+    assert!(text.contains("event: progress"), "{text}");
+    assert!(text.contains("\"combinations_checked\""), "{text}");
+    assert!(text.contains("\"solutions\":{"), "{text}");
+    let resp = h
+        .http
+        .get(format!("{}/v1/plans/{id}", h.base))
+        .send()
+        .await
+        .expect("GET");
+    assert_eq!(resp.status(), StatusCode::OK);
+    let v: Value = resp.json().await.expect("json");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    let r = &v["result"];
+    assert_eq!(r["robots"].as_array().map(|a| a.len()), Some(2), "{r}");
+    assert!(r["score"]["force_closure"].as_bool().unwrap_or(false));
+    let sched = &r["schedule"];
+    assert_eq!(sched["robots"], json!(["armar_a", "armar_b"]));
+    let pts = sched["points"].as_array().expect("points");
+    assert!(pts.len() >= 2);
+    assert_eq!(pts[0]["time_from_start"], 0.0);
+    assert!(sched["samples"].as_array().is_some_and(|s| s.len() >= 2));
+    assert_eq!(r["events"].as_array().map(|e| e.len()), Some(4));
+    for k in [
+        "ik_results",
+        "solution_trajectories",
+        "collision_checks",
+        "combinations_checked",
+        "phase_space_time_ms",
+    ] {
+        assert!(r["stats"][k].is_number(), "{k}: {}", r["stats"]);
+    }
+
+    // The same trajectories through kind `schedule`, given as `joints` + `path`.
+    let trajs: Vec<Value> = r["robots"]
+        .as_array()
+        .expect("robots")
+        .iter()
+        .map(|rb| json!({"robot": rb["name"], "joints": rb["variables"], "path": rb["waypoints"]}))
+        .collect();
+    let req = json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": trajs});
+    let (s, v) = h.post("/v1/plans?wait=30", &req).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    assert!(v["result"]["duration"].as_f64().unwrap_or(0.0) > 0.0, "{v}");
+
+    // A trajectory through the table: refused, naming the robot and the waypoint.
+    let bad = json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x", "base_y"], "path": [[0.0, 0.0], [2.75, 0.7]]}]});
+    let (s, v) = h.post("/v1/plans", &bad).await;
+    assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert_eq!(field(&v), "trajectories[0].path[1]", "{v}");
+    assert!(
+        v["error"]["message"]
+            .as_str()
+            .unwrap_or("")
+            .contains("armar_a"),
+        "{v}"
+    );
+    // Unknown joint and robot.
+    let bad = json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["nope"], "path": [[0.0]]}]});
+    let (s, v) = h.post("/v1/plans", &bad).await;
+    assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert_eq!(field(&v), "trajectories[0].joints[0]", "{v}");
+    let bad = json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table", "robots": ["armar_a", "ghost"]});
+    let (s, v) = h.post("/v1/plans", &bad).await;
+    assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(field(&v).starts_with("robots[1]"), "{v}");
+    h.server.shutdown().await.expect("shutdown");
+}
