@@ -461,6 +461,43 @@ pub struct FastChecker {
     sweep: sweep::Sweep,
     /// Largest inflation of [`FastChecker::segment_free`] (0: every state is checked).
     skip_inflation: f64,
+    /// Coarse inflation of certified segment checks; `None`: [`FastChecker::segment_free`]
+    /// gives the discrete verdict instead (tests only).
+    certify: Option<f64>,
+    /// Counts of certified checks and the smallest inflation a proof needed.
+    certify_stats: CertifyStats,
+    certify_finest: f64,
+}
+
+/// What a certified motion check found ([`FastChecker::certify_motion`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Certification {
+    /// The continuous motion is proven collision-free.
+    Free,
+    /// A state of the motion collides.
+    Collides,
+    /// Not proven either way within the refinement floor and budget (refused).
+    Unproven,
+}
+
+/// Counts of a checker's certified motion checks ([`FastChecker::certify_stats`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct CertifyStats {
+    /// Motions checked.
+    pub motions: u64,
+    /// Motions proven collision-free.
+    pub proven_free: u64,
+    /// Motions with a state in collision.
+    pub collides: u64,
+    /// Motions refused as not provable (refinement floor or budget reached).
+    pub unproven: u64,
+    /// Largest body inflation of the coarse level (metres).
+    pub max_inflation: f64,
+    /// Smallest body inflation (metres) a refinement may reach before it refuses.
+    pub floor: f64,
+    /// Smallest largest-body inflation (metres) that a proof of a free motion needed (how
+    /// close a certified motion came to a contact, roughly; 0 when none was proven).
+    pub finest_inflation: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -725,6 +762,9 @@ impl FastChecker {
             frozen: None,
             sweep: Default::default(),
             skip_inflation: FastChecker::SKIP_INFLATION,
+            certify: Some(FastChecker::CERTIFY_INFLATION),
+            certify_stats: CertifyStats::default(),
+            certify_finest: f64::INFINITY,
         };
         if let Some((active, q0)) = freeze {
             checker.split_constant_pairs(active, q0);
@@ -834,16 +874,104 @@ impl FastChecker {
         };
     }
 
-    /// The motion check of planners: `Some(true)` exactly when every state
-    /// `a + (b − a)·k/n`, k = 1..=n, is free, proving runs of states free together where it can
-    /// ([`Self::segment_free_skipping`] with the inflation of [`Self::set_skip_inflation`]);
-    /// `None` when the states are best checked one by one.
+    /// The motion check of planners. With certification on (the default,
+    /// [`Self::set_certification`]): `Some(true)` exactly when [`Self::motion_certified`]
+    /// proves the continuous motion `a → b` free (`n` is not used). Off (tests of the discrete
+    /// check): `Some(true)` exactly when every state `a + (b − a)·k/n`, k = 1..=n, is free,
+    /// proving runs of states free together where it can ([`Self::segment_free_skipping`] with
+    /// the inflation of [`Self::set_skip_inflation`]), `None` when the states are best checked
+    /// one by one.
     pub fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
+        if let Some(d) = self.certify {
+            return Some(self.segment_certified(a, b, d));
+        }
         if self.skip_inflation > 0.0 {
             self.segment_free_skipping(a, b, n, self.skip_inflation)
         } else {
             None
         }
+    }
+
+    /// Default coarse inflation (metres) of certified motion checks: the skip inflation of the
+    /// discrete check, measured best there (`bench planners`, [`Self::SKIP_INFLATION`]).
+    pub const CERTIFY_INFLATION: f64 = 0.06;
+
+    /// Smallest body inflation (metres) a certified check refines down to before refusing.
+    pub const CERTIFY_FLOOR: f64 = sweep::CERTIFY_FLOOR;
+
+    /// Certified motion checks in [`Self::segment_free`] with a coarse inflation of at most
+    /// `max_inflation` metres (`Some`), or the discrete verdict of the states (`None`, or a
+    /// non-positive inflation).
+    pub fn set_certification(&mut self, max_inflation: Option<f64>) {
+        self.certify = max_inflation.filter(|d| d.is_finite() && *d > 0.0);
+    }
+
+    /// The coarse inflation of certified checks in [`Self::segment_free`], when on.
+    pub fn certification(&self) -> Option<f64> {
+        self.certify
+    }
+
+    /// True only when the straight motion `a → b` between world configurations (both ends
+    /// included; any variables may move) is proven collision-free for every checked pair of the
+    /// world — robot links, attached objects and fixed bodies, several robots at once — as a
+    /// continuous motion, not only at sampled states. [`Self::segment_certified`] with the
+    /// coarse inflation of [`Self::set_certification`] ([`Self::CERTIFY_INFLATION`] when off).
+    ///
+    /// Bound: along the motion no point of body `i` moves farther than
+    /// `L_i = Σ_v |b_v − a_v|·w_iv` ([`crate::kinematics::FkModel::speed_bounds`]), so a run
+    /// `[t0, t1]` is free when both its ends are free with every body grown by
+    /// `L_i·(t1 − t0)/2` (pairs of moving bodies: the joints below their common ancestor, on
+    /// both sides). Proven in this checker's model, which contains the exact geometry (meshes as
+    /// the box around their vertices, every primitive grown by 1e-9 m and the padding).
+    /// Conservative: motions it cannot prove (closer than [`Self::CERTIFY_FLOOR`] to a contact,
+    /// too many refinements, a prismatic variable outside its limits, unbounded speeds,
+    /// non-finite values) are answered `false`.
+    pub fn motion_certified(&mut self, a: &[f64], b: &[f64]) -> bool {
+        let d = self.certify.unwrap_or(FastChecker::CERTIFY_INFLATION);
+        self.segment_certified(a, b, d)
+    }
+
+    /// [`Self::motion_certified`] with the coarse inflation `max_inflation` (metres): the
+    /// motion is cut into equal runs whose bodies grow by at most `max_inflation`; a run whose
+    /// ends are free only without the inflation ("tight") is halved, recursively, re-testing
+    /// only the pairs tight at its ends, until every run is proven free (true), a state
+    /// collides (false), or the inflation falls below [`Self::CERTIFY_FLOOR`] or 4 096
+    /// halvings are spent (false: not provable).
+    pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
+        self.certify_motion(a, b, max_inflation) == Certification::Free
+    }
+
+    /// [`Self::segment_certified`] with the reason of a refusal; counted in
+    /// [`Self::certify_stats`].
+    pub fn certify_motion(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> Certification {
+        let r = self.certify_segment(a, b, max_inflation);
+        let st = &mut self.certify_stats;
+        st.motions += 1;
+        st.max_inflation = st.max_inflation.max(max_inflation);
+        match r {
+            Certification::Free => st.proven_free += 1,
+            Certification::Collides => st.collides += 1,
+            Certification::Unproven => st.unproven += 1,
+        }
+        r
+    }
+
+    /// Starts the counts of [`Self::certify_stats`] again.
+    pub fn reset_certify_stats(&mut self) {
+        self.certify_stats = CertifyStats::default();
+        self.certify_finest = f64::INFINITY;
+    }
+
+    /// Counts of the certified motion checks since the last [`Self::reset_certify_stats`].
+    pub fn certify_stats(&self) -> CertifyStats {
+        let mut s = self.certify_stats;
+        s.floor = FastChecker::CERTIFY_FLOOR;
+        s.finest_inflation = if self.certify_finest.is_finite() {
+            self.certify_finest
+        } else {
+            0.0
+        };
+        s
     }
 
     /// Number of body pairs tested per check (before bounding-sphere culling).
@@ -884,6 +1012,50 @@ impl FastChecker {
         }
     }
 
+    /// [`Self::prepare`] for a test of the pairs `focus` only (indices into the pair list):
+    /// the frames of the robots they involve and their bodies' bounding-sphere centres (not the
+    /// box around all moving bodies).
+    fn prepare_focused(&mut self, q: &[f64], focus: &[u32]) {
+        let nr = self.world.robots.len();
+        let mut robots = 0u64;
+        for &pi in focus {
+            let p = self.pairs[pi as usize];
+            robots |= 1 << (self.moving[p.a as usize].mount.robot % 64);
+            if !p.b_static {
+                robots |= 1 << (self.moving[p.b as usize].mount.robot % 64);
+            }
+        }
+        for (r, p) in self.world.robots.iter().enumerate() {
+            if nr > 64 || robots & (1 << r) != 0 {
+                let dof = p.robot.dof();
+                self.fk[r].compute(
+                    &self.bases[r],
+                    &q[p.offset..p.offset + dof],
+                    &mut self.link_poses[r],
+                );
+            }
+        }
+        for &pi in focus {
+            let p = self.pairs[pi as usize];
+            let b_moving = (!p.b_static).then_some(p.b as usize);
+            for i in std::iter::once(p.a as usize).chain(b_moving) {
+                if self.prims_ready[i] != PERMANENT {
+                    let b = &self.moving[i];
+                    let f = &self.link_poses[b.mount.robot][b.mount.link];
+                    self.body_bc[i] = f.rot * b.bc + f.t;
+                }
+            }
+        }
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 || self.epoch == PERMANENT {
+            self.prims_ready
+                .iter_mut()
+                .filter(|e| **e != PERMANENT)
+                .for_each(|e| *e = 0);
+            self.epoch = 1;
+        }
+    }
+
     #[inline]
     fn ensure_prims(&mut self, i: usize) {
         if self.prims_ready[i] == self.epoch || self.prims_ready[i] == PERMANENT {
@@ -905,9 +1077,14 @@ impl FastChecker {
                 // Moved outside the active variables: freeze at this configuration instead.
                 let active = f.active.clone();
                 let (checks, skip) = (self.checks, self.skip_inflation);
+                let (certify, stats, finest) =
+                    (self.certify, self.certify_stats, self.certify_finest);
                 *self = FastChecker::build(&self.world.clone(), self.settings, Some((&active, q)));
                 self.checks = checks;
                 self.skip_inflation = skip;
+                self.certify = certify;
+                self.certify_stats = stats;
+                self.certify_finest = finest;
             }
             if let Some(p) = self.frozen.as_ref().and_then(|f| f.constant_hit) {
                 return Some(p);

@@ -142,6 +142,7 @@ impl<C: SegmentChecker> IkRrt<C> {
         seed: u64,
     ) -> Result<PlanResult, PlanError> {
         let t0 = Instant::now();
+        self.validator.reset_certify_stats();
         let counters = (t0, self.validator.checks(), self.validator.segments());
         let ik0 = goals.ik_calls();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -555,7 +555,8 @@ enum GoalExt {
 impl<C: SegmentChecker> Core<C> {
     /// The search's start time and the validator's check and segment counts now (what
     /// `solution` and `stopped` report against).
-    fn counters(&self) -> (Instant, u64, u64) {
+    fn counters(&mut self) -> (Instant, u64, u64) {
+        self.validator.reset_certify_stats();
         (
             Instant::now(),
             self.validator.checks(),

@@ -45,6 +45,10 @@ pub struct PlanStats {
     pub jacobian_steps: u64,
     /// Times the search started over with a new tree (J+-RRT family, `restart_nodes`).
     pub restarts: u64,
+    /// The certified motion checks of the search, shortcutting and final re-validation (`None`
+    /// when the checker does not certify motions this way): every returned segment is then
+    /// proven collision-free as a continuous motion in the fast model.
+    pub certification: Option<crate::collision::CertifyStats>,
 }
 
 impl PlanStats {
@@ -68,6 +72,15 @@ impl PlanStats {
             "ik_calls": self.ik_calls,
             "jacobian_steps": self.jacobian_steps,
             "restarts": self.restarts,
+            "certification": self.certification.map(|c| serde_json::json!({
+                "motions": c.motions,
+                "proven_free": c.proven_free,
+                "collides": c.collides,
+                "unproven": c.unproven,
+                "max_inflation_m": c.max_inflation,
+                "floor_m": c.floor,
+                "finest_inflation_m": c.finest_inflation,
+            })),
         })
     }
 }

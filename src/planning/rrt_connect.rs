@@ -199,6 +199,7 @@ impl<C: SegmentChecker> RrtConnect<C> {
         seed: u64,
     ) -> Result<PlanResult, PlanError> {
         let t0 = Instant::now();
+        self.validator.reset_certify_stats();
         let checks0 = self.validator.checks();
         let segments0 = self.validator.segments();
         let mut rng = PlannerRng::seed_from_u64(seed);
@@ -423,6 +424,7 @@ pub(super) fn finish<C: SegmentChecker>(
     }
     stats.collision_checks = validator.checks() - checks0;
     stats.segments_checked = validator.segments() - segments0;
+    stats.certification = validator.certify_stats();
     stats.length_simplified = validator.space().path_length(&path);
     stats.vertices_simplified = path.len();
     Ok((path, stats))
@@ -437,6 +439,7 @@ pub(super) fn stopped<C: SegmentChecker>(
 ) -> PlanError {
     stats.collision_checks = validator.checks() - checks0;
     stats.segments_checked = validator.segments() - segments0;
+    stats.certification = validator.certify_stats();
     stats.time = t0.elapsed();
     let reason = term.reason().unwrap_or(super::StopReason::Requested);
     PlanError::stopped(reason, stats)

@@ -6,8 +6,8 @@
 
 use super::JointSpace;
 use crate::collision::{
-    AutoChecker, CollisionChecker, CollisionWorld, Contact, ExactChecker, FastChecker,
-    MotionValidator, SphereChecker,
+    AutoChecker, CertifyStats, CollisionChecker, CollisionWorld, Contact, ExactChecker,
+    FastChecker, MotionValidator, SphereChecker,
 };
 
 /// A collision checker that may check a whole straight segment itself (e.g. several states per
@@ -28,12 +28,38 @@ pub trait SegmentChecker: CollisionChecker {
     fn segment_certified(&mut self, _a: &[f64], _b: &[f64], _max_inflation: f64) -> Option<bool> {
         None
     }
+
+    /// Counts of the certified motion checks since the last [`Self::reset_certify_stats`],
+    /// when this checker certifies its segment checks.
+    fn certify_stats(&self) -> Option<CertifyStats> {
+        None
+    }
+
+    /// Starts the counts of [`Self::certify_stats`] again.
+    fn reset_certify_stats(&mut self) {}
 }
 
 impl SegmentChecker for FastChecker {
+    /// Certified by default ([`FastChecker::segment_free`]): `Some(true)` only when the
+    /// continuous motion is proven free.
     #[inline]
     fn segment_free(&mut self, a: &[f64], b: &[f64], n: usize) -> Option<bool> {
         FastChecker::segment_free(self, a, b, n)
+    }
+
+    #[inline]
+    fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> Option<bool> {
+        Some(FastChecker::segment_certified(self, a, b, max_inflation))
+    }
+
+    fn certify_stats(&self) -> Option<CertifyStats> {
+        self.certification()
+            .is_some()
+            .then(|| FastChecker::certify_stats(self))
+    }
+
+    fn reset_certify_stats(&mut self) {
+        FastChecker::reset_certify_stats(self)
     }
 }
 impl SegmentChecker for ExactChecker {}
@@ -61,7 +87,20 @@ impl SegmentChecker for AutoChecker {
     fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> Option<bool> {
         match self {
             AutoChecker::Spheres(s) => SegmentChecker::segment_certified(s, a, b, max_inflation),
-            AutoChecker::Fast(_) => None,
+            AutoChecker::Fast(f) => SegmentChecker::segment_certified(f, a, b, max_inflation),
+        }
+    }
+
+    fn certify_stats(&self) -> Option<CertifyStats> {
+        match self {
+            AutoChecker::Spheres(_) => None,
+            AutoChecker::Fast(f) => SegmentChecker::certify_stats(f),
+        }
+    }
+
+    fn reset_certify_stats(&mut self) {
+        if let AutoChecker::Fast(f) = self {
+            f.reset_certify_stats()
         }
     }
 }
@@ -140,6 +179,17 @@ impl<C: SegmentChecker> SpaceValidator<C> {
     /// Configuration checks performed so far by the checker.
     pub fn checks(&self) -> u64 {
         self.motion.checker.checks()
+    }
+
+    /// Counts of the checker's certified motion checks since the last
+    /// [`Self::reset_certify_stats`] (`None`: its segment checks are not certified this way).
+    pub fn certify_stats(&self) -> Option<CertifyStats> {
+        self.motion.checker.certify_stats()
+    }
+
+    /// Starts the counts of [`Self::certify_stats`] again (at the start of a search).
+    pub fn reset_certify_stats(&mut self) {
+        self.motion.checker.reset_certify_stats()
     }
 
     /// Segments checked so far.

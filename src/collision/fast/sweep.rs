@@ -57,11 +57,33 @@ pub(super) struct Sweep {
     /// share of the segment (a body's inflation is `scale` times its travel).
     lmax: f64,
     scale: f64,
+    /// World variables that drive a prismatic joint, with their limits: the speed bounds
+    /// count the joint's travel within its limits, so a certified motion must stay inside them.
+    prismatic: Vec<(u32, f64, f64)>,
     // Buffers.
     q: Vec<f64>,
     order: Vec<u32>,
     order_n: usize,
     ends: Vec<End>,
+    /// Certification: tight pair lists (index ranges into `pool`) of the coarse states, the
+    /// pair lists themselves, the refinement stack and a scratch pair list.
+    state_tight: Vec<(u32, u32)>,
+    pool: Vec<u32>,
+    stack: Vec<Refine>,
+    next: Vec<Refine>,
+    focus: Vec<u32>,
+    end_focus: Vec<u32>,
+}
+
+/// A run `[t0, t1]` of a certified check still to prove: the pairs tight at each end with the
+/// inflation of a run of its length (ranges into the pool). Every other pair is already proven
+/// free along the run.
+#[derive(Debug, Clone, Copy)]
+struct Refine {
+    t0: f64,
+    t1: f64,
+    e0: (u32, u32),
+    e1: (u32, u32),
 }
 
 /// A run end in [`FastChecker::segment_free_skipping`].
@@ -133,7 +155,32 @@ impl Sweep {
             })
             .collect();
         let np = c.pairs.len();
+        let mut prismatic = Vec::new();
+        for p in &c.world.robots {
+            for j in &p.robot.joints {
+                if j.kind != crate::model::JointKind::Prismatic {
+                    continue;
+                }
+                if let Some(v) = j.var.or(j.mimic.as_ref().map(|m| m.var)) {
+                    let lim = p.robot.var_limits(v);
+                    if !lim.bounded {
+                        continue;
+                    }
+                    let wv = (p.offset + v) as u32;
+                    if !prismatic.iter().any(|&(x, _, _)| x == wv) {
+                        prismatic.push((wv, lim.lower, lim.upper));
+                    }
+                }
+            }
+        }
         Sweep {
+            prismatic,
+            state_tight: Vec::new(),
+            pool: Vec::new(),
+            stack: Vec::new(),
+            next: Vec::new(),
+            focus: Vec::new(),
+            end_focus: Vec::new(),
             pair_reach0: c
                 .pairs
                 .iter()
@@ -325,6 +372,19 @@ impl FastChecker {
     /// part of their motion below their common ancestor). `q` agrees with a frozen checker's
     /// fixed variables (the caller checked).
     fn check_inflated(&mut self, s: &Sweep, q: &[f64]) -> Inflated {
+        self.check_inflated_logging(s, q, None)
+    }
+
+    /// [`Self::check_inflated`]; with `log`, every pair free with the plain primitives but not
+    /// with the inflated ones is appended to it (all of them: the check goes on after the
+    /// first), for the refinement of a certified check.
+    fn check_inflated_logging(
+        &mut self,
+        s: &Sweep,
+        q: &[f64],
+        mut log: Option<&mut Vec<u32>>,
+    ) -> Inflated {
+        let logging = log.is_some();
         self.checks += 1;
         if self.frozen.as_ref().and_then(|f| f.constant_hit).is_some() {
             return Inflated::Hit;
@@ -340,7 +400,7 @@ impl FastChecker {
                 continue;
             }
             for pi in first as usize..end as usize {
-                if tight {
+                if tight && !logging {
                     // Tight already: only a collision can change the answer.
                     if self.static_pair_hits(pi) {
                         return Inflated::Hit;
@@ -357,13 +417,16 @@ impl FastChecker {
                 }
                 if d > 0.0 && !self.static_prims_hit(a, sb) {
                     tight = true;
+                    if let Some(l) = log.as_deref_mut() {
+                        l.push(pi as u32);
+                    }
                 } else {
                     return Inflated::Hit;
                 }
             }
         }
         for pi in self.self_start..self.pairs.len() {
-            if tight {
+            if tight && !logging {
                 if self.moving_pair_hits(self.pairs[pi]) {
                     return Inflated::Hit;
                 }
@@ -378,6 +441,9 @@ impl FastChecker {
             }
             if d > 0.0 && !self.moving_prims_hit(a, b) {
                 tight = true;
+                if let Some(l) = log.as_deref_mut() {
+                    l.push(pi as u32);
+                }
             } else {
                 return Inflated::Hit;
             }
@@ -389,3 +455,279 @@ impl FastChecker {
         }
     }
 }
+
+/// The state `a + (b − a)·t` into `out`.
+#[inline]
+fn lerp(a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {
+    for ((q, &x), &y) in out.iter_mut().zip(a).zip(b) {
+        *q = x + (y - x) * t;
+    }
+}
+
+/// Parameter of state `k` of `runs` equal runs (1 exactly for the last).
+#[inline]
+fn run_param(k: usize, runs: usize) -> f64 {
+    if k >= runs {
+        1.0
+    } else {
+        k as f64 / runs as f64
+    }
+}
+
+impl FastChecker {
+    /// Certified check of the continuous straight motion `a → b` (both ends included) with
+    /// every body inflated by at most `max_inflation` metres at the coarse level; see
+    /// [`FastChecker::segment_certified`] for what is proven.
+    pub(super) fn certify_segment(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+    ) -> super::Certification {
+        use super::Certification;
+        let dof = self.world.dof();
+        if a.len() != dof
+            || b.len() != dof
+            || !a.iter().chain(b).all(|v| v.is_finite())
+            || !(max_inflation.is_finite() && max_inflation > 0.0)
+            || !self.sweep.bounded
+        {
+            return Certification::Unproven;
+        }
+        // The speed bounds count prismatic travel within the limits only.
+        let inside = |q: &[f64]| {
+            self.sweep.prismatic.iter().all(|&(v, lo, hi)| {
+                let x = q[v as usize];
+                lo <= x && x <= hi
+            })
+        };
+        if !(inside(a) && inside(b)) {
+            return Certification::Unproven;
+        }
+        if let Some(f) = &self.frozen {
+            let same = |q: &[f64]| f.fixed.iter().all(|&(v, x)| q[v].to_bits() == x.to_bits());
+            if !(same(a) && same(b)) {
+                // The motion moves frozen variables: certify with a checker of the whole world
+                // (slow, allocates; planners never do this).
+                let mut full = FastChecker::build(&self.world, self.settings, None);
+                let r = full.certify_segment(a, b, max_inflation);
+                self.checks += full.checks;
+                return r;
+            }
+        }
+        let mut s = std::mem::take(&mut self.sweep);
+        let mut pool = std::mem::take(&mut s.pool);
+        let mut q = std::mem::take(&mut s.q);
+        let r = self.certify(&mut s, &mut pool, &mut q, a, b, max_inflation);
+        s.pool = pool;
+        s.q = q;
+        self.sweep = s;
+        r
+    }
+
+    fn certify(
+        &mut self,
+        s: &mut Sweep,
+        pool: &mut Vec<u32>,
+        q: &mut [f64],
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+    ) -> super::Certification {
+        use super::Certification;
+        s.lengths(a, b);
+        let lmax = s.lmax;
+        if !lmax.is_finite() {
+            return Certification::Unproven;
+        }
+        // Coarse level: equal runs, each end state checked with the bodies grown for a run.
+        let runs = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, CERTIFY_MAX_RUNS);
+        let h = 1.0 / runs as f64;
+        s.set_inflation(h);
+        if s.order_n != runs {
+            super::super::motion::bisection_order(runs, &mut s.order);
+            s.order_n = runs;
+        }
+        pool.clear();
+        s.state_tight.clear();
+        s.state_tight.resize(runs + 1, (0, 0));
+        for idx in 0..=runs {
+            let k = if idx < runs { s.order[idx] as usize } else { 0 };
+            lerp(a, b, run_param(k, runs), q);
+            let start = pool.len() as u32;
+            if self.check_inflated_logging(s, q, Some(pool)) == Inflated::Hit {
+                return Certification::Collides;
+            }
+            s.state_tight[k] = (start, pool.len() as u32);
+        }
+        s.stack.clear();
+        for i in 0..runs {
+            let (e0, e1) = (s.state_tight[i], s.state_tight[i + 1]);
+            if e0.0 < e0.1 || e1.0 < e1.1 {
+                s.stack.push(Refine {
+                    t0: run_param(i, runs),
+                    t1: run_param(i + 1, runs),
+                    e0,
+                    e1,
+                });
+            }
+        }
+        let mut finest = 0.5 * h * lmax;
+        // Refinement, level by level: every run still to prove is halved; its ends are checked
+        // again with the halved inflation (each against the pairs tight there only: a pair free
+        // there with the larger inflation is free with the smaller; an end shared with the
+        // previous run is checked once), its midpoint against the pairs tight at either end
+        // (every other pair is proven free along the whole run). A half whose ends leave no
+        // pair tight is proven free.
+        let mut budget = CERTIFY_MAX_REFINEMENTS;
+        let mut h = h;
+        while !s.stack.is_empty() {
+            let hh = 0.5 * h;
+            if budget < s.stack.len() || 0.5 * hh * lmax < CERTIFY_FLOOR {
+                return Certification::Unproven;
+            }
+            budget -= s.stack.len();
+            finest = finest.min(0.5 * hh * lmax);
+            s.next.clear();
+            // The previous run's end: (its parameter, its list at the coarser level, its list
+            // at this level).
+            let mut prev: Option<(f64, (u32, u32), (u32, u32))> = None;
+            for ri in 0..s.stack.len() {
+                let r = s.stack[ri];
+                let e0 = match prev {
+                    Some((t, list, done)) if t.to_bits() == r.t0.to_bits() && list == r.e0 => done,
+                    _ => match self.check_listed(s, pool, q, a, b, r.t0, hh, r.e0) {
+                        Some(x) => x,
+                        None => return Certification::Collides,
+                    },
+                };
+                let e1 = match self.check_listed(s, pool, q, a, b, r.t1, hh, r.e1) {
+                    Some(x) => x,
+                    None => return Certification::Collides,
+                };
+                prev = Some((r.t1, r.e1, e1));
+                let tm = 0.5 * (r.t0 + r.t1);
+                s.focus.clear();
+                s.focus
+                    .extend_from_slice(&pool[r.e0.0 as usize..r.e0.1 as usize]);
+                s.focus
+                    .extend_from_slice(&pool[r.e1.0 as usize..r.e1.1 as usize]);
+                s.focus.sort_unstable();
+                s.focus.dedup();
+                let start = pool.len() as u32;
+                if self.check_focused(s, q, a, b, tm, hh, &s.focus, pool) == Inflated::Hit {
+                    return Certification::Collides;
+                }
+                let em = (start, pool.len() as u32);
+                for (t0, t1, x, y) in [(r.t0, tm, e0, em), (tm, r.t1, em, e1)] {
+                    if x.0 < x.1 || y.0 < y.1 {
+                        s.next.push(Refine {
+                            t0,
+                            t1,
+                            e0: x,
+                            e1: y,
+                        });
+                    }
+                }
+            }
+            std::mem::swap(&mut s.stack, &mut s.next);
+            h = hh;
+        }
+        self.certify_finest = self.certify_finest.min(finest);
+        Certification::Free
+    }
+
+    /// The state `a + (b − a)·t` against the pairs of `pool[list]` with the inflation of a run
+    /// of length `h`: the range of the pairs still tight there (appended to the pool), `None`
+    /// when a pair collides.
+    #[allow(clippy::too_many_arguments)]
+    fn check_listed(
+        &mut self,
+        s: &mut Sweep,
+        pool: &mut Vec<u32>,
+        q: &mut [f64],
+        a: &[f64],
+        b: &[f64],
+        t: f64,
+        h: f64,
+        list: (u32, u32),
+    ) -> Option<(u32, u32)> {
+        // (Copied: the tight pairs found are appended to the pool.)
+        s.end_focus.clear();
+        s.end_focus
+            .extend_from_slice(&pool[list.0 as usize..list.1 as usize]);
+        let start = pool.len() as u32;
+        if self.check_focused(s, q, a, b, t, h, &s.end_focus, pool) == Inflated::Hit {
+            return None;
+        }
+        Some((start, pool.len() as u32))
+    }
+
+    /// The state `a + (b − a)·t` against the pairs `focus` only, every pair's primitives grown
+    /// for a run of length `h` (as [`Self::check_inflated`]); the pairs tight there are appended
+    /// to `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn check_focused(
+        &mut self,
+        s: &Sweep,
+        q: &mut [f64],
+        a: &[f64],
+        b: &[f64],
+        t: f64,
+        h: f64,
+        focus: &[u32],
+        out: &mut Vec<u32>,
+    ) -> Inflated {
+        if focus.is_empty() {
+            return Inflated::Free;
+        }
+        lerp(a, b, t, q);
+        self.checks += 1;
+        self.prepare_focused(q, focus);
+        let scale = 0.5 * h;
+        let mut tight = false;
+        for &pi in focus {
+            let pi = pi as usize;
+            let p = self.pairs[pi];
+            let (ca, cb) = s.pair_cum[pi];
+            let d = scale * (s.cum[ca as usize] + s.cum[cb as usize]);
+            let reach = s.pair_reach0[pi] + d;
+            let (x, y) = (p.a as usize, p.b as usize);
+            let near = if p.b_static {
+                let st = &self.statics[y];
+                dist2_point_aabb(&self.body_bc[x], &st.lo, &st.hi) <= reach * reach
+                    && self.static_prims_hit_by(x, y, d)
+            } else {
+                (self.body_bc[x] - self.body_bc[y]).norm_squared() <= reach * reach
+                    && self.moving_prims_hit_by(x, y, d)
+            };
+            if !near {
+                continue;
+            }
+            let plain = d <= 0.0
+                || if p.b_static {
+                    self.static_prims_hit(x, y)
+                } else {
+                    self.moving_prims_hit(x, y)
+                };
+            if plain {
+                return Inflated::Hit;
+            }
+            tight = true;
+            out.push(pi as u32);
+        }
+        if tight {
+            Inflated::Tight
+        } else {
+            Inflated::Free
+        }
+    }
+}
+
+/// Most coarse runs of a certified check (a longer motion is covered by larger inflations).
+const CERTIFY_MAX_RUNS: usize = 4096;
+/// Most refinement steps (halvings) of one certified check before it gives up (unproven).
+const CERTIFY_MAX_REFINEMENTS: usize = 4096;
+/// Smallest body inflation (metres) a refinement goes down to before it gives up (unproven):
+/// a motion passing closer than this to a contact is refused.
+pub(super) const CERTIFY_FLOOR: f64 = 1e-6;
