@@ -1351,19 +1351,3 @@ mod tests {
         assert!(!sphere_hits(&Vector3::new(0.0, 0.251, 0.0), 0.05, &b));
     }
 }
-
-// TEMPORARY until the certified segment check of issue 27 lands (branch issue-27): a dense
-// discrete check, NOT a proof. Replaced by the merge.
-impl FastChecker {
-    pub fn motion_certified(&mut self, a: &[f64], b: &[f64]) -> bool {
-        let n = 64;
-        let mut q = a.to_vec();
-        (0..=n).all(|k| {
-            let t = k as f64 / n as f64;
-            for ((x, &p), &r) in q.iter_mut().zip(a).zip(b) {
-                *x = p + (r - p) * t;
-            }
-            self.is_free(&q)
-        })
-    }
-}
