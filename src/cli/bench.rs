@@ -45,6 +45,9 @@ pub enum BenchCmd {
     Planners(super::bench_planners::PlannersBenchArgs),
     /// MotionBenchMaker problem sets (Panda, Baxter) with RRT-Connect, paths verified exactly.
     Mbm(super::mbm::MbmArgs),
+    /// Multi-Robot-RRT (002 Tables I and II): two robots in `kitchen_two`, three robots in
+    /// `boxes_three` with 30 random boxes per seed; N seeded runs each, the paper's row beside.
+    MultiRobot(super::multi_robot::BenchArgs),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -59,6 +62,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
             print_rows(ctx, &rows);
         }
         BenchCmd::Mbm(a) => super::mbm::run(ctx, a)?,
+        BenchCmd::MultiRobot(a) => super::multi_robot::bench(ctx, a)?,
         BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
         BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
     }

@@ -158,3 +158,180 @@ pub fn schedule(ctx: &Ctx, a: &ScheduleArgs) -> Result<()> {
     });
     Ok(())
 }
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Seeded runs per table.
+    #[arg(long, default_value_t = 30)]
+    pub runs: u64,
+    /// First seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Seconds per run (a run over it counts as a failure).
+    #[arg(long, default_value_t = 5.0)]
+    pub time_limit: f64,
+    /// Only the table whose name contains this (`two`, `three`).
+    #[arg(long)]
+    pub only: Option<String>,
+    #[arg(long, default_value = "data/reach")]
+    pub grid_dir: std::path::PathBuf,
+}
+
+/// One table's rows: (total ms, phase-space ms, IK results, solutions, checks, combinations,
+/// mean score ms) of the solved runs, and the run count.
+fn bench_table(ctx: &Ctx, a: &BenchArgs, scene: &str, boxes: usize, paper: &str) -> Result<()> {
+    use manyhands::collision::{random_boxes, RandomBoxes};
+    let base = ctx.scene(scene)?;
+    let names = robot_names(&base, &[]);
+    let cache = GridCache::new(Some(a.grid_dir.clone()));
+    let lib = ctx.library()?;
+    let mut rows: Vec<[f64; 8]> = Vec::new();
+    for run in 0..a.runs {
+        let seed = a.seed + run;
+        let scene = if boxes > 0 {
+            let p = RandomBoxes {
+                count: boxes,
+                seed,
+                lo: [-3.0, -3.0, 0.1],
+                hi: [3.0, 3.0, 1.8],
+                ..RandomBoxes::default()
+            };
+            random_boxes(&base, &p, &lib)?
+        } else {
+            base.clone()
+        };
+        let p = MultiRobotProblem::with_grids(
+            &scene,
+            &names,
+            "torso_left_arm",
+            "torso_right_arm",
+            "table",
+            &cache,
+            GridRecipe::default(),
+            Default::default(),
+        )?;
+        let mut term = manyhands::planning::Termination::new()
+            .with_time_limit(std::time::Duration::from_secs_f64(a.time_limit));
+        let t = std::time::Instant::now();
+        let r = multi_robot_rrt(
+            &p,
+            &MultiRobotSettings::default(),
+            &mut term,
+            seed,
+            &mut |_| {},
+        );
+        let ms = t.elapsed().as_secs_f64() * 1e3 + p.map_time.as_secs_f64() * 1e3;
+        if let Ok(plan) = r {
+            let st = &plan.stats;
+            rows.push([
+                ms,
+                st.phase_space_time.as_secs_f64() * 1e3,
+                st.ik_results() as f64,
+                st.solutions() as f64,
+                st.collision_checks() as f64,
+                st.combinations as f64,
+                if st.scores > 0 {
+                    st.score_time.as_secs_f64() * 1e3 / st.scores as f64
+                } else {
+                    0.0
+                },
+                plan.schedule.duration,
+            ]);
+        }
+    }
+    let n = rows.len();
+    let col = |k: usize| -> Vec<f64> {
+        let mut v: Vec<f64> = rows.iter().map(|r| r[k]).collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let median = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v[v.len() / 2]
+        }
+    };
+    let mean = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    };
+    let p95 = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v[((v.len() as f64 * 0.95).ceil() as usize).clamp(1, v.len()) - 1]
+        }
+    };
+    let t = col(0);
+    println!(
+        "{scene} ({} robots{}): solved {n}/{} within {} s",
+        names.len(),
+        if boxes > 0 {
+            format!(", {boxes} random boxes per seed")
+        } else {
+            String::new()
+        },
+        a.runs,
+        a.time_limit
+    );
+    println!(
+        "  {:<28} {:>10} {:>10} {:>10} {:>8} {:>8} {:>10} {:>8} {:>10} {:>10}",
+        "",
+        "median ms",
+        "mean ms",
+        "p95 ms",
+        "# IK",
+        "# traj",
+        "# checks",
+        "# combos",
+        "phase ms",
+        "score ms"
+    );
+    println!(
+        "  {:<28} {:>10.2} {:>10.2} {:>10.2} {:>8.1} {:>8.1} {:>10.0} {:>8.1} {:>10.2} {:>10.3}",
+        "manyhands (means but time)",
+        median(&t),
+        mean(&t),
+        p95(&t),
+        mean(&col(2)),
+        mean(&col(3)),
+        mean(&col(4)),
+        mean(&col(5)),
+        mean(&col(1)),
+        mean(&col(6)),
+    );
+    println!("  {:<28} {paper}", "paper (4 cores, means)");
+    println!(
+        "  phase space median {:.2} ms; schedule duration median {:.2} s",
+        median(&col(1)),
+        median(&col(7))
+    );
+    Ok(())
+}
+
+pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
+    let want = |s: &str| a.only.as_deref().is_none_or(|o| s.contains(o));
+    if want("two") {
+        bench_table(
+            ctx,
+            a,
+            "kitchen_two",
+            0,
+            "Table I: 9.5 s, 16.8 IK, 7.8 traj, 7028 checks, 2.8 combos, phase space 1.0 s",
+        )?;
+    }
+    if want("three") {
+        bench_table(
+            ctx,
+            a,
+            "boxes_three",
+            30,
+            "Table II: 8.9 s, 20.2 IK, 13.0 traj, 19434 checks, 37.1 combos, phase space 7.0 s",
+        )?;
+    }
+    Ok(())
+}
