@@ -16,6 +16,7 @@ pub mod grasping;
 mod ik_rrt;
 pub mod j_plus_rrt;
 pub mod mbm;
+pub mod mbm_data;
 mod result;
 mod rng;
 mod rrt_connect;
