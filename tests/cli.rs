@@ -328,3 +328,36 @@ fn plan_regrasp_with_dual_arm_j_plus_rrt() {
         "j-plus-rrt",
     ]));
 }
+
+/// `data mbm` refuses a package whose sha256 is not the published one (and leaves no folder),
+/// and `bench mbm --robot panda` without any data folder says how to get one.
+#[test]
+fn data_mbm_checks_the_package_and_bench_mbm_names_the_fetch() {
+    let dir = std::env::temp_dir().join(format!("manyhands-data-mbm-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let fake = dir.join("vamp_planner-0.6.4.tar.gz");
+    std::fs::write(&fake, b"not the package").expect("write");
+    let dest = dir.join("mbm");
+    let (code, _, err) = run(&[
+        "data",
+        "mbm",
+        "--sdist",
+        fake.to_str().expect("utf-8"),
+        "--dir",
+        dest.to_str().expect("utf-8"),
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("sha256"), "{err}");
+    assert!(!dest.exists());
+    let out = Command::new(env!("CARGO_BIN_EXE_manyhands"))
+        .args(["bench", "mbm", "--robot", "panda"])
+        .current_dir(&dir)
+        .env("MANYHANDS_MBM_DIR", dir.join("none"))
+        .output()
+        .expect("run manyhands");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("manyhands data mbm"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -571,13 +571,7 @@ fn clearance_and_margin() {
 
 fn twin_arms() -> Arc<Robot> {
     let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
-    Arc::new(
-        Robot::from_files(
-            &d.join("twin_arms.urdf"),
-            Some(&d.join("twin_arms.srdf")),
-        )
-        .unwrap(),
-    )
+    Arc::new(Robot::from_files(&d.join("twin_arms.urdf"), Some(&d.join("twin_arms.srdf"))).unwrap())
 }
 
 #[test]

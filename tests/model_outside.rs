@@ -47,11 +47,7 @@ fn baxter_loads_with_srdf() {
 #[test]
 fn twin_arms_loads_with_srdf() {
     let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
-    let r = Robot::from_files(
-        &d.join("twin_arms.urdf"),
-        Some(&d.join("twin_arms.srdf")),
-    )
-    .unwrap();
+    let r = Robot::from_files(&d.join("twin_arms.urdf"), Some(&d.join("twin_arms.srdf"))).unwrap();
     assert_eq!(r.dof(), 14);
     assert_eq!(r.group("both_arms").unwrap().vars.len(), 14);
     for side in ["left", "right"] {
@@ -63,8 +59,5 @@ fn twin_arms_loads_with_srdf() {
     assert_eq!(r.end_effectors.len(), 2);
     let spheres: usize = r.links.iter().map(|l| l.collision.len()).sum();
     assert_eq!(spheres, 4 + 2 * (3 + 6 * 3 + 4 + 6));
-    assert!(r.is_disabled(
-        r.link("left_link5").unwrap(),
-        r.link("left_link6").unwrap()
-    ));
+    assert!(r.is_disabled(r.link("left_link5").unwrap(), r.link("left_link6").unwrap()));
 }

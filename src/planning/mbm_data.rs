@@ -109,7 +109,11 @@ pub fn missing_file(dir: &Path) -> Option<PathBuf> {
 /// The cache root: `$MANYHANDS_CACHE_DIR`, else `$XDG_CACHE_HOME/manyhands`, else
 /// `$HOME/.cache/manyhands` (`None` without any of them). The data goes to `mbm/` under it.
 pub fn cache_root() -> Option<PathBuf> {
-    let var = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty()).map(PathBuf::from);
+    let var = |k: &str| {
+        std::env::var_os(k)
+            .filter(|v| !v.is_empty())
+            .map(PathBuf::from)
+    };
     var(CACHE_DIR_ENV)
         .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("manyhands")))
         .or_else(|| var("HOME").map(|d| d.join(".cache").join("manyhands")))
@@ -126,7 +130,11 @@ pub fn locate() -> Result<PathBuf, String> {
         let d = PathBuf::from(d);
         return match missing_file(&d) {
             None => Ok(d),
-            Some(f) => Err(format!("{MBM_DIR_ENV}={}: no {}", d.display(), f.display())),
+            Some(f) => Err(format!(
+                "{MBM_DIR_ENV}={}: no {} (`manyhands data mbm --dir DIR` fetches the data)",
+                d.display(),
+                f.display()
+            )),
         };
     }
     let mut places = vec![PathBuf::from(SHARED_DIR)];
@@ -243,7 +251,14 @@ pub fn download_sdist(dir: &Path, progress: &mut dyn FetchProgress) -> Result<Pa
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     progress.stage(&format!("pip download {SDIST_REQUIREMENT}"), None);
     let mut child = Command::new("python3")
-        .args(["-m", "pip", "download", "--no-deps", "--no-binary", "vamp-planner"])
+        .args([
+            "-m",
+            "pip",
+            "download",
+            "--no-deps",
+            "--no-binary",
+            "vamp-planner",
+        ])
         .args(["--disable-pip-version-check", "--progress-bar", "off"])
         .arg(SDIST_REQUIREMENT)
         .arg("-d")
@@ -470,7 +485,9 @@ fn unpack_into(
             }
         }
         let data = problem_archives.get(*robot).ok_or_else(|| {
-            archive_err(format!("no resources/{robot}/problems.tar.bz2 in the package"))
+            archive_err(format!(
+                "no resources/{robot}/problems.tar.bz2 in the package"
+            ))
         })?;
         let joints = joint_names(robot).ok_or_else(|| FetchError::Convert {
             robot: robot.to_string(),
@@ -617,12 +634,19 @@ fn scene_obstacles(doc: &Yaml) -> Result<Vec<(String, ObstacleOut)>, Bad> {
             p => yaml_pose(p, &format!("{at}.pose"))?,
         };
         let prim = &co["primitives"][0];
-        let pose = base * yaml_pose(&co["primitive_poses"][0], &format!("{at}.primitive_poses[0]"))?;
+        let pose = base
+            * yaml_pose(
+                &co["primitive_poses"][0],
+                &format!("{at}.primitive_poses[0]"),
+            )?;
         let kind = prim["type"]
             .as_str()
             .ok_or_else(|| Bad(format!("{at}.primitives[0].type: not a string")))?
             .to_string();
-        let dims = nums(&prim["dimensions"], &format!("{at}.primitives[0].dimensions"))?;
+        let dims = nums(
+            &prim["dimensions"],
+            &format!("{at}.primitives[0].dimensions"),
+        )?;
         let need = |n: usize| {
             if dims.len() < n {
                 Err(Bad(format!("{at}: a {kind} needs {n} dimensions")))
@@ -700,8 +724,8 @@ fn request_configs(doc: &Yaml, joints: &[&str]) -> Result<(Vec<f64>, Vec<f64>), 
 }
 
 /// Converts a `problems.tar.bz2` of MoveIt YAML files (`problems/SET_ROBOT/sceneNNNN.yaml`,
-/// `requestNNNN.yaml`) into the text of a `problems.json`: sets in order of first appearance
-/// (set names without `_ROBOT`), problems by index, `valid` when the start and at least one
+/// `requestNNNN.yaml`) into the text of a `problems.json`: sets in order of their first scene
+/// file in the archive (set names without `_ROBOT`), problems by index, `valid` when the start and at least one
 /// goal are collision-free for `model` (its sphere model when it has one).
 pub fn convert_problems(
     archive: &[u8],
@@ -716,7 +740,10 @@ pub fn convert_problems(
         reason,
     };
     let mut order: Vec<String> = Vec::new();
-    type Parts = (Option<Vec<(String, ObstacleOut)>>, Option<(Vec<f64>, Vec<f64>)>);
+    type Parts = (
+        Option<Vec<(String, ObstacleOut)>>,
+        Option<(Vec<f64>, Vec<f64>)>,
+    );
     let mut sets: BTreeMap<String, BTreeMap<usize, Parts>> = BTreeMap::new();
     progress.stage(&format!("convert {robot} problems"), None);
     let mut tar = tar::Archive::new(bzip2::read::BzDecoder::new(archive));
@@ -724,7 +751,8 @@ pub fn convert_problems(
         .entries()
         .map_err(|e| bad("problems.tar.bz2", format!("not a .tar.bz2: {e}")))?;
     for entry in entries {
-        let mut entry = entry.map_err(|e| bad("problems.tar.bz2", format!("not a .tar.bz2: {e}")))?;
+        let mut entry =
+            entry.map_err(|e| bad("problems.tar.bz2", format!("not a .tar.bz2: {e}")))?;
         if !entry.header().entry_type().is_file() {
             continue;
         }
@@ -754,7 +782,8 @@ pub fn convert_problems(
         let doc = docs
             .first()
             .ok_or_else(|| bad(&member, "empty YAML".into()))?;
-        if !order.contains(&set) {
+        // VAMP's script orders the sets by their first scene file.
+        if file.contains("scene") && !order.contains(&set) {
             order.push(set.clone());
         }
         let slot = sets.entry(set).or_default().entry(index).or_default();
@@ -767,11 +796,19 @@ pub fn convert_problems(
         }
         progress.advance(1);
     }
+    for set in sets.keys() {
+        if !order.contains(set) {
+            order.push(set.clone());
+        }
+    }
     if order.is_empty() {
         return Err(bad("problems.tar.bz2", "no problems".into()));
     }
     let total: usize = sets.values().map(BTreeMap::len).sum();
-    progress.stage(&format!("check {robot} starts and goals"), Some(total as u64));
+    progress.stage(
+        &format!("check {robot} starts and goals"),
+        Some(total as u64),
+    );
     let mut out = Vec::with_capacity(order.len());
     for set in order {
         let mut problems = Vec::new();

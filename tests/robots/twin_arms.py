@@ -31,11 +31,16 @@ SPHERES = {
     "link5": [(0, 0.04, -0.22, 0.06), (0, 0.06, -0.14, 0.045), (0, 0.02, -0.05, 0.05), (0, 0, 0, 0.055)],
     "link6": [(0, 0, 0, 0.05), (0.05, 0.01, 0, 0.05), (0.09, 0.02, 0, 0.045)],
     "link7": [(0, 0, 0.06, 0.05), (0.03, 0.03, 0.08, 0.035), (0.04, 0.06, 0.085, 0.025)],
-    "hand": [(0, -0.07, 0.02, 0.03), (0, -0.025, 0.02, 0.035), (0, 0.025, 0.02, 0.035), (0, 0.07, 0.02, 0.03)],
-    "fingers": [(0, -0.035, 0.08, 0.015), (0, 0.035, 0.08, 0.015)],
+    # The hand is four rigidly joined links (as the Panda's hand and fingers are in the
+    # benchmark), so that one node carries several bodies.
+    "hand": [(0, -0.025, 0.02, 0.035), (0, 0.025, 0.02, 0.035)],
+    "palm": [(0, -0.07, 0.02, 0.03), (0, 0.07, 0.02, 0.03)],
+    "leftfinger": [(0, 0.035, 0.08, 0.015)],
+    "rightfinger": [(0, -0.035, 0.08, 0.015)],
 }
 TORSO = [(0, 0, 0.1, 0.12), (0, 0, 0.25, 0.1), (0, 0.15, 0.32, 0.07), (0, -0.15, 0.32, 0.07)]
 MOUNTS = {"left": "0 0.3 0.4", "right": "0 -0.3 0.4"}
+HAND_PARTS = ["palm", "leftfinger", "rightfinger"]
 READY = [0, -0.785, 0, -2.356, 0, 1.571, 0.785]
 
 
@@ -76,8 +81,11 @@ def urdf():
             )
         out.append(f'  <link name="{p}link8"/>\n')
         out.append(fixed(p + "joint8", p + "link7", p + "link8", "0 0 0.107"))
-        out.append(link(p + "hand", SPHERES["hand"] + SPHERES["fingers"]))
+        out.append(link(p + "hand", SPHERES["hand"]))
         out.append(fixed(p + "hand_joint", p + "link8", p + "hand", rpy="0 0 -0.785398163397"))
+        for part in HAND_PARTS:
+            out.append(link(p + part, SPHERES[part]))
+            out.append(fixed(f"{p}{part}_joint", p + "hand", p + part))
         out.append(f'  <link name="{p}tcp"/>\n')
         out.append(fixed(p + "tcp_joint", p + "hand", p + "tcp", "0 0 0.1034"))
     out.append("</robot>\n")
@@ -104,9 +112,15 @@ def srdf():
         out.append(f'  <disable_collisions link1="torso" link2="{p}link1" reason="Never"/>\n')
         for a, b in zip(chain, chain[1:]):
             out.append(f'  <disable_collisions link1="{p}{a}" link2="{p}{b}" reason="Adjacent"/>\n')
+        hand = ["hand"] + HAND_PARTS
+        for i, a in enumerate(hand):
+            for b in hand[i + 1:]:
+                out.append(f'  <disable_collisions link1="{p}{a}" link2="{p}{b}" reason="Adjacent"/>\n')
+            for b in ["link5", "link6", "link7"]:
+                out.append(f'  <disable_collisions link1="{p}{a}" link2="{p}{b}" reason="Never"/>\n')
         # Two joints apart but always touching (the wrist cluster and the shoulder).
         for a, b in [("link0", "link2"), ("link1", "link3"), ("link5", "link7"),
-                     ("link6", "hand"), ("link5", "hand"), ("link2", "link4")]:
+                     ("link2", "link4")]:
             out.append(f'  <disable_collisions link1="{p}{a}" link2="{p}{b}" reason="Never"/>\n')
     out.append("</robot>\n")
     return "".join(out)
