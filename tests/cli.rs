@@ -64,13 +64,14 @@ fn robot_show_lists_dof_joints_groups_and_shapes() {
     let (code, out, _) = run(&["robot", "show", "justin"]);
     assert_eq!(code, 0);
     assert!(out.contains("43 DoF"), "{out}");
-    let v = json(&[
-        "robot",
-        "show",
-        "../shared/benchmarks/mbm/panda/panda_spherized.urdf",
-        "--json",
-    ]);
-    assert_eq!(v["dof"], 7);
+    // An outside robot by path, its SRDF found beside it.
+    let v = json(&["robot", "show", "tests/robots/twin_arms.urdf", "--json"]);
+    assert_eq!(v["dof"], 14);
+    assert!(v["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|g| g["name"] == "both_arms"));
 }
 
 #[test]
@@ -183,16 +184,21 @@ fn random_boxes_scene_is_written_and_loads() {
 /// run with as many "; "-terminated fields as declared properties, solved runs marked correct.
 #[test]
 fn bench_mbm_writes_an_ompl_benchmark_log() {
+    let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
+        return;
+    };
     let dir = std::env::temp_dir().join(format!("manyhands-ompl-log-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("tmp dir");
     let log = dir.join("mbm.log");
+    let urdf = data.join("panda/panda_spherized.urdf");
+    let problems = data.join("panda/problems.json");
     let (code, out, err) = run(&[
         "bench",
         "mbm",
         "--robot",
-        "../shared/benchmarks/mbm/panda/panda_spherized.urdf",
+        urdf.to_str().expect("utf-8 path"),
         "--problems",
-        "../shared/benchmarks/mbm/panda/problems.json",
+        problems.to_str().expect("utf-8 path"),
         "--sets",
         "table_pick,box",
         "--limit",
@@ -321,4 +327,37 @@ fn plan_regrasp_with_dual_arm_j_plus_rrt() {
         "--planner",
         "j-plus-rrt",
     ]));
+}
+
+/// `data mbm` refuses a package whose sha256 is not the published one (and leaves no folder),
+/// and `bench mbm --robot panda` without any data folder says how to get one.
+#[test]
+fn data_mbm_checks_the_package_and_bench_mbm_names_the_fetch() {
+    let dir = std::env::temp_dir().join(format!("manyhands-data-mbm-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let fake = dir.join("vamp_planner-0.6.4.tar.gz");
+    std::fs::write(&fake, b"not the package").expect("write");
+    let dest = dir.join("mbm");
+    let (code, _, err) = run(&[
+        "data",
+        "mbm",
+        "--sdist",
+        fake.to_str().expect("utf-8"),
+        "--dir",
+        dest.to_str().expect("utf-8"),
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("sha256"), "{err}");
+    assert!(!dest.exists());
+    let out = Command::new(env!("CARGO_BIN_EXE_manyhands"))
+        .args(["bench", "mbm", "--robot", "panda"])
+        .current_dir(&dir)
+        .env("MANYHANDS_MBM_DIR", dir.join("none"))
+        .output()
+        .expect("run manyhands");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("manyhands data mbm"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

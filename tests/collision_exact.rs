@@ -1,5 +1,5 @@
 //! The exact (parry3d) checker against hand-computed cases: primitive shapes, self-collision and
-//! SRDF-disabled pairs, two robots, attached objects, meshes, clearance, and the panda.
+//! SRDF-disabled pairs, two robots, attached objects, meshes, clearance, and a two-arm robot of spheres.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
@@ -117,12 +117,6 @@ fn probe(geometry: &str, obstacle_shape: Shape) -> ExactChecker {
 fn probe_with_base(geometry: &str, obstacle_shape: Shape, base: &Path) -> ExactChecker {
     let r = Arc::new(Robot::from_strings(&probe_urdf(geometry), None, base).unwrap());
     ExactChecker::new(&world(&r, vec![obstacle("o", [0.0; 3], obstacle_shape)]))
-}
-
-fn mbm(p: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/benchmarks/mbm")
-        .join(p)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -573,21 +567,16 @@ fn clearance_and_margin() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Panda
+// A two-arm robot of spheres (the suite's own, Panda arm kinematics: tests/robots/twin_arms.py)
 
-fn panda() -> Arc<Robot> {
-    Arc::new(
-        Robot::from_files(
-            &mbm("panda/panda_spherized.urdf"),
-            Some(&mbm("panda/panda.srdf")),
-        )
-        .unwrap(),
-    )
+fn twin_arms() -> Arc<Robot> {
+    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
+    Arc::new(Robot::from_files(&d.join("twin_arms.urdf"), Some(&d.join("twin_arms.srdf"))).unwrap())
 }
 
 #[test]
-fn panda_ready_is_free_and_a_box_at_the_gripper_collides() {
-    let r = panda();
+fn twin_arms_ready_is_free_and_a_box_at_the_gripper_collides() {
+    let r = twin_arms();
     let ready = r.named_config("ready").unwrap();
     let mut c = ExactChecker::new(&CollisionWorld::single(r.clone(), Pose::identity()));
     assert!(c.num_pairs() > 0);
@@ -596,7 +585,7 @@ fn panda_ready_is_free_and_a_box_at_the_gripper_collides() {
 
     let mut poses = vec![Pose::identity(); r.links.len()];
     forward(&r, &Pose::identity(), &ready, &mut poses);
-    let hand = poses[r.link("panda_hand").unwrap()].translation.vector;
+    let hand = poses[r.link("left_hand").unwrap()].translation.vector;
     let mut w = CollisionWorld::single(r.clone(), Pose::identity());
     w.statics.push(obstacle(
         "cage",
@@ -607,7 +596,7 @@ fn panda_ready_is_free_and_a_box_at_the_gripper_collides() {
     let ct = c
         .first_contact(&ready)
         .expect("box around the gripper collides");
-    assert!(ct.a.starts_with("panda/panda_"), "{ct:?}");
+    assert!(ct.a.starts_with("twin_arms/left_"), "{ct:?}");
     assert_eq!(ct.b, "obstacle:cage");
     // Moved 0.5 m above the gripper: free.
     let mut w = CollisionWorld::single(r.clone(), Pose::identity());
@@ -620,8 +609,8 @@ fn panda_ready_is_free_and_a_box_at_the_gripper_collides() {
 }
 
 #[test]
-fn panda_timing_with_ten_boxes() {
-    let r = panda();
+fn twin_arms_timing_with_ten_boxes() {
+    let r = twin_arms();
     let mut w = CollisionWorld::single(r.clone(), Pose::identity());
     // A table, shelves and posts around the robot; none at the ready pose of the gripper.
     let boxes: [([f64; 3], [f64; 3]); 10] = [
@@ -682,7 +671,7 @@ fn panda_timing_with_ten_boxes() {
         let all: Vec<f64> = part.iter().map(|r| r.0).collect();
         let free: Vec<f64> = part.iter().filter(|r| r.1).map(|r| r.0).collect();
         eprintln!(
-            "exact is_free, panda + 10 boxes ({} pairs), {label}: median {:.1} us \
+            "exact is_free, twin_arms + 10 boxes ({} pairs), {label}: median {:.1} us \
              ({} of {n} free; median of free ones {:.1} us)",
             c.num_pairs(),
             median(all),

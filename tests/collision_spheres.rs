@@ -1,16 +1,21 @@
-//! The f32 sphere checker against the exact f64 checker on MotionBenchMaker scenes: never "free"
-//! where exact collides, "free" wherever exact is free by more than the sphere model's margin;
-//! 8-lane segment checks agree with state-by-state checks.
+//! The f32 sphere checker against the exact f64 checker: never "free" where exact collides,
+//! "free" wherever exact is free by more than the sphere model's margin; 8-lane segment checks
+//! agree with state-by-state checks; certified segments are free. On the suite's own two-arm
+//! sphere robot (`tests/robots/twin_arms`) among obstacles the test draws itself (always), and on
+//! the MotionBenchMaker scenes of Panda and Baxter (skipped without their data, see
+//! `manyhands::planning::mbm_data`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use manyhands::collision::{
     AutoChecker, CollisionChecker, CollisionWorld, ExactChecker, SphereChecker,
 };
-use manyhands::geometry::Pose;
-use manyhands::planning::mbm::MbmFile;
+use manyhands::geometry::{iso_from_rpy, Pose, Shape};
+use manyhands::planning::mbm::{MbmFile, MbmObstacle, MbmProblem, MbmSet};
+use manyhands::planning::mbm_data::data_for_test;
 use manyhands::Robot;
+use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -24,27 +29,126 @@ fn random_config(r: &Robot, vars: &[usize], rng: &mut ChaCha8Rng) -> Vec<f64> {
     q
 }
 
-fn mbm(p: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/benchmarks/mbm")
-        .join(p)
+/// A MotionBenchMaker robot and its problem file (`None` without the data: the test is skipped).
+fn mbm(name: &str) -> Option<(Arc<Robot>, MbmFile)> {
+    let dir = data_for_test()?;
+    Some(mbm_in(&dir, name))
 }
 
-fn robot(name: &str) -> Arc<Robot> {
-    Arc::new(
+fn mbm_in(dir: &Path, name: &str) -> (Arc<Robot>, MbmFile) {
+    let d = dir.join(name);
+    let r = Arc::new(
         Robot::from_files(
-            &mbm(&format!("{name}/{name}_spherized.urdf")),
-            Some(&mbm(&format!("{name}/{name}.srdf"))),
+            &d.join(format!("{name}_spherized.urdf")),
+            Some(&d.join(format!("{name}.srdf"))),
         )
         .expect("robot"),
+    );
+    let file = MbmFile::load(&d.join("problems.json")).expect("problems");
+    (r, file)
+}
+
+/// The suite's own sphere robot: two arms with the Panda's kinematics on a torso.
+fn twin_arms() -> Arc<Robot> {
+    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
+    Arc::new(
+        Robot::from_files(&d.join("twin_arms.urdf"), Some(&d.join("twin_arms.srdf")))
+            .expect("tests/robots/twin_arms"),
+    )
+}
+
+/// Problems for `twin_arms` written here, in the benchmark's form: three sets of three, each
+/// with eight obstacles (boxes, cylinders and spheres of 3–15 cm, at random poses in front of
+/// and between the arms) that leave `ready` free by 2 cm, start `ready`, three free goals.
+fn twin_problems() -> (Arc<Robot>, MbmFile) {
+    let r = twin_arms();
+    let joints: Vec<String> = (0..r.dof()).map(|v| r.var_name(v).to_string()).collect();
+    let all: Vec<usize> = (0..r.dof()).collect();
+    let ready = r.named_config("ready").expect("ready");
+    let bare = CollisionWorld::single(r.clone(), Pose::identity());
+    let mut rng = ChaCha8Rng::seed_from_u64(41);
+    let mut sets = Vec::new();
+    for set in ["front", "between", "clutter"] {
+        let mut problems = Vec::new();
+        for index in 1..=3 {
+            let mut p = MbmProblem {
+                set: set.to_string(),
+                index,
+                valid: true,
+                start: ready.clone(),
+                goals: Vec::new(),
+                obstacles: Vec::new(),
+            };
+            while p.obstacles.len() < 8 {
+                let y = match set {
+                    "front" => rng.random_range(-0.6..0.6),
+                    "between" => rng.random_range(-0.2..0.2),
+                    _ => rng.random_range(-0.9..0.9),
+                };
+                let pos = [rng.random_range(0.2..0.8), y, rng.random_range(0.1..1.3)];
+                let rpy = [
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-3.0..3.0),
+                ];
+                let mut size = || rng.random_range(0.03..0.15);
+                let shape = match p.obstacles.len() % 3 {
+                    0 => Shape::Box {
+                        half_extents: Vector3::new(size(), size(), size()),
+                    },
+                    1 => Shape::Cylinder {
+                        radius: size() * 0.5,
+                        half_length: size(),
+                    },
+                    _ => Shape::Sphere { radius: size() },
+                };
+                let o = MbmObstacle {
+                    name: format!("o{}", p.obstacles.len()),
+                    pose: iso_from_rpy(pos, rpy),
+                    shape,
+                };
+                p.obstacles.push(o);
+                let world = p.world(r.clone());
+                if !ExactChecker::new(&world).is_free_with_margin(&ready, 0.02) {
+                    p.obstacles.pop();
+                }
+            }
+            let world = p.world(r.clone());
+            let mut exact = ExactChecker::new(&world);
+            while p.goals.len() < 3 {
+                let q = random_config(&r, &all, &mut rng);
+                if exact.is_free(&q) {
+                    p.goals.push(q);
+                }
+            }
+            problems.push(p);
+        }
+        sets.push(MbmSet {
+            name: set.to_string(),
+            problems,
+        });
+    }
+    assert!(
+        ExactChecker::new(&bare).is_free(&ready),
+        "ready is self-collision-free"
+    );
+    (
+        r,
+        MbmFile {
+            robot: "twin_arms".into(),
+            joints,
+            sets,
+        },
     )
 }
 
 /// Random configurations, half uniform in the limits, half near the problem's start and goals
 /// (where contacts are close); returns (exact collisions, exact free with margin).
-fn compare(name: &str, per_problem: usize, padding: f64) -> (usize, usize, usize) {
-    let r = robot(name);
-    let file = MbmFile::load(&mbm(&format!("{name}/problems.json"))).expect("problems");
+fn compare(
+    (r, file): (Arc<Robot>, MbmFile),
+    per_problem: usize,
+    padding: f64,
+) -> (usize, usize, usize) {
     let vars = file.joint_vars(&r).expect("vars");
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let (mut hits, mut clear, mut total) = (0, 0, 0);
@@ -98,8 +202,24 @@ fn compare(name: &str, per_problem: usize, padding: f64) -> (usize, usize, usize
 }
 
 #[test]
+fn twin_arms_spheres_agree_with_exact() {
+    let (hits, clear, total) = compare(twin_problems(), 1500, 0.0);
+    assert!(
+        hits > total / 10 && clear > total / 10,
+        "{hits} {clear} {total}"
+    );
+}
+
+#[test]
+fn twin_arms_padded_spheres_are_conservative() {
+    let (hits, clear, total) = compare(twin_problems(), 300, 0.005);
+    assert!(hits > 0 && clear > 0, "{hits} {clear} {total}");
+}
+
+#[test]
 fn panda_spheres_agree_with_exact() {
-    let (hits, clear, total) = compare("panda", 1500, 0.0);
+    let Some(data) = mbm("panda") else { return };
+    let (hits, clear, total) = compare(data, 1500, 0.0);
     assert!(
         hits > total / 10 && clear > total / 10,
         "{hits} {clear} {total}"
@@ -108,13 +228,15 @@ fn panda_spheres_agree_with_exact() {
 
 #[test]
 fn panda_padded_spheres_are_conservative() {
-    let (hits, clear, total) = compare("panda", 300, 0.005);
+    let Some(data) = mbm("panda") else { return };
+    let (hits, clear, total) = compare(data, 300, 0.005);
     assert!(hits > 0 && clear > 0, "{hits} {clear} {total}");
 }
 
 #[test]
 fn baxter_spheres_agree_with_exact() {
-    let (hits, clear, total) = compare("baxter", 1500, 0.0);
+    let Some(data) = mbm("baxter") else { return };
+    let (hits, clear, total) = compare(data, 1500, 0.0);
     assert!(
         hits > total / 10 && clear > total / 10,
         "{hits} {clear} {total}"
@@ -123,8 +245,16 @@ fn baxter_spheres_agree_with_exact() {
 
 #[test]
 fn segment_check_equals_state_by_state() {
-    let r = robot("panda");
-    let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
+    segment_check_equals_state_by_state_on(twin_problems());
+}
+
+#[test]
+fn segment_check_equals_state_by_state_on_panda() {
+    let Some(data) = mbm("panda") else { return };
+    segment_check_equals_state_by_state_on(data);
+}
+
+fn segment_check_equals_state_by_state_on((r, file): (Arc<Robot>, MbmFile)) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     for set in &file.sets {
         let p = set.problems.iter().find(|p| p.valid).expect("valid");
@@ -150,7 +280,7 @@ fn segment_check_equals_state_by_state() {
     }
 }
 
-/// The node-level cull of self-pair groups (Baxter's grippers: 9 bodies on one node each)
+/// The node-level cull of self-pair groups (grippers of several spheres on one node each)
 /// changes no result and no refinement, end to end: single states, plain segments and
 /// certified segments give the same verdicts and the same number of checked states with the
 /// cull on and off, with no obstacles (self pairs decide), on segments from free states to
@@ -182,8 +312,16 @@ fn same_segment_verdicts(
 
 #[test]
 fn node_cull_changes_nothing() {
-    let r = robot("baxter");
-    let file = MbmFile::load(&mbm("baxter/problems.json")).expect("problems");
+    node_cull_changes_nothing_on(twin_problems());
+}
+
+#[test]
+fn node_cull_changes_nothing_on_baxter() {
+    let Some(data) = mbm("baxter") else { return };
+    node_cull_changes_nothing_on(data);
+}
+
+fn node_cull_changes_nothing_on((r, file): (Arc<Robot>, MbmFile)) {
     let vars = file.joint_vars(&r).expect("vars");
     // No obstacles: the self pairs decide every verdict.
     let world = CollisionWorld::single(r.clone(), Pose::identity());
@@ -225,8 +363,9 @@ fn node_cull_changes_nothing() {
 fn hot_body_first_changes_nothing() {
     // Panda among a bookshelf's boxes and cylinders: motions into the shelves hit a few links
     // again and again, so the hot body is often right and often wrong.
-    let r = robot("panda");
-    let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
+    let Some((r, file)) = mbm("panda") else {
+        return;
+    };
     let vars = file.joint_vars(&r).expect("vars");
     let set = file.set("bookshelf_tall").expect("set");
     let world = set.problems[0].world(r.clone());
@@ -252,8 +391,7 @@ fn hot_body_first_changes_nothing() {
 
 #[test]
 fn auto_checker_picks_spheres_for_sphere_robots() {
-    let r = robot("panda");
-    let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
+    let (r, file) = twin_problems();
     let world = file.sets[0].problems[0].world(r);
     assert_eq!(AutoChecker::new(&world, 0.0).kind(), "spheres");
 }
@@ -264,9 +402,8 @@ fn auto_checker_picks_spheres_for_sphere_robots() {
 /// segments that the exact fine check finds free are certified, and segments the exact check
 /// finds colliding are never certified. Focused refinement (only what was tight at a
 /// sub-interval's ends) certifies every segment the unfocused one does, and nothing colliding.
-fn certified_segments_are_free(name: &str, max_inflation: f64) {
-    let r = robot(name);
-    let file = MbmFile::load(&mbm(&format!("{name}/problems.json"))).expect("problems");
+fn certified_segments_are_free((r, file): (Arc<Robot>, MbmFile), max_inflation: f64) {
+    let name = file.robot.clone();
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     let (mut certified, mut exact_free, mut exact_hits) = (0, 0, 0);
     for set in &file.sets {
@@ -412,8 +549,9 @@ fn focused_refinement_misses_nothing(world: &CollisionWorld, r: &Robot, vars: &[
 
 #[test]
 fn focused_refinement_misses_no_contact() {
-    let r = robot("panda");
-    let file = MbmFile::load(&mbm("panda/problems.json")).expect("problems");
+    let Some((r, file)) = mbm("panda") else {
+        return;
+    };
     let vars = file.joint_vars(&r).expect("vars");
     for (i, set) in file.sets.iter().enumerate() {
         let world = set.problems[0].world(r.clone());
@@ -421,32 +559,47 @@ fn focused_refinement_misses_no_contact() {
     }
 }
 
-/// The same for self pairs: Baxter alone (arms and torso, no obstacles).
+/// The same for self pairs: twin_arms alone (arms and torso, no obstacles).
 #[test]
 fn focused_refinement_misses_no_self_contact() {
-    let r = robot("baxter");
-    let file = MbmFile::load(&mbm("baxter/problems.json")).expect("problems");
+    let (r, file) = twin_problems();
+    let vars = file.joint_vars(&r).expect("vars");
+    let world = CollisionWorld::single(r.clone(), Pose::identity());
+    focused_refinement_misses_nothing(&world, &r, &vars, 31);
+}
+
+/// The same for Baxter alone.
+#[test]
+fn focused_refinement_misses_no_self_contact_on_baxter() {
+    let Some((r, file)) = mbm("baxter") else {
+        return;
+    };
     let vars = file.joint_vars(&r).expect("vars");
     let world = CollisionWorld::single(r.clone(), Pose::identity());
     focused_refinement_misses_nothing(&world, &r, &vars, 31);
 }
 
 #[test]
+fn twin_arms_certified_segments_are_free() {
+    certified_segments_are_free(twin_problems(), 0.04);
+}
+
+#[test]
 fn panda_certified_segments_are_free() {
-    certified_segments_are_free("panda", 0.04);
+    let Some(data) = mbm("panda") else { return };
+    certified_segments_are_free(data, 0.04);
 }
 
 #[test]
 fn baxter_certified_segments_are_free() {
-    certified_segments_are_free("baxter", 0.04);
+    let Some(data) = mbm("baxter") else { return };
+    certified_segments_are_free(data, 0.04);
 }
 
 /// At the exact contact boundary (found by bisection with the exact f64 checker to 1e-12 of a
 /// segment), the f32 sphere checker still reports the colliding side as colliding: its rounding
 /// margin covers the f32 error where it matters most.
-fn conservative_at_the_contact_boundary(name: &str) {
-    let r = robot(name);
-    let file = MbmFile::load(&mbm(&format!("{name}/problems.json"))).expect("problems");
+fn conservative_at_the_contact_boundary((r, file): (Arc<Robot>, MbmFile), tries: usize) {
     let vars = file.joint_vars(&r).expect("vars");
     let mut rng = ChaCha8Rng::seed_from_u64(23);
     let mut boundaries = 0;
@@ -462,7 +615,7 @@ fn conservative_at_the_contact_boundary(name: &str) {
                 }
                 w
             };
-            for _ in 0..20 {
+            for _ in 0..tries {
                 let a = full(&p.start);
                 let b: Vec<f64> = a.iter().map(|v| v + rng.random_range(-1.0..1.0)).collect();
                 if exact.is_free(&b) {
@@ -502,11 +655,18 @@ fn conservative_at_the_contact_boundary(name: &str) {
 }
 
 #[test]
+fn twin_arms_spheres_conservative_at_the_contact_boundary() {
+    conservative_at_the_contact_boundary(twin_problems(), 50);
+}
+
+#[test]
 fn panda_spheres_conservative_at_the_contact_boundary() {
-    conservative_at_the_contact_boundary("panda");
+    let Some(data) = mbm("panda") else { return };
+    conservative_at_the_contact_boundary(data, 20);
 }
 
 #[test]
 fn baxter_spheres_conservative_at_the_contact_boundary() {
-    conservative_at_the_contact_boundary("baxter");
+    let Some(data) = mbm("baxter") else { return };
+    conservative_at_the_contact_boundary(data, 20);
 }

@@ -1,6 +1,7 @@
 //! The forward-kinematics paths agree: `forward` (isometries), `FkModel` (frames), the reduced
 //! `FkModel` (fixed joints folded, links mounted on the last moving link), and the single-link
-//! `link_pose` and `FkPath`.
+//! `link_pose` and `FkPath`; on the shipped robots and the suite's own `tests/robots/twin_arms`,
+//! and on the MotionBenchMaker Panda and Baxter when their data is there.
 
 use std::path::PathBuf;
 
@@ -9,14 +10,19 @@ use rand_chacha::ChaCha8Rng;
 
 use manyhands::geometry::Pose;
 use manyhands::kinematics::{forward, link_pose, FkModel, FkPath, Frame};
+use manyhands::planning::mbm_data::data_for_test;
 use manyhands::Robot;
 
+/// The shipped robots and the suite's own sphere robot (always there).
 fn robots() -> Vec<Robot> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let mbm = root.join("../shared/benchmarks/mbm");
     let mut v = Vec::new();
-    for name in ["armar", "justin"] {
-        let d = root.join("robots");
+    for (dir, name) in [
+        ("robots", "armar"),
+        ("robots", "justin"),
+        ("tests/robots", "twin_arms"),
+    ] {
+        let d = root.join(dir);
         v.push(
             Robot::from_files(
                 &d.join(format!("{name}.urdf")),
@@ -25,21 +31,24 @@ fn robots() -> Vec<Robot> {
             .unwrap(),
         );
     }
-    v.push(
-        Robot::from_files(
-            &mbm.join("panda/panda_spherized.urdf"),
-            Some(&mbm.join("panda/panda.srdf")),
-        )
-        .unwrap(),
-    );
-    v.push(
-        Robot::from_files(
-            &mbm.join("baxter/baxter_spherized.urdf"),
-            Some(&mbm.join("baxter/baxter.srdf")),
-        )
-        .unwrap(),
-    );
     v
+}
+
+/// The MotionBenchMaker Panda and Baxter (`None` without the data: the test is skipped).
+fn mbm_robots() -> Option<Vec<Robot>> {
+    let mbm = data_for_test()?;
+    Some(
+        ["panda", "baxter"]
+            .iter()
+            .map(|name| {
+                Robot::from_files(
+                    &mbm.join(format!("{name}/{name}_spherized.urdf")),
+                    Some(&mbm.join(format!("{name}/{name}.srdf"))),
+                )
+                .unwrap()
+            })
+            .collect(),
+    )
 }
 
 /// A configuration drawn uniformly within the joint limits.
@@ -54,8 +63,18 @@ fn random_config(r: &Robot, rng: &mut ChaCha8Rng) -> Vec<f64> {
 
 #[test]
 fn all_fk_paths_agree() {
+    fk_paths_agree(robots());
+}
+
+#[test]
+fn all_fk_paths_agree_on_the_benchmark_robots() {
+    let Some(robots) = mbm_robots() else { return };
+    fk_paths_agree(robots);
+}
+
+fn fk_paths_agree(robots: Vec<Robot>) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    for r in robots() {
+    for r in robots {
         let full = FkModel::new(&r);
         let reduced = FkModel::reduced(&r);
         let base = manyhands::geometry::iso_from_rpy([0.3, -0.2, 0.1], [0.1, 0.2, -0.7]);
@@ -109,8 +128,18 @@ fn all_fk_paths_agree() {
 /// ones per robot, all links, all ancestors), and the ball is fixed in the ancestor's frame.
 #[test]
 fn reach_balls_hold_their_link_in_every_configuration() {
+    reach_balls_hold(robots());
+}
+
+#[test]
+fn reach_balls_hold_on_the_benchmark_robots() {
+    let Some(robots) = mbm_robots() else { return };
+    reach_balls_hold(robots);
+}
+
+fn reach_balls_hold(robots: Vec<Robot>) {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
-    for r in robots() {
+    for r in robots {
         let reduced = FkModel::reduced(&r);
         let mut f = vec![Frame::identity(); r.links.len()];
         let (centre, radius) = (nalgebra::Vector3::new(0.05, -0.03, 0.02), 0.04);

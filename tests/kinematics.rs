@@ -94,12 +94,14 @@ fn manifest(p: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(p)
 }
 
-fn panda() -> Robot {
+/// The suite's own two-arm robot with the Panda's arm kinematics (`tests/robots/twin_arms.py`):
+/// a 7-DoF arm that is not S-R-S (offset elbow and wrist).
+fn twin_arms() -> Robot {
     Robot::from_files(
-        &manifest("../shared/benchmarks/mbm/panda/panda_spherized.urdf"),
-        Some(&manifest("../shared/benchmarks/mbm/panda/panda.srdf")),
+        &manifest("tests/robots/twin_arms.urdf"),
+        Some(&manifest("tests/robots/twin_arms.srdf")),
     )
-    .unwrap()
+    .expect("tests/robots/twin_arms.urdf + .srdf must load")
 }
 
 fn armar() -> Robot {
@@ -207,11 +209,11 @@ fn jacobian_check(label: &str, robot: &Robot, chain: &Chain, samples: usize, see
 
 #[test]
 fn jacobian_matches_finite_differences() {
-    let p = panda();
+    let p = twin_arms();
     jacobian_check(
-        "panda_arm",
+        "twin_arms/left_arm",
         &p,
-        &Chain::from_group(&p, "panda_arm").unwrap(),
+        &Chain::from_group(&p, "left_arm").unwrap(),
         100,
         1,
     );
@@ -435,14 +437,14 @@ fn analytic_enumerate_orders() {
 
 #[test]
 fn numeric_converges() {
-    let p = panda();
+    let p = twin_arms();
     let s = srs_robot();
     let j = justin();
     let cases: Vec<(&str, &Robot, Chain, bool, usize)> = vec![
         (
-            "panda_arm",
+            "twin_arms/left_arm",
             &p,
-            Chain::from_group(&p, "panda_arm").unwrap(),
+            Chain::from_group(&p, "left_arm").unwrap(),
             false,
             100,
         ),
@@ -587,11 +589,11 @@ fn analytic_and_numeric_agree() {
 
 #[test]
 fn srs_errors_name_the_reason() {
-    let p = panda();
-    let chain = Chain::from_group(&p, "panda_arm").unwrap();
+    let p = twin_arms();
+    let chain = Chain::from_group(&p, "left_arm").unwrap();
     let e = SrsArm::new(&p, &chain).unwrap_err();
     let msg = e.to_string();
-    println!("panda: {msg}");
+    println!("twin_arms/left_arm: {msg}");
     assert!(msg.contains("not an S-R-S arm"), "{msg}");
     assert!(
         matches!(e, SrsError::NotIntersecting { part: "wrist", .. }),

@@ -6,13 +6,14 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use serde::Serialize;
 use serde_json::json;
 
 use manyhands::collision::{AutoChecker, ExactChecker, FastChecker, FastModelSettings};
 use manyhands::planning::mbm::{MbmFile, MbmProblem};
+use manyhands::planning::mbm_data;
 use manyhands::planning::{
     PlanError, RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
 };
@@ -22,15 +23,17 @@ use super::commands::Ctx;
 
 #[derive(Args, Debug)]
 pub struct MbmArgs {
-    /// The robot's URDF (e.g. ../shared/benchmarks/mbm/panda/panda_spherized.urdf).
+    /// `panda` or `baxter` (the benchmark's robot and problems from the MotionBenchMaker data
+    /// folder: $MANYHANDS_MBM_DIR, ../shared/benchmarks/mbm or the cache of `manyhands data
+    /// mbm`), or the path of a robot's URDF (then --problems is needed).
     #[arg(long)]
     pub robot: PathBuf,
     /// Its SRDF (default: the .srdf beside the URDF, when present).
     #[arg(long)]
     pub srdf: Option<PathBuf>,
-    /// The problems.json file.
+    /// The problems.json file (default with --robot NAME: the data folder's NAME/problems.json).
     #[arg(long)]
-    pub problems: PathBuf,
+    pub problems: Option<PathBuf>,
     /// Only these sets (comma-separated); default all.
     #[arg(long, value_delimiter = ',')]
     pub sets: Vec<String>,
@@ -303,6 +306,27 @@ fn fmt_us(us: f64) -> String {
     }
 }
 
+/// The URDF and problem file of `--robot` / `--problems`: a benchmark robot's name resolves in
+/// the MotionBenchMaker data folder ([`mbm_data::locate`]).
+fn resolve_files(a: &MbmArgs) -> Result<(PathBuf, PathBuf)> {
+    let name = a.robot.to_str().unwrap_or_default();
+    if !a.robot.exists() && mbm_data::ROBOTS.contains(&name) {
+        let dir = mbm_data::locate().map_err(|why| {
+            anyhow!("--robot {name}: no MotionBenchMaker data: {why}; or give the URDF's path")
+        })?;
+        let f = mbm_data::robot_files(&dir, name);
+        return Ok((f.urdf, a.problems.clone().unwrap_or(f.problems)));
+    }
+    let problems = a.problems.clone().with_context(|| {
+        format!(
+            "--problems FILE is needed with --robot {} (or --robot {})",
+            a.robot.display(),
+            mbm_data::ROBOTS.join("|")
+        )
+    })?;
+    Ok((a.robot.clone(), problems))
+}
+
 pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if !(a.time_limit.is_finite() && a.time_limit > 0.0) {
         bail!("--time-limit must be > 0");
@@ -319,12 +343,13 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if a.trials == 0 {
         bail!("--trials must be ≥ 1");
     }
-    let file = MbmFile::load(&a.problems)?;
+    let (urdf, problems) = resolve_files(a)?;
+    let file = MbmFile::load(&problems)?;
     // Default SRDF: NAME.srdf beside the URDF, else ROBOT.srdf (the problem file's robot name).
     let srdf = a.srdf.clone().or_else(|| {
         [
-            a.robot.with_extension("srdf"),
-            a.robot.with_file_name(format!("{}.srdf", file.robot)),
+            urdf.with_extension("srdf"),
+            urdf.with_file_name(format!("{}.srdf", file.robot)),
         ]
         .into_iter()
         .find(|s| s.is_file())
@@ -333,8 +358,8 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         println!("warning: no SRDF found (give --srdf): no self-collision pair is disabled");
     }
     let robot = Arc::new(
-        Robot::from_files(&a.robot, srdf.as_deref())
-            .with_context(|| format!("loading {}", a.robot.display()))?,
+        Robot::from_files(&urdf, srdf.as_deref())
+            .with_context(|| format!("loading {}", urdf.display()))?,
     );
     let vars = file.joint_vars(&robot)?;
     for s in &a.sets {
@@ -501,6 +526,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if let Some(path) = &a.ompl_log {
         let text = ompl_log(
             &file,
+            &problems,
             a,
             &settings,
             &runs,
@@ -517,6 +543,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
 /// "correct solution" is the exact re-check's verdict; an invalid path is not "solved".
 fn ompl_log(
     file: &MbmFile,
+    problems: &std::path::Path,
     a: &MbmArgs,
     settings: &RrtConnectSettings,
     runs: &[Run],
@@ -539,7 +566,7 @@ fn ompl_log(
     let _ = writeln!(
         o,
         "MotionBenchMaker problems {} ({} joints); exact re-check at {} deg",
-        a.problems.display(),
+        problems.display(),
         file.joints.len(),
         a.check_resolution
     );

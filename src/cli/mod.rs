@@ -4,6 +4,7 @@ mod bench;
 mod bench_ik;
 mod bench_planners;
 mod commands;
+mod data;
 mod grasp;
 mod load_http;
 mod loadtest;
@@ -83,6 +84,11 @@ pub enum Command {
         #[command(subcommand)]
         cmd: bench::BenchCmd,
     },
+    /// Outside data sets: `data mbm` fetches the MotionBenchMaker problem sets into the cache.
+    Data {
+        #[command(subcommand)]
+        cmd: data::DataCmd,
+    },
     /// The HTTP/JSON planning server (REST API, async jobs, SSE, Prometheus metrics).
     Serve(serve::ServeArgs),
     /// Drives a running server on 127.0.0.1 with concurrent IK queries and planning jobs.
@@ -135,5 +141,6 @@ pub fn run() -> Result<()> {
         Command::Plan { cmd } => plan::run(&ctx, cmd),
         Command::Query(a) => query::run(&ctx, a),
         Command::Schedule(a) => multi_robot::schedule(&ctx, a),
+        Command::Data { cmd } => data::run(&ctx, cmd),
     }
 }

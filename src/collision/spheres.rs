@@ -2135,35 +2135,58 @@ impl CollisionChecker for AutoChecker {
 
 #[cfg(test)]
 mod tests {
-    /// A MotionBenchMaker robot (`../shared/benchmarks/mbm/NAME`): spherized URDF and SRDF.
-    fn mbm_robot(name: &str) -> std::sync::Arc<crate::Robot> {
-        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/benchmarks/mbm")
-            .join(name);
-        std::sync::Arc::new(
+    /// A MotionBenchMaker robot (spherized URDF and SRDF) from the data folder of
+    /// [`crate::planning::mbm_data::data_for_test`]; `None` (the test is skipped) without it.
+    fn mbm_robot(name: &str) -> Option<std::sync::Arc<crate::Robot>> {
+        let dir = crate::planning::mbm_data::data_for_test()?.join(name);
+        Some(std::sync::Arc::new(
             crate::Robot::from_files(
                 &dir.join(format!("{name}_spherized.urdf")),
                 Some(&dir.join(format!("{name}.srdf"))),
             )
             .expect("robot"),
+        ))
+    }
+
+    /// The suite's own sphere robot `tests/robots/twin_arms` (two arms with the Panda's
+    /// kinematics, its truncated quarter turns included, on a torso).
+    fn twin_arms() -> std::sync::Arc<crate::Robot> {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
+        std::sync::Arc::new(
+            crate::Robot::from_files(
+                &dir.join("twin_arms.urdf"),
+                Some(&dir.join("twin_arms.srdf")),
+            )
+            .expect("tests/robots/twin_arms"),
         )
     }
 
     /// The node-level cull of a pair group is a bound of every pair in it: over random
-    /// Baxter configurations (8 lanes) and random inflations, whenever the nodes' spheres are
-    /// apart in every lane, so is every pair's body-level test that the cull skips. Both
-    /// outcomes occur, and pairs near in some lane occur in culled-free groups.
+    /// configurations (8 lanes) and random inflations, whenever the nodes' spheres are apart in
+    /// every lane, so is every pair's body-level test that the cull skips. Both outcomes
+    /// occur, and pairs near in some lane occur in culled-free groups.
     #[test]
     fn node_cull_bounds_every_pair_of_its_group() {
+        node_cull_bounds_every_pair(twin_arms());
+    }
+
+    #[test]
+    fn node_cull_bounds_every_pair_of_its_group_on_baxter() {
+        if let Some(r) = mbm_robot("baxter") {
+            node_cull_bounds_every_pair(r);
+        }
+    }
+
+    fn node_cull_bounds_every_pair(robot: std::sync::Arc<crate::Robot>) {
         use super::*;
         use crate::geometry::Pose;
         use rand::{Rng, SeedableRng};
-        let robot = mbm_robot("baxter");
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
         let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
         assert!(
             sc.pair_group_end.iter().any(|&e| e != 0),
-            "Baxter has pair groups"
+            "{} has pair groups",
+            robot.name
         );
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let (mut culled, mut kept, mut near_pairs) = (0, 0, 0);
@@ -2222,9 +2245,21 @@ mod tests {
 
     /// Quarter-turn and identity origins (Panda's `rpy="±1.57079632679 0 0"`) are recognised,
     /// and the kinematics through them (AVX and generic) give the frames of the general
-    /// product within f32 rounding, over random 8-lane Panda states.
+    /// product within f32 rounding, over random 8-lane states of arms with the Panda's
+    /// kinematics.
     #[test]
     fn specialised_origins_give_the_general_frames() {
+        specialised_origins(twin_arms());
+    }
+
+    #[test]
+    fn specialised_origins_give_the_general_frames_on_panda() {
+        if let Some(r) = mbm_robot("panda") {
+            specialised_origins(r);
+        }
+    }
+
+    fn specialised_origins(robot: std::sync::Arc<crate::Robot>) {
         use super::*;
         use crate::geometry::Pose;
         use rand::{Rng, SeedableRng};
@@ -2248,7 +2283,6 @@ mod tests {
             origin_terms(&Vector3::new(-0.0825, 3e-17, 0.384)),
             ([-0.0825, 0.0, 0.384], 0b101)
         );
-        let robot = mbm_robot("panda");
         let world = CollisionWorld::single(robot.clone(), Pose::identity());
         let mut fast = SphereChecker::new(&world, 0.0).expect("spheres");
         let (mut perms, mut sparse) = (0, 0);

@@ -1,6 +1,6 @@
 //! Loader of the MotionBenchMaker problem sets (Chamzas et al., "MotionBenchMaker: A Tool to
 //! Generate and Benchmark Motion Planning Datasets", RA-L 2022) in the JSON form shipped with
-//! VAMP (`../shared/benchmarks/mbm/README.md`): a file lists the robot's joint names in
+//! VAMP (where to find or fetch it: [`super::mbm_data`]): a file lists the robot's joint names in
 //! configuration order and, per problem set, problems with obstacles (spheres, boxes,
 //! cylinders; positions in the robot's base frame, orientations as quaternions xyzw), a start
 //! and a set of goal configurations.

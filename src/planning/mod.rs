@@ -18,6 +18,7 @@ pub mod j_plus_rrt;
 pub mod mbm;
 pub mod multi_robot_rrt;
 pub mod phase_space;
+pub mod mbm_data;
 mod result;
 mod rng;
 mod rrt_connect;
