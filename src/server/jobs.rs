@@ -340,6 +340,31 @@ impl Jobs {
     /// waiters (`?wait=`, SSE, `GET`), so a client is never told a state that a crash right after
     /// the answer could lose. `finish_lock` serialises finishes, so no second one can slip in
     /// between the commit and the publication.
+    /// Records a job that was asked to stop as `cancelled` at once, without waiting for its
+    /// planner (whose later answer is then dropped). Final jobs are left as they are. Blocking.
+    pub fn cancel_now(&self, entry: &Arc<JobEntry>) {
+        entry.stop.store(true, Ordering::Relaxed);
+        let interrupted = entry.interrupt.load(Ordering::SeqCst);
+        self.finish(
+            entry,
+            if interrupted {
+                JobState::Interrupted
+            } else {
+                JobState::Cancelled
+            },
+            None,
+            Some(if interrupted {
+                (
+                    "interrupted",
+                    "the server shut down while the job was running".into(),
+                )
+            } else {
+                ("cancelled", "cancelled while running".into())
+            }),
+            None,
+        );
+    }
+
     fn finish(
         &self,
         entry: &JobEntry,
