@@ -32,7 +32,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// Raises the calling thread's nice value to `nice` (Linux: the nice value is per thread), so
 /// planner threads yield the CPU to the synchronous-query pool and the I/O threads. Threads it
 /// spawns inherit it. A failure only costs the priority, so it is logged, not fatal.
-fn lower_thread_priority(nice: i32) {
+pub(crate) fn lower_thread_priority(nice: i32) {
     if nice <= 0 {
         return;
     }
