@@ -25,6 +25,14 @@ pub struct ServeArgs {
     /// Threads for synchronous queries (FK, IK, check; default: number of cores).
     #[arg(long, env = "MANYHANDS_QUERY_THREADS")]
     pub query_threads: Option<usize>,
+    /// Threads for expensive synchronous queries (grasp quality, randomized IK searches,
+    /// uploads; default: half the cores), at a lower priority than --query-threads.
+    #[arg(long, env = "MANYHANDS_HEAVY_THREADS")]
+    pub heavy_threads: Option<usize>,
+    /// Expensive queries queued or running before they are answered 503 + Retry-After
+    /// (default: 2 × --heavy-threads).
+    #[arg(long, env = "MANYHANDS_MAX_HEAVY")]
+    pub max_heavy: Option<usize>,
     /// Nice value 0–19 of the planner threads (Linux), so synchronous queries keep their
     /// latency while jobs run; 0 runs jobs at the queries' priority.
     #[arg(long, env = "MANYHANDS_PLANNER_NICE", default_value_t = 10)]
@@ -100,6 +108,13 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     }
     if let Some(q) = a.query_threads {
         cfg.query_threads = q;
+    }
+    if let Some(h) = a.heavy_threads {
+        cfg.heavy_threads = h;
+        cfg.max_heavy = 2 * h;
+    }
+    if let Some(m) = a.max_heavy {
+        cfg.max_heavy = m;
     }
     cfg.planner_nice = a.planner_nice;
     cfg.max_queue = a.max_queue;

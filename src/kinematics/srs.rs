@@ -410,6 +410,83 @@ fn round_fast(x: f64) -> f64 {
     }
 }
 
+/// A rotation that depends on the swivel angle ψ as `c cos ψ + s sin ψ + o` (every rotation of the
+/// solver does: the shoulder rotation and the wrist rotation of a fixed elbow branch).
+#[derive(Debug, Clone, Copy)]
+struct PsiAffine {
+    c: Matrix3<f64>,
+    s: Matrix3<f64>,
+    o: Matrix3<f64>,
+}
+
+impl PsiAffine {
+    /// `xᵀ R(ψ) y` as its cos, sin and constant coefficients.
+    #[inline]
+    fn bilinear(&self, x: &Vector3<f64>, y: &Vector3<f64>) -> [f64; 3] {
+        [
+            x.dot(&(self.c * y)),
+            x.dot(&(self.s * y)),
+            x.dot(&(self.o * y)),
+        ]
+    }
+}
+
+/// Pushes the ψ ∈ [−π, π) with `a cos ψ + b sin ψ + c = 0` (none, one or two; none when the
+/// left side does not depend on ψ).
+fn push_psi_roots(a: f64, b: f64, c: f64, out: &mut Vec<f64>) {
+    let r = a.hypot(b);
+    if !(r > 1e-12) {
+        return;
+    }
+    let x = -c / r;
+    if !x.is_finite() || x.abs() > 1.0 + 1e-12 {
+        return;
+    }
+    let phi = atan2(b, a);
+    let d = x.clamp(-1.0, 1.0).acos();
+    for v in [phi + d, phi - d] {
+        out.push(v - 2.0 * PI * ((v + PI) / (2.0 * PI)).floor());
+    }
+}
+
+/// The ψ at which a solution of `e^{[k1]a} e^{[k2]b} e^{[k3]c} = R(ψ)` has a joint on one of its
+/// limits, or at which the triple starts or stops having solutions at all (Shimizu et al. 2008,
+/// §IV: the joint-limit boundaries in ψ). Each is a root of `α cos ψ + β sin ψ + γ = 0`, because
+/// every condition is linear in `R`:
+///
+/// * `b = L`: `k1ᵀ R k3 = k1ᵀ e^{[k2]L} k3` (`e^{[k1]a}` leaves `k1` and `e^{[k3]c}` leaves `k3`);
+/// * `a = L`: `(e^{[k1]L} k2)ᵀ R k3 = k2ᵀ k3` (then some b rotates `k3` onto `e^{−[k1]L} R k3`);
+/// * `c = L`: `k1ᵀ R e^{−[k3]L} k2 = k1ᵀ k2`;
+/// * solvable at all: `k1ᵀ R k3` within the range of `k1ᵀ e^{[k2]b} k3` over b.
+///
+/// Between two consecutive roots every branch's angles move continuously without touching a
+/// limit, so whether a solution within the limits exists is the same over the whole interval.
+fn triple_limit_psi(t: &Triple, lims: &[Limits], r: &PsiAffine, out: &mut Vec<f64>) {
+    let (k1, k2, k3) = (&t.k1, &t.k2, &t.k3);
+    let limited = |l: &Limits| l.bounded && l.upper - l.lower < 2.0 * PI;
+    let f13 = r.bilinear(k1, k3);
+    let push =
+        |f: [f64; 3], rhs: f64, out: &mut Vec<f64>| push_psi_roots(f[0], f[1], f[2] - rhs, out);
+    // Range of k1ᵀ e^{[k2]b} k3 = A cos b + B sin b + C.
+    let k23 = k2.dot(k3);
+    let (ca, cb, cc) = (k1.dot(k3) - t.k12 * k23, k1.dot(&k2.cross(k3)), t.k12 * k23);
+    let amp = ca.hypot(cb);
+    push(f13, cc + amp, out);
+    push(f13, cc - amp, out);
+    for (j, l) in lims.iter().enumerate().take(3) {
+        if !limited(l) {
+            continue;
+        }
+        for lim in [l.lower, l.upper] {
+            match j {
+                0 => push(r.bilinear(&(rot(k1, lim) * k2), k3), k23, out),
+                1 => push(f13, k1.dot(&(rot(k2, lim) * k3)), out),
+                _ => push(r.bilinear(k1, &(rot(k3, -lim) * k2)), t.k12, out),
+            }
+        }
+    }
+}
+
 /// Position (m) and orientation (rad) distance between two poses, accurate for tiny errors.
 #[inline]
 pub(crate) fn pose_distance(a: &Pose, b: &Pose) -> (f64, f64) {
@@ -919,7 +996,46 @@ impl SrsArm {
         res
     }
 
-    /// All solutions for ψ enumerated over [−π, π) in `psi_steps` steps, ordered as asked.
+    /// The swivel angles ψ ∈ [−π, π), sorted, at which a joint of some solution for `target`
+    /// reaches one of its limits (or a wrist or shoulder triple starts or stops having solutions):
+    /// the boundaries of the feasible ψ intervals of Shimizu et al. (2008), computed in closed form
+    /// (see [`triple_limit_psi`]). Whether `target` has a solution within the limits is the same
+    /// at every ψ strictly between two consecutive angles (cyclically).
+    pub fn limit_psi(&self, target: &SrsTarget) -> Vec<f64> {
+        let mut out = Vec::new();
+        if target.n_elbows == 0 {
+            return out;
+        }
+        let cols =
+            |a: Vector3<f64>, b: Vector3<f64>, c: Vector3<f64>| Matrix3::from_columns(&[a, b, c]);
+        let z = Vector3::zeros();
+        let (u, n, un) = (target.u, target.nv, target.un);
+        for e in &target.elbows[..target.n_elbows] {
+            // rsh(ψ) = [u, d(ψ), u × d(ψ)] · frameᵀ, d = n cos ψ + (u × n) sin ψ.
+            let sh = PsiAffine {
+                c: cols(z, n, un) * e.frame_t,
+                s: cols(z, un, -n) * e.frame_t,
+                o: cols(u, z, z) * e.frame_t,
+            };
+            // The wrist rotation (r_sh r4)ᵀ rt_tip of this elbow branch.
+            let r4t = e.r4.transpose();
+            let wr = PsiAffine {
+                c: r4t * sh.c.transpose() * target.rt_tip,
+                s: r4t * sh.s.transpose() * target.rt_tip,
+                o: r4t * sh.o.transpose() * target.rt_tip,
+            };
+            triple_limit_psi(&self.shoulder, &self.limits[..3], &sh, &mut out);
+            triple_limit_psi(&self.wrist, &self.limits[4..], &wr, &mut out);
+        }
+        out.sort_by(f64::total_cmp);
+        out.dedup();
+        out
+    }
+
+    /// All solutions for ψ enumerated over [−π, π) in `psi_steps` steps, ordered as asked. Feasible
+    /// ψ intervals narrower than a step (between two consecutive [`SrsArm::limit_psi`] angles,
+    /// with no step inside) are solved at their middle as well, so a target that has a solution
+    /// within the limits never gets none, whatever `psi_steps`.
     pub fn solve_enumerate<R: Rng + ?Sized>(
         &self,
         target: &Pose,
@@ -931,8 +1047,22 @@ impl SrsArm {
         let target = self.prepare(target);
         let mut out = [[0.0; 7]; 8];
         let mut all = Vec::new();
-        for i in 0..steps {
-            let psi = -PI + 2.0 * PI * i as f64 / steps as f64;
+        let step = 2.0 * PI / steps as f64;
+        let mut psis: Vec<f64> = (0..steps).map(|i| -PI + step * i as f64).collect();
+        let crit = self.limit_psi(&target);
+        for (k, &lo) in crit.iter().enumerate() {
+            let hi = crit.get(k + 1).copied().unwrap_or(crit[0] + 2.0 * PI);
+            // The first step after `lo` (steps repeat every 2π).
+            let first = -PI + step * (((lo + PI) / step).floor() + 1.0);
+            if first >= hi {
+                let mid = 0.5 * (lo + hi);
+                psis.push(if mid >= PI { mid - 2.0 * PI } else { mid });
+            }
+        }
+        if psis.len() > steps {
+            psis.sort_by(f64::total_cmp);
+        }
+        for psi in psis {
             let n = self.solve_prepared(&target, psi, &mut out);
             all.extend_from_slice(&out[..n]);
         }

@@ -72,8 +72,21 @@ impl GridCache {
         robot: &Arc<Robot>,
         arm: &ArmChain,
     ) -> Result<Option<Arc<ReachabilityGrid>>, ReachError> {
+        self.arm_grid_until(robot, arm, &|| false)
+    }
+
+    /// [`GridCache::arm_grid`] whose build (if it needs one) ends with [`ReachError::Stopped`]
+    /// soon after `stop` returns true.
+    pub fn arm_grid_until(
+        &self,
+        robot: &Arc<Robot>,
+        arm: &ArmChain,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<Arc<ReachabilityGrid>>, ReachError> {
         match arm_grid_group(robot, arm) {
-            Some(group) => self.get(robot, &group, GridRecipe::arm()).map(Some),
+            Some(group) => self
+                .get_until(robot, &group, GridRecipe::arm(), stop)
+                .map(Some),
             None => Ok(None),
         }
     }
@@ -84,6 +97,18 @@ impl GridCache {
         robot: &Arc<Robot>,
         group: &str,
         recipe: GridRecipe,
+    ) -> Result<Arc<ReachabilityGrid>, ReachError> {
+        self.get_until(robot, group, recipe, &|| false)
+    }
+
+    /// [`GridCache::get`] whose build (if it needs one) ends with [`ReachError::Stopped`] soon
+    /// after `stop` returns true; a stopped build is neither cached nor saved.
+    pub fn get_until(
+        &self,
+        robot: &Arc<Robot>,
+        group: &str,
+        recipe: GridRecipe,
+        stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<Arc<ReachabilityGrid>, ReachError> {
         let chain = Chain::from_group(robot, group).ok_or_else(|| ReachError::NoChain {
             robot: robot.name.clone(),
@@ -129,7 +154,7 @@ impl GridCache {
         let grid = match loaded {
             Some(g) => g,
             None => {
-                let g = ReachabilityGrid::build(robot, group, &params, &|_| {})?;
+                let g = ReachabilityGrid::build_until(robot, group, &params, &|_| {}, stop)?;
                 if let (Some(dir), Some(f)) = (&self.dir, &file) {
                     // A cache that cannot be written is only slower next time.
                     if std::fs::create_dir_all(dir).is_ok() {

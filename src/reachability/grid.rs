@@ -68,6 +68,8 @@ pub enum ReachError {
     ParamsMismatch { file: String, diff: String },
     #[error("reachability file {file} is truncated or corrupt: {reason}")]
     Corrupt { file: String, reason: String },
+    #[error("the reachability grid build was stopped on request")]
+    Stopped,
 }
 
 /// Resolution and extents of a grid, and how it was sampled.
@@ -317,6 +319,18 @@ impl ReachabilityGrid {
         params: &GridParams,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<ReachabilityGrid, ReachError> {
+        Self::build_until(robot, group, params, progress, &|| false)
+    }
+
+    /// [`ReachabilityGrid::build`] that polls `stop` every 256 samples on every worker and ends
+    /// with [`ReachError::Stopped`] soon after it returns true (a job's cancel).
+    pub fn build_until(
+        robot: &Arc<Robot>,
+        group: &str,
+        params: &GridParams,
+        progress: &(dyn Fn(u64) + Sync),
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<ReachabilityGrid, ReachError> {
         params.validate()?;
         let chain = Chain::from_group(robot, group).ok_or_else(|| ReachError::NoChain {
             robot: robot.name.clone(),
@@ -368,6 +382,9 @@ impl ReachabilityGrid {
                     let mut hits = Vec::with_capacity(n as usize);
                     let (mut free, mut outside) = (0u64, 0u64);
                     for i in 0..n {
+                        if i % 256 == 0 && stop() {
+                            break;
+                        }
                         robot.sample_vars(&chain.vars, &mut q, &mut rng);
                         if checker.is_free(&q) {
                             free += 1;
@@ -401,6 +418,9 @@ impl ReachabilityGrid {
                 }
             }
             c0 = c1;
+            if stop() {
+                return Err(ReachError::Stopped);
+            }
         }
         grid.stats.samples = total;
         let mut put = |cell: usize, n: u32| {

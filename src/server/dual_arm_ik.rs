@@ -40,6 +40,10 @@ use super::AppState;
 /// Largest edge of the object's position box (m).
 pub const MAX_REGION_EDGE: f64 = 10.0;
 
+/// Most platform poses (x, y cells × yaw bins within `radius`) one base-placement request may
+/// evaluate; the default request has 31 × 31 × 16 = 15 376.
+pub const MAX_PLACEMENT_POSES: usize = 250_000;
+
 /// A box of the world frame (metres): `min[i] ≤ max[i]`.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -170,7 +174,7 @@ pub async fn dual_arm_ik(
     let entry = st.catalog.scene(&req.scene, "scene")?;
     let grids = st.catalog.grids();
     st.pool
-        .run(move || dual_arm_compute(&entry.scene, &req, Some(&grids)))
+        .run_heavy(move || dual_arm_compute(&entry.scene, &req, Some(&grids)))
         .await
         .map(Json)
 }
@@ -187,7 +191,7 @@ pub async fn base_placement(
     let entry = st.catalog.scene(&req.scene, "scene")?;
     let grids = st.catalog.grids();
     st.pool
-        .run(move || base_placement_compute(&entry.scene, &req, &grids))
+        .run_heavy(move || base_placement_compute(&entry.scene, &req, &grids))
         .await
         .map(Json)
 }
@@ -393,6 +397,25 @@ pub fn base_placement_compute(
         return Err(ApiError::invalid(
             "yaw_bins",
             format!("{yaw_bins} is not in 1..=360"),
+        ));
+    }
+    // The cost of one request: the platform poses of the map, checked before any work.
+    let per_axis = 2.0 * (radius / cell).ceil() + 1.0;
+    let poses = per_axis * per_axis * yaw_bins as f64;
+    if poses > MAX_PLACEMENT_POSES as f64 {
+        return Err(ApiError::invalid(
+            "cell",
+            format!(
+                "cell {cell} m with radius {radius} m and {yaw_bins} yaw bins is {poses} platform \
+                 poses; one request may evaluate at most {MAX_PLACEMENT_POSES} (a larger cell, a \
+                 smaller radius or fewer yaw_bins)"
+            ),
+        ));
+    }
+    if radius / cell > 200.0 {
+        return Err(ApiError::invalid(
+            "cell",
+            format!("radius {radius} m / cell {cell} m is more than 200 cells (the map's bound)"),
         ));
     }
     let model = robot_of(scene, &req.robot)?.clone();

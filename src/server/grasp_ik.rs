@@ -101,7 +101,7 @@ pub async fn grasp_ik(
     let entry = st.catalog.scene(&req.scene, "scene")?;
     let grids = st.catalog.grids();
     st.pool
-        .run(move || compute(&entry.scene, &req, Some(&grids)))
+        .run_heavy(move || compute(&entry.scene, &req, Some(&grids)))
         .await
         .map(Json)
 }

@@ -149,7 +149,7 @@ pub async fn grasp_quality(
         (None, Some(_)) => return Err(ApiError::invalid("scene", "required with 'object'")),
     };
     st.pool
-        .run(move || compute(entry.as_ref().map(|e| e.scene.as_ref()), &req))
+        .run_heavy(move || compute(entry.as_ref().map(|e| e.scene.as_ref()), &req))
         .await
         .map(Json)
 }

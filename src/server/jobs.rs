@@ -32,7 +32,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// Raises the calling thread's nice value to `nice` (Linux: the nice value is per thread), so
 /// planner threads yield the CPU to the synchronous-query pool and the I/O threads. Threads it
 /// spawns inherit it. A failure only costs the priority, so it is logged, not fatal.
-fn lower_thread_priority(nice: i32) {
+pub(crate) fn lower_thread_priority(nice: i32) {
     if nice <= 0 {
         return;
     }
@@ -117,6 +117,8 @@ pub struct Jobs {
     metrics: Arc<Metrics>,
     running: AtomicUsize,
     threads: Mutex<Vec<JoinHandle<()>>>,
+    /// Held while a job is made final (commit, then publish).
+    finish_lock: Mutex<()>,
 }
 
 impl Jobs {
@@ -167,6 +169,7 @@ impl Jobs {
             metrics,
             running: AtomicUsize::new(0),
             threads: Mutex::new(Vec::new()),
+            finish_lock: Mutex::new(()),
         });
         let mut threads = lock(&jobs.threads);
         for i in 0..cfg.workers.max(1) {
@@ -333,6 +336,35 @@ impl Jobs {
         }
     }
 
+    /// Makes a job final: the record is committed to the store first, then published to
+    /// waiters (`?wait=`, SSE, `GET`), so a client is never told a state that a crash right after
+    /// the answer could lose. `finish_lock` serialises finishes, so no second one can slip in
+    /// between the commit and the publication.
+    /// Records a job that was asked to stop as `cancelled` at once, without waiting for its
+    /// planner (whose later answer is then dropped). Final jobs are left as they are. Blocking.
+    pub fn cancel_now(&self, entry: &Arc<JobEntry>) {
+        entry.stop.store(true, Ordering::Relaxed);
+        let interrupted = entry.interrupt.load(Ordering::SeqCst);
+        self.finish(
+            entry,
+            if interrupted {
+                JobState::Interrupted
+            } else {
+                JobState::Cancelled
+            },
+            None,
+            Some(if interrupted {
+                (
+                    "interrupted",
+                    "the server shut down while the job was running".into(),
+                )
+            } else {
+                ("cancelled", "cancelled while running".into())
+            }),
+            None,
+        );
+    }
+
     fn finish(
         &self,
         entry: &JobEntry,
@@ -341,27 +373,31 @@ impl Jobs {
         error: Option<(&str, String)>,
         stats: Option<Value>,
     ) {
-        let mut snapshot = None;
-        entry.tx.send_if_modified(|j| {
-            if j.state.is_final() {
+        let _serial = lock(&self.finish_lock);
+        let mut j = entry.snapshot();
+        if j.state.is_final() {
+            return;
+        }
+        j.state = state;
+        j.finished_ms = Some(now_ms());
+        j.result = result;
+        j.error = error.map(|(c, m)| ErrorDetail {
+            code: c.to_string(),
+            message: m,
+            field: None,
+        });
+        if let Some(s) = stats {
+            j.progress = Some(s);
+        }
+        self.persist_logged(&j);
+        let published = entry.tx.send_if_modified(|cur| {
+            if cur.state.is_final() {
                 return false;
             }
-            j.state = state;
-            j.finished_ms = Some(now_ms());
-            j.result = result;
-            j.error = error.map(|(c, m)| ErrorDetail {
-                code: c.to_string(),
-                message: m,
-                field: None,
-            });
-            if let Some(s) = stats {
-                j.progress = Some(s);
-            }
-            snapshot = Some(j.clone());
+            *cur = j.clone();
             true
         });
-        if let Some(j) = snapshot {
-            self.persist_logged(&j);
+        if published {
             let secs = match (j.started_ms, j.finished_ms) {
                 (Some(a), Some(b)) => Some(b.saturating_sub(a) as f64 / 1e3),
                 _ => None,

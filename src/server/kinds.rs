@@ -22,16 +22,16 @@ use super::api::{CollisionSweep, GraspPlanSettings, JointSpacePlan, PlanRequest}
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
 use super::queries::{apply_config, placement_base};
+use crate::kinematics::randomized::ArmChain;
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
 use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
-use crate::planning::grasping::arm_grid;
 use crate::planning::task::{
     bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
     KitchenTask, RegraspTask,
 };
 use crate::planning::IkRrtSettings;
-use crate::reachability::{GridCache, GridRecipe};
+use crate::reachability::{GridCache, GridRecipe, ReachError};
 
 /// Why a job did not succeed.
 #[derive(Debug, Clone)]
@@ -524,7 +524,7 @@ enum GraspJob {
 }
 
 /// The arm grid of `robot`'s chain `group` (built on first use, then read from the data
-/// folder), reported as the job's "reachability grids" phase.
+/// folder), reported as the job's "reachability grids" phase; a build stops with the job.
 fn arm_grid_of(
     ctx: &mut JobContext,
     grids: &GridCache,
@@ -533,7 +533,39 @@ fn arm_grid_of(
     group: &str,
 ) -> Result<Option<Arc<crate::reachability::ReachabilityGrid>>, JobFailure> {
     ctx.progress(json!({"phase": "reachability grids", "group": group}));
-    arm_grid(grids, &CollisionWorld::from_scene(s), robot, group).map_err(plan_failure)
+    let model = scene_model(s, robot)?;
+    let arm = ArmChain::new(&model, group)
+        .map_err(|e| plan_failure(PlanError::InvalidInput(e.to_string())))?;
+    let stop = ctx.stop.clone();
+    grids
+        .arm_grid_until(&model, &arm, &move || stop.load(Ordering::Relaxed))
+        .map_err(|e| grid_failure(e, group))
+}
+
+/// The model of robot instance `robot` of scene `s`.
+fn scene_model(s: &Scene, robot: &str) -> Result<Arc<crate::Robot>, JobFailure> {
+    s.robots
+        .iter()
+        .find(|p| p.name == robot)
+        .map(|p| p.robot.clone())
+        .ok_or_else(|| plan_failure(PlanError::InvalidInput(format!("no robot '{robot}'"))))
+}
+
+/// A grid build that failed, or that the job's stop flag ended.
+fn grid_failure(e: ReachError, group: &str) -> JobFailure {
+    match e {
+        ReachError::Stopped => JobFailure {
+            stopped: true,
+            code: "cancelled",
+            message: format!(
+                "stopped on request while building the reachability grid of '{group}'"
+            ),
+            stats: None,
+        },
+        e => plan_failure(PlanError::InvalidInput(format!(
+            "reachability grid of '{group}': {e}"
+        ))),
+    }
 }
 
 struct GraspWork {
@@ -670,18 +702,14 @@ impl JobWork for GraspWork {
                 grids,
             } => {
                 ctx.progress(json!({"phase": "reachability grids"}));
-                let model = s
-                    .robots
-                    .iter()
-                    .find(|p| &p.name == robot)
-                    .map(|p| p.robot.clone())
-                    .ok_or_else(|| {
-                        plan_failure(PlanError::InvalidInput(format!("no robot '{robot}'")))
-                    })?;
+                let model = scene_model(s, robot)?;
+                let stop = ctx.stop.clone();
                 let grid = |g: &str| {
                     grids
-                        .get(&model, g, GridRecipe::default())
-                        .map_err(|e| plan_failure(PlanError::InvalidInput(e.to_string())))
+                        .get_until(&model, g, GridRecipe::default(), &|| {
+                            stop.load(Ordering::Relaxed)
+                        })
+                        .map_err(|e| grid_failure(e, g))
                 };
                 let (gl, gr) = (grid(left)?, grid(right)?);
                 if ctx.stopped() {

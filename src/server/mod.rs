@@ -48,8 +48,12 @@ use self::catalog::Catalog;
 use self::error::ApiError;
 use self::jobs::{Jobs, RunnerConfig};
 use self::metrics::{Gauges, Metrics};
-use self::pool::CpuPool;
+use self::pool::{CpuPool, PoolConfig};
 use self::store::{Store, StoreError};
+
+/// Nice value of the heavy query lane's threads: below the light lane (0), above the planner
+/// threads (`planner_nice`, default 10).
+pub const HEAVY_NICE: i32 = 5;
 
 /// Settings of `manyhands serve`.
 #[derive(Debug, Clone)]
@@ -62,8 +66,13 @@ pub struct Config {
     pub scenes_dir: PathBuf,
     /// Planner worker threads.
     pub workers: usize,
-    /// Threads of the synchronous-query pool.
+    /// Threads of the synchronous-query pool's light lane (FK, IK, check).
     pub query_threads: usize,
+    /// Threads of its heavy lane (grasp quality, randomized IK searches, uploads), which run at
+    /// a lower priority than the light lane and never take its threads.
+    pub heavy_threads: usize,
+    /// Heavy queries queued or running before the heavy lane answers 503 + `Retry-After`.
+    pub max_heavy: usize,
     /// Nice value (0–19) of the planner threads: jobs are background work, so on a busy
     /// machine the synchronous queries (IK, FK, checks) get the CPU first. 0 = same priority.
     pub planner_nice: i32,
@@ -95,6 +104,8 @@ impl Config {
             scenes_dir: root.join("scenes"),
             workers: cores,
             query_threads: cores,
+            heavy_threads: (cores / 2).max(1),
+            max_heavy: 2 * (cores / 2).max(1),
             planner_nice: 10,
             max_queue: 64,
             max_plan_seconds: 60.0,
@@ -112,9 +123,14 @@ impl Config {
                 self.bind
             )));
         }
-        if self.workers == 0 || self.query_threads == 0 || self.max_queue == 0 {
+        if self.workers == 0
+            || self.query_threads == 0
+            || self.heavy_threads == 0
+            || self.max_heavy == 0
+            || self.max_queue == 0
+        {
             return Err(ServerError::Config(
-                "workers, query threads and max queue must be ≥ 1".into(),
+                "workers, query threads, heavy threads, max heavy and max queue must be ≥ 1".into(),
             ));
         }
         if !(0..=19).contains(&self.planner_nice) {
@@ -361,8 +377,14 @@ impl Server {
             store,
             metrics.clone(),
         )?;
-        let pool = CpuPool::new(cfg.query_threads, cfg.query_threads * 256)
-            .map_err(ServerError::Config)?;
+        let pool = CpuPool::new(PoolConfig {
+            light_threads: cfg.query_threads,
+            light_max_in_flight: cfg.query_threads * 256,
+            heavy_threads: cfg.heavy_threads,
+            heavy_max_in_flight: cfg.max_heavy,
+            heavy_nice: cfg.planner_nice.min(HEAVY_NICE),
+        })
+        .map_err(ServerError::Config)?;
         let listener = tokio::net::TcpListener::bind(cfg.bind)
             .await
             .map_err(|source| ServerError::Bind {

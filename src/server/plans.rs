@@ -21,6 +21,11 @@ use super::extract::ApiJson;
 use super::jobs::JobEntry;
 use super::{kinds, AppState};
 
+/// Longest a `DELETE` waits for the planner to stop (with its statistics) before it records the
+/// job `cancelled` itself (keeping the last progress; the worker, which polls the stop flag in
+/// every phase, stops soon after and its late answer is dropped).
+pub const CANCEL_WAIT: Duration = Duration::from_millis(5);
+
 /// Longest `?wait=` honoured, in seconds.
 pub const MAX_WAIT: f64 = 600.0;
 
@@ -205,7 +210,16 @@ pub async fn cancel(
     tokio::task::spawn_blocking(move || jobs.cancel(&e2))
         .await
         .map_err(|err| ApiError::internal(format!("cancel task: {err}")))?;
-    wait_final(&e, Duration::from_secs(2)).await;
+    // The planner polls its stop flag (every phase, grid builds too) and normally ends the job
+    // within milliseconds, with its statistics; a DELETE never waits longer than this for it.
+    wait_final(&e, CANCEL_WAIT).await;
+    if !e.state().is_final() {
+        let jobs = st.jobs.clone();
+        let e2 = e.clone();
+        tokio::task::spawn_blocking(move || jobs.cancel_now(&e2))
+            .await
+            .map_err(|err| ApiError::internal(format!("cancel task: {err}")))?;
+    }
     Ok(job_response(&e, false))
 }
 

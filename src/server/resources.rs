@@ -131,7 +131,7 @@ pub async fn put_robot(
     let n = name.clone();
     let created = st
         .pool
-        .run(move || st2.catalog.put_robot(&n, &body.urdf, body.srdf.as_deref()))
+        .run_heavy(move || st2.catalog.put_robot(&n, &body.urdf, body.srdf.as_deref()))
         .await?;
     let e = st.catalog.robot(&name, "name")?;
     tracing::info!(robot = %name, created, "robot uploaded");
@@ -191,7 +191,10 @@ pub async fn put_scene(
 ) -> ApiResult<Response> {
     let st2 = st.clone();
     let n = name.clone();
-    let created = st.pool.run(move || st2.catalog.put_scene(&n, body)).await?;
+    let created = st
+        .pool
+        .run_heavy(move || st2.catalog.put_scene(&n, body))
+        .await?;
     let e = st.catalog.scene(&name, "name")?;
     tracing::info!(scene = %name, created, "scene uploaded");
     let status = if created {
