@@ -733,6 +733,9 @@ impl PhaseSpace {
     }
 }
 
+/// A sample of a schedule: time, every robot's positions and velocities.
+pub type Sample = (f64, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 impl Schedule {
     /// The path parameter s ∈ [0, 1] of a piece of duration `dt` at time `tau` into it, and ṡ.
     fn piece(profile: Profile, dt: f64, tau: f64) -> (f64, f64) {
@@ -783,9 +786,9 @@ impl Schedule {
     }
 
     /// Samples at `period` seconds (and the end): `(time, positions per robot, velocities)`.
-    pub fn sample(&self, period: f64) -> Vec<(f64, Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+    pub fn sample(&self, period: f64) -> Vec<Sample> {
         let mut out = Vec::new();
-        if !(period > 0.0) {
+        if period.is_nan() || period <= 0.0 {
             return out;
         }
         let steps = (self.duration / period).floor() as usize;

@@ -591,6 +591,7 @@ impl FastChecker {
             s.next.clear();
             // The previous run's end: (its parameter, its list at the coarser level, its list
             // at this level).
+            #[allow(clippy::type_complexity)]
             let mut prev: Option<(f64, (u32, u32), (u32, u32))> = None;
             for ri in 0..s.stack.len() {
                 let r = s.stack[ri];
