@@ -47,7 +47,9 @@ use super::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory, Schedu
 use super::{IkRrtSettings, PlanError, PlanStats, StopReason, Termination};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::grasp::{grasp_contacts, grasp_quality, object_centre, object_radius, Contact};
-use crate::grasp::{GraspQuality, WrenchSpaceSettings};
+use crate::grasp::{
+    primitive_wrenches_into, quality_of_wrenches, GraspError, GraspQuality, WrenchSpaceSettings,
+};
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
 use crate::reachability::{GridCache, GridRecipe, ReachabilityGrid};
@@ -256,12 +258,12 @@ impl MultiRobotProblem {
         MultiRobotProblem::new(scene, &specs, object, maps)
     }
 
-    /// The grasp score of a combination: ε of all contacts of all hands (002 §IV-B).
-    pub fn score(
+    /// The contacts of a combination and the score settings with λ filled in.
+    fn score_input(
         &self,
         grasps: &[(usize, usize)],
         wrench: &WrenchSpaceSettings,
-    ) -> Result<GraspQuality, PlanError> {
+    ) -> (Vec<Contact>, WrenchSpaceSettings) {
         let mut contacts = Vec::new();
         for (m, &(l, r)) in self.members.iter().zip(grasps) {
             contacts.extend_from_slice(&m.left_contacts[l]);
@@ -273,8 +275,68 @@ impl MultiRobotProblem {
                 .or_else(|| (self.radius > 0.0).then(|| 1.0 / self.radius)),
             ..*wrench
         };
+        (contacts, settings)
+    }
+
+    /// The grasp score of a combination: ε of all contacts of all hands (002 §IV-B), with
+    /// `wrench.cone_edges` edges per friction cone.
+    pub fn score(
+        &self,
+        grasps: &[(usize, usize)],
+        wrench: &WrenchSpaceSettings,
+    ) -> Result<GraspQuality, PlanError> {
+        let (contacts, settings) = self.score_input(grasps, wrench);
         grasp_quality(&contacts, &self.centre, &settings)
             .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))
+    }
+
+    /// Whether the score of a combination exceeds `s_min`, decided cheaply first: the cone
+    /// edges of m' = 2, 4, … dividing m are an exact subset of the m edges (every (m/m')-th
+    /// primitive wrench of each contact, taken from the same list), so their wrench hull lies
+    /// inside the full one and their ε is a lower bound of the full ε. The first level whose
+    /// ε exceeds `s_min` decides (`true`, its quality and m'); otherwise the full m decides.
+    /// Exact as a decision; the reported ε is the full one only when m' = m.
+    pub fn score_exceeds(
+        &self,
+        grasps: &[(usize, usize)],
+        wrench: &WrenchSpaceSettings,
+        s_min: f64,
+    ) -> Result<(bool, GraspQuality, usize), PlanError> {
+        let (contacts, settings) = self.score_input(grasps, wrench);
+        let err = |e: GraspError| PlanError::InvalidInput(format!("grasp score: {e}"));
+        let mut all = Vec::new();
+        let lambda =
+            primitive_wrenches_into(&contacts, &self.centre, &settings, &mut all).map_err(err)?;
+        let m = settings.cone_edges;
+        // Soft-finger wrenches (none here) would break the per-contact stride.
+        let per = if contacts.is_empty() {
+            0
+        } else {
+            all.len() / contacts.len()
+        };
+        let mut levels: Vec<usize> = [2, 4, 8, 16]
+            .into_iter()
+            .filter(|&k| k < m && m % k == 0 && per == m)
+            .collect();
+        levels.push(m);
+        let mut sub = Vec::with_capacity(all.len());
+        for &k in &levels {
+            let q = if k == m {
+                quality_of_wrenches(&all, lambda).map_err(err)?
+            } else {
+                let stride = m / k;
+                sub.clear();
+                for c in 0..contacts.len() {
+                    sub.extend((0..k).map(|j| all[c * m + j * stride]));
+                }
+                quality_of_wrenches(&sub, lambda).map_err(err)?
+            };
+            let pass = q.force_closure && q.epsilon > s_min;
+            if pass || k == m {
+                return Ok((pass, q, k));
+            }
+        }
+        Err(PlanError::InvalidInput("grasp score: no level".into()))
     }
 }
 
@@ -376,7 +438,12 @@ pub enum MultiRobotEvent<'a> {
 pub struct MultiRobotPlan {
     /// Per member: its solution.
     pub solutions: Vec<Solution>,
+    /// The score that passed, at `score_edges` cone edges (a lower bound of the score at the
+    /// requested edges when fewer, [`MultiRobotProblem::score_exceeds`]).
     pub score: GraspQuality,
+    pub score_edges: usize,
+    /// The cone edges the request asked for.
+    pub requested_edges: usize,
     pub schedule: Schedule,
     pub stats: MultiRobotStats,
 }
@@ -393,6 +460,8 @@ struct Collector<'p> {
     goal_hit: HashMap<(usize, usize, usize, usize), bool>,
     /// (a, i, b, j) → deadlock (either way).
     dead: HashMap<(usize, usize, usize, usize), bool>,
+    /// Cone edges of the score level that passed the last accepted combination.
+    score_edges: usize,
     stats: MultiRobotStats,
 }
 
@@ -418,6 +487,7 @@ impl<'p> Collector<'p> {
             pair,
             goal_hit: HashMap::new(),
             dead: HashMap::new(),
+            score_edges: settings.wrench.cone_edges,
             stats: MultiRobotStats {
                 workers: p
                     .members
@@ -583,12 +653,15 @@ impl<'p> Collector<'p> {
         let grasps: Vec<(usize, usize)> =
             (0..n).map(|k| self.solutions[k][idx[k]].grasps).collect();
         let t = Instant::now();
-        let q = self.p.score(&grasps, &self.wrench);
+        let q = self.p.score_exceeds(&grasps, &self.wrench, self.s_min);
         self.stats.scores += 1;
         self.stats.score_time += t.elapsed();
         let q = match q {
-            Ok(q) if q.force_closure && q.epsilon > self.s_min => q,
-            Ok(q) => return Err((Rejection::Score, Some(q.epsilon))),
+            Ok((true, q, edges)) => {
+                self.score_edges = edges;
+                q
+            }
+            Ok((false, q, _)) => return Err((Rejection::Score, Some(q.epsilon))),
             Err(_) => return Err((Rejection::Score, None)),
         };
         for a in 0..n {
@@ -800,6 +873,8 @@ pub fn multi_robot_rrt(
     Ok(MultiRobotPlan {
         solutions,
         score,
+        score_edges: collector.score_edges,
+        requested_edges: settings.wrench.cone_edges,
         schedule,
         stats,
     })
@@ -994,6 +1069,8 @@ impl MultiRobotPlan {
                 "rank": self.score.rank,
                 "wrenches": self.score.wrenches,
                 "lambda": self.score.lambda,
+                "cone_edges": self.score_edges,
+                "lower_bound": self.score_edges < self.requested_edges,
             },
             "schedule": self.schedule.to_json(&names, sample_period),
             "events": events,
