@@ -601,8 +601,8 @@ impl FastChecker {
             }
             // Per tight pair, the largest inflation of a halving sequence it is free with here
             // (the state is still prepared): later levels read it instead of checking again.
-            for e in start as usize..pool.len() {
-                let pi = pool[e] as usize;
+            for &pi in &pool[start as usize..] {
+                let pi = pi as usize;
                 let d = self.free_inflation(s, pi, 0.5 * s.pair_d[pi]);
                 pool_d.push(d);
             }
