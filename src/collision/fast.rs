@@ -938,7 +938,7 @@ impl FastChecker {
     /// motion is cut into equal runs whose bodies grow by at most `max_inflation`; a run whose
     /// ends are free only without the inflation ("tight") is halved, recursively, testing only
     /// the pairs tight at its ends, until every run is proven free (true), a state collides
-    /// (false), or the inflation falls below [`Self::CERTIFY_FLOOR`] or more than 1 024 runs
+    /// (false), or the inflation falls below [`Self::CERTIFY_FLOOR`] or more than 4 096 runs
     /// are to be halved (false: not provable).
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
         self.certify_motion(a, b, max_inflation) == Certification::Free

@@ -27,10 +27,9 @@
 //! inflation is free with the smaller), its midpoint is checked against the pairs tight at
 //! either end (every other pair is proven free along the whole run). The answer is free only when every run is proven free; a state in
 //! collision (plain primitives) answers collision; a run still tight when the largest body
-//! travel inflation would fall below [`CERTIFY_FLOOR`] (1 nm), or more than 1 024 runs to halve,
-//! answers "unproven", which planners treat as not free. Every pair is grown by a further
-//! [`CERTIFY_MARGIN`] (1 µm). What is proven: no configuration `a + (b − a)·t`, t ∈ [0, 1],
-//! comes within 1 µm of a collision in the fast model, which contains the exact geometry
+//! inflation would fall below [`CERTIFY_FLOOR`] (1 µm), or more than 4 096 runs to halve,
+//! answers "unproven", which planners treat as not free. What is proven: no configuration
+//! `a + (b − a)·t`, t ∈ [0, 1], collides in the fast model, which contains the exact geometry
 //! (primitives grown by 1e-9 m and the padding; meshes as the box around their vertices), for
 //! every pair of the world's pair list (robot links, attached objects, fixed bodies, several
 //! robots). The bounds assume prismatic variables within their limits (checked) and finite
@@ -80,9 +79,6 @@ pub(super) struct Sweep {
     /// share of the segment (a body's inflation is `scale` times its travel).
     lmax: f64,
     scale: f64,
-    /// Extra growth of every pair in a certified check ([`CERTIFY_MARGIN`]; 0 in the discrete
-    /// check).
-    margin: f64,
     /// World variables that drive a prismatic joint, with their limits: the speed bounds
     /// count the joint's travel within its limits, so a certified motion must stay inside them.
     prismatic: Vec<(u32, f64, f64)>,
@@ -230,7 +226,6 @@ impl Sweep {
             pair_cum,
             lmax: 0.0,
             scale: 0.0,
-            margin: 0.0,
             q: vec![0.0; c.world.dof()],
             order: Vec::new(),
             order_n: 0,
@@ -260,7 +255,7 @@ impl Sweep {
     fn set_inflation(&mut self, h: f64) {
         self.scale = 0.5 * h;
         for (pi, &(ca, cb)) in self.pair_cum.iter().enumerate() {
-            let d = self.scale * (self.cum[ca as usize] + self.cum[cb as usize]) + self.margin;
+            let d = self.scale * (self.cum[ca as usize] + self.cum[cb as usize]);
             let reach = self.pair_reach0[pi] + d;
             self.pair_d[pi] = d;
             self.pair_reach2[pi] = reach * reach;
@@ -272,7 +267,7 @@ impl Sweep {
     #[inline]
     fn inflation(&self, pi: usize, h: f64) -> f64 {
         let (ca, cb) = self.pair_cum[pi];
-        0.5 * h * (self.cum[ca as usize] + self.cum[cb as usize]) + self.margin
+        0.5 * h * (self.cum[ca as usize] + self.cum[cb as usize])
     }
 
     /// The state `a + (b − a)·t` into `q`, as the motion validator computes its states
@@ -341,7 +336,6 @@ impl FastChecker {
         n: usize,
         max_inflation: f64,
     ) -> Option<bool> {
-        s.margin = 0.0;
         s.lengths(a, b);
         let lmax = s.lmax;
         let m = if lmax > 0.0 {
@@ -427,7 +421,7 @@ impl FastChecker {
             return Inflated::Hit;
         }
         self.prepare(q);
-        let d = s.scale * s.lmax + s.margin;
+        let d = s.scale * s.lmax;
         let (lo, hi) = (self.moving_lo.add_scalar(-d), self.moving_hi.add_scalar(d));
         let mut tight = false;
         for g in 0..self.static_groups.len() {
@@ -581,7 +575,6 @@ impl FastChecker {
         max_inflation: f64,
     ) -> super::Certification {
         use super::Certification;
-        s.margin = CERTIFY_MARGIN;
         s.lengths(a, b);
         let lmax = s.lmax;
         if !lmax.is_finite() {
@@ -693,11 +686,11 @@ impl FastChecker {
         Certification::Free
     }
 
-    /// The largest of `d0, d0/2, d0/4, …` (at least [`CERTIFY_FLOOR`] and the margin) that pair
-    /// `pi` is free with in the prepared state, 0 when none.
+    /// The largest of `d0, d0/2, d0/4, …` (at least [`CERTIFY_FLOOR`]) that pair `pi` is free
+    /// with in the prepared state, 0 when none.
     fn free_inflation(&mut self, s: &Sweep, pi: usize, d0: f64) -> f64 {
         let mut d = d0;
-        while d >= CERTIFY_FLOOR.max(s.margin) {
+        while d >= CERTIFY_FLOOR {
             if !self.pair_hits_by(s, pi, d) {
                 return d;
             }
@@ -751,7 +744,7 @@ impl FastChecker {
             let pi = pi as usize;
             let p = self.pairs[pi];
             let (ca, cb) = s.pair_cum[pi];
-            let d = scale * (s.cum[ca as usize] + s.cum[cb as usize]) + s.margin;
+            let d = scale * (s.cum[ca as usize] + s.cum[cb as usize]);
             let reach = s.pair_reach0[pi] + d;
             let (x, y) = (p.a as usize, p.b as usize);
             let near = if p.b_static {
@@ -788,15 +781,8 @@ impl FastChecker {
 
 /// Most coarse runs of a certified check (a longer motion is covered by larger inflations).
 const CERTIFY_MAX_RUNS: usize = 4096;
-/// Most runs one certified check halves in all before it gives up (unproven): bounds the cost
-/// of a motion that grazes an obstacle over a long stretch.
-const CERTIFY_MAX_REFINEMENTS: usize = 1024;
-/// Smallest travel inflation (metres) a refinement goes down to before it gives up (unproven);
-/// with [`CERTIFY_MARGIN`] on top, a motion passing closer than about 1 µm to a contact is
-/// refused (a grasp approach ending 2 µm from the object is still certified,
-/// `tests/collision_certified.rs`).
-pub(super) const CERTIFY_FLOOR: f64 = 1e-9;
-/// Clearance (metres) a certified motion keeps from every contact in the fast model: every pair
-/// is grown by it on top of its travel bound, so the proof does not rest on the last nanometres
-/// where the exact checker's own tolerance (~1e-9 m) decides.
-pub(super) const CERTIFY_MARGIN: f64 = 1e-6;
+/// Most refinement steps (halvings) of one certified check before it gives up (unproven).
+const CERTIFY_MAX_REFINEMENTS: usize = 4096;
+/// Smallest body inflation (metres) a refinement goes down to before it gives up (unproven):
+/// a motion passing closer than this to a contact is refused.
+pub(super) const CERTIFY_FLOOR: f64 = 1e-6;
