@@ -588,3 +588,37 @@ fn only_the_grasping_hand_touches_the_object_from_the_grasp_on() {
     assert!(!c.is_free(qg));
     assert!(!c.motion_certified(qg, &lifted));
 }
+
+/// A motion ending at touching distance (5 µm from a wall, far below the 0.5° / 5 mm states'
+/// reach) is certified, in both directions; ending within the 1 µm refinement floor of it, or
+/// 0.1 µm inside, is not.
+#[test]
+fn a_motion_ending_at_touching_distance_is_certified() {
+    let urdf = r#"<robot name="slider">
+  <link name="world"/>
+  <link name="tool"><collision><geometry><sphere radius="0.01"/></geometry></collision></link>
+  <joint name="x" type="prismatic"><parent link="world"/><child link="tool"/>
+    <axis xyz="1 0 0"/><limit lower="-2" upper="2" velocity="1" effort="1"/></joint>
+</robot>"#;
+    let robot = Arc::new(Robot::from_strings(urdf, None, Path::new(".")).expect("robot"));
+    let mut world = CollisionWorld::single(robot, Pose::identity());
+    // Wall face at x = 0.5.
+    world.statics = vec![obstacle(
+        "wall",
+        [0.55, 0.0, 0.0],
+        [0.0; 3],
+        Shape::Box {
+            half_extents: Vector3::new(0.05, 0.2, 0.2),
+        },
+    )];
+    let mut c = FastChecker::new(&world);
+    for (gap, free) in [(5e-6, true), (1e-5, true), (5e-7, false), (-1e-7, false)] {
+        let end = 0.5 - 0.01 - gap;
+        assert_eq!(c.motion_certified(&[-0.3], &[end]), free, "gap {gap}");
+        assert_eq!(
+            c.motion_certified(&[end], &[-0.3]),
+            free,
+            "gap {gap}, leaving"
+        );
+    }
+}
