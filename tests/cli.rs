@@ -181,7 +181,8 @@ fn random_boxes_scene_is_written_and_loads() {
 }
 
 /// `bench mbm --ompl-log` writes OMPL's benchmark log: the preamble, one planner, one line per
-/// run with as many "; "-terminated fields as declared properties, solved runs marked correct.
+/// run with as many "; "-terminated fields as declared properties, solved runs marked correct;
+/// `--out` writes every run with its returned path.
 #[test]
 fn bench_mbm_writes_an_ompl_benchmark_log() {
     let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
@@ -192,6 +193,7 @@ fn bench_mbm_writes_an_ompl_benchmark_log() {
     let log = dir.join("mbm.log");
     let urdf = data.join("panda/panda_spherized.urdf");
     let problems = data.join("panda/problems.json");
+    let out_file = dir.join("mbm.json");
     let (code, out, err) = run(&[
         "bench",
         "mbm",
@@ -205,8 +207,24 @@ fn bench_mbm_writes_an_ompl_benchmark_log() {
         "2",
         "--ompl-log",
         log.to_str().expect("utf-8 path"),
+        "--out",
+        out_file.to_str().expect("utf-8 path"),
     ]);
     assert_eq!(code, 0, "{out}\n{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out_file).expect("--out written"))
+            .expect("JSON");
+    let runs = report["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 4);
+    for r in runs {
+        let path = r["path"].as_array().expect("path");
+        assert_eq!(r["solved"], true, "{r}");
+        assert!(path.len() >= 2, "{r}");
+        assert_eq!(path.len() as u64, r["vertices"].as_u64().expect("vertices"));
+        assert!(path
+            .iter()
+            .all(|q| q.as_array().is_some_and(|q| q.len() == 7)));
+    }
     let text = std::fs::read_to_string(&log).expect("log written");
     let lines: Vec<&str> = text.lines().collect();
     assert!(lines[0].starts_with("manyhands version "));

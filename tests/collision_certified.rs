@@ -508,3 +508,117 @@ fn certified_check_refuses_what_the_states_miss() {
         "{missed} of {refused} walls between the states"
     );
 }
+
+/// Meant touching stays allowed, nothing else: before the grasp event every link of the hand is
+/// checked against the object it is about to grasp (the approach ends free of it and is still
+/// certified; moved 1.5 cm into the palm, the same approach is refused); from the grasp event on
+/// the object is attached and the end effector's links may touch it (certified with the object
+/// in the palm), no other link (refused with no touch links).
+#[test]
+fn only_the_grasping_hand_touches_the_object_from_the_grasp_on() {
+    use manyhands::planning::grasping::ReachProblem;
+    use manyhands::planning::task::{reach_task, GraspAlgorithm};
+    use manyhands::planning::{IkRrtSettings, Termination};
+
+    let s = kitchen();
+    let ik = manyhands::kinematics::randomized::RandomizedIkSettings {
+        max_tries: 50,
+        ..Default::default()
+    };
+    let plan = reach_task(
+        &s,
+        "armar",
+        "torso_right_arm",
+        "wok",
+        None,
+        GraspAlgorithm::IkRrt,
+        IkRrtSettings::default(),
+        ik,
+        &mut Termination::new(),
+        3,
+    )
+    .expect("grasp plan");
+    let ph = &plan.phases[0];
+    let (qa, qg) = (&plan.waypoints[ph.last - 1], &plan.waypoints[ph.last]);
+    // The approach, ending at the grasp state: certified in the world it was planned in.
+    assert!(FastChecker::new(&ph.world).motion_certified(qa, qg));
+
+    let world = CollisionWorld::from_scene(&s);
+    let start = CollisionWorld::start_config(&s);
+    let p = ReachProblem::grasp(&s, &world, &start, "armar", "torso_right_arm", "wok")
+        .expect("problem");
+    let tcp = p.hand.tcp_pose(&world, qg);
+    let approach = tcp.rotation * Vector3::z();
+    let wi = world
+        .statics
+        .iter()
+        .position(|b| b.name == "wok")
+        .expect("wok");
+    // Before the grasp: the wok 1.5 cm further into the hand is hit by the approach.
+    let mut deeper = world.clone();
+    deeper.statics[wi].pose.translation.vector -= approach * 0.015;
+    let mut c = FastChecker::new(&deeper);
+    assert!(!c.is_free(qg), "the shifted wok must overlap the hand");
+    assert!(!c.motion_certified(qa, qg));
+
+    // From the grasp on: attached 1.5 cm into the palm (where `deeper` has it).
+    // (Without the fixed bodies: the wok pushed into the palm would reach into the counter.)
+    let mut held = deeper.clone();
+    held.statics.retain(|b| b.name == "wok");
+    held.attach(
+        "wok",
+        p.hand.robot,
+        p.hand.tcp_link(),
+        qg,
+        p.hand.touch.clone(),
+    )
+    .expect("attach");
+    let mut lifted = qg.clone();
+    let hip = p.space.vars()[0];
+    lifted[hip] += 0.05;
+    let mut c = FastChecker::new(&held);
+    assert!(
+        c.motion_certified(qg, &lifted),
+        "the hand may touch what it holds: {:?}",
+        c.first_contact(qg)
+    );
+    // No touch links: the same motion is refused (the hand touches the held wok).
+    held.attached[0].touch.clear();
+    let mut c = FastChecker::new(&held);
+    assert!(!c.is_free(qg));
+    assert!(!c.motion_certified(qg, &lifted));
+}
+
+/// A motion ending at touching distance (5 µm from a wall, far below the 0.5° / 5 mm states'
+/// reach) is certified, in both directions; ending within the 1 µm refinement floor of it, or
+/// 0.1 µm inside, is not.
+#[test]
+fn a_motion_ending_at_touching_distance_is_certified() {
+    let urdf = r#"<robot name="slider">
+  <link name="world"/>
+  <link name="tool"><collision><geometry><sphere radius="0.01"/></geometry></collision></link>
+  <joint name="x" type="prismatic"><parent link="world"/><child link="tool"/>
+    <axis xyz="1 0 0"/><limit lower="-2" upper="2" velocity="1" effort="1"/></joint>
+</robot>"#;
+    let robot = Arc::new(Robot::from_strings(urdf, None, Path::new(".")).expect("robot"));
+    let mut world = CollisionWorld::single(robot, Pose::identity());
+    // Wall face at x = 0.5.
+    world.statics = vec![obstacle(
+        "wall",
+        [0.55, 0.0, 0.0],
+        [0.0; 3],
+        Shape::Box {
+            half_extents: Vector3::new(0.05, 0.2, 0.2),
+        },
+    )];
+    let mut c = FastChecker::new(&world);
+    for (gap, free) in [(5e-6, true), (1e-5, true), (5e-7, false), (-1e-7, false)] {
+        let end = 0.5 - 0.01 - gap;
+        assert_eq!(c.motion_certified(&[-0.3], &[end]), free, "gap {gap}");
+        assert_eq!(
+            c.motion_certified(&[end], &[-0.3]),
+            free,
+            "gap {gap}, leaving"
+        );
+    }
+}

@@ -87,7 +87,8 @@ pub struct MbmArgs {
     /// Return raw paths (no shortcutting).
     #[arg(long)]
     pub no_simplify: bool,
-    /// Write per-problem results and the summaries as JSON to this file.
+    /// Write per-problem results (each returned path included) and the summaries as JSON to
+    /// this file.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write the runs in OMPL's benchmark log format (one experiment, planner
@@ -117,6 +118,10 @@ struct Run {
     length_raw: f64,
     length_simplified: f64,
     vertices: usize,
+    /// The returned path (states of the problem's joint space, start first), empty when none.
+    path: Vec<Vec<f64>>,
+    /// The fast checker's certified motion checks of the search (when it planned with it).
+    certification: Option<manyhands::collision::CertifyStats>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -244,6 +249,8 @@ fn run_problem(
         length_raw: f64::NAN,
         length_simplified: f64::NAN,
         vertices: 0,
+        path: Vec::new(),
+        certification: None,
     };
     let mut term = Termination::new().with_time_limit(Duration::from_secs_f64(a.time_limit));
     match planner.plan(&p.start, &p.goals, &mut term, seed) {
@@ -258,6 +265,8 @@ fn run_problem(
             run.length_raw = s.length_raw;
             run.length_simplified = s.length_simplified;
             run.vertices = r.path.len();
+            run.path = r.path.clone();
+            run.certification = s.certification;
             // The exact checker at the check resolution decides; ends must be the problem's.
             let mut exact = SpaceValidator::new(
                 space,

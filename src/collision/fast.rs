@@ -11,9 +11,12 @@
 //! whenever [`super::ExactChecker`] reports a collision this checker does too; the largest
 //! over-approximation is reported by [`FastChecker::max_overapproximation`] (≈ 0 without meshes).
 //!
-//! Its segment check ([`FastChecker::segment_free`], `sweep.rs`) answers exactly as checking
-//! every state at the resolution, but proves runs of states free together with bounds on how far
-//! each body can move.
+//! Its motion check ([`FastChecker::segment_free`], [`FastChecker::motion_certified`],
+//! `sweep.rs`) proves the continuous straight motion collision-free, not only its states at a
+//! resolution: swept-displacement bounds per body (how far any point of it can move along the
+//! motion) against the primitives grown by them, refined where that is tight; motions it cannot
+//! prove are refused. What is proven and under which bound: `sweep.rs`. The discrete verdict of
+//! the states at the resolution remains as [`FastChecker::segment_free_skipping`] (tests).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -933,10 +936,10 @@ impl FastChecker {
 
     /// [`Self::motion_certified`] with the coarse inflation `max_inflation` (metres): the
     /// motion is cut into equal runs whose bodies grow by at most `max_inflation`; a run whose
-    /// ends are free only without the inflation ("tight") is halved, recursively, re-testing
-    /// only the pairs tight at its ends, until every run is proven free (true), a state
-    /// collides (false), or the inflation falls below [`Self::CERTIFY_FLOOR`] or 4 096
-    /// halvings are spent (false: not provable).
+    /// ends are free only without the inflation ("tight") is halved, recursively, testing only
+    /// the pairs tight at its ends, until every run is proven free (true), a state collides
+    /// (false), or the inflation falls below [`Self::CERTIFY_FLOOR`] or more than 4 096 runs
+    /// are to be halved (false: not provable).
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
         self.certify_motion(a, b, max_inflation) == Certification::Free
     }

@@ -1,8 +1,10 @@
 //! State and motion validity in a [`JointSpace`] (OMPL's `StateValidityChecker` and
 //! `DiscreteMotionValidator`): bounds plus a [`CollisionChecker`] on the world configuration,
-//! segments through the collision module's [`MotionValidator`] (fixed resolution, bisection order),
-//! a checker's own 8-lane segment check, or — when asked and the checker can — a certified check
-//! of the continuous segment ([`SegmentChecker::segment_certified`]).
+//! segments through the checker's own segment check — for the planners' [`FastChecker`] a
+//! certified check of the continuous segment ([`FastChecker::segment_free`]), for the sphere
+//! checker its 8-lane check of the states, certified too when asked
+//! ([`SegmentChecker::segment_certified`]) — or the collision module's [`MotionValidator`] (fixed
+//! resolution, bisection order) for checkers without one (the exact checker).
 
 use super::JointSpace;
 use crate::collision::{
