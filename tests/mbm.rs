@@ -315,7 +315,7 @@ fn certified_settings_solve(
     check_deg: f64,
 ) {
     use manyhands::collision::AutoChecker;
-    let vars = file.joint_vars(&robot).expect("joints");
+    let vars = file.joint_vars(robot).expect("joints");
     let settings = RrtConnectSettings {
         range: Some(range),
         certify: Some(0.04),
