@@ -87,6 +87,9 @@ pub struct Config {
     pub retention: Duration,
     /// Running jobs get this long to finish at shutdown.
     pub shutdown_grace: Duration,
+    /// At shutdown the listener stays open at least this long (capped by `shutdown_grace`),
+    /// `/readyz` answering 503, so a load balancer sees the drain before connections fail.
+    pub drain: Duration,
 }
 
 impl Config {
@@ -112,6 +115,7 @@ impl Config {
             max_body: 2 * 1024 * 1024,
             retention: Duration::from_secs(7 * 24 * 3600),
             shutdown_grace: Duration::from_secs(10),
+            drain: Duration::from_secs(5),
         }
     }
 
@@ -439,18 +443,23 @@ impl Server {
         &self.state
     }
 
-    /// Graceful shutdown: stop accepting, interrupt queued jobs, give running ones the grace
-    /// period, persist everything, close the store, wait for open connections (bounded).
+    /// Graceful shutdown (drain): `/readyz` answers 503 and new jobs 503 + `Retry-After` at once,
+    /// queued jobs become `interrupted`, running ones get the grace period to finish while the
+    /// listener stays open (`/healthz`, `GET`, the jobs' event streams keep working) for at least
+    /// the drain time; then the listener closes, open connections get 5 s, the store is closed.
     pub async fn shutdown(self) -> Result<(), ServerError> {
-        tracing::info!("shutting down");
+        tracing::info!("shutting down: draining");
+        let t0 = tokio::time::Instant::now();
         self.state.shutting_down.store(true, Ordering::SeqCst);
-        let _ = self.stop_tx.send(true);
         self.retention.abort();
         let jobs = self.state.jobs.clone();
         let grace = self.state.cfg.shutdown_grace;
         tokio::task::spawn_blocking(move || jobs.shutdown(grace))
             .await
             .map_err(|e| ServerError::Config(format!("shutdown task: {e}")))?;
+        tokio::time::sleep_until(t0 + self.state.cfg.drain.min(grace)).await;
+        tracing::info!("closing the listener");
+        let _ = self.stop_tx.send(true);
         match tokio::time::timeout(Duration::from_secs(5), self.serve).await {
             Ok(Ok(r)) => r?,
             Ok(Err(e)) => tracing::error!(error = %e, "server task failed"),

@@ -137,6 +137,13 @@ pub async fn submit(
     RawQuery(q): RawQuery,
     ApiJson(body): ApiJson<Value>,
 ) -> ApiResult<Response> {
+    if st.shutting_down.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(ApiError::unavailable(
+            "shutting_down",
+            "the server is shutting down",
+            5,
+        ));
+    }
     let wait = parse_wait(q)?;
     let req = parse_plan_request(body)?;
     let kind = req.kind();
