@@ -54,6 +54,9 @@ use self::store::{Store, StoreError};
 /// threads (`planner_nice`, default 10).
 pub const HEAVY_NICE: i32 = 5;
 
+/// Shortest bearer token accepted when the bind address is not loopback.
+pub const MIN_TOKEN_CHARS: usize = 16;
+
 /// Settings of `manyhands serve`.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -125,6 +128,14 @@ impl Config {
                 "binding {} (not loopback) requires a token (--token or MANYHANDS_TOKEN)",
                 self.bind
             )));
+        }
+        if let Some(t) = self.token.as_deref() {
+            if !self.bind.ip().is_loopback() && t.chars().count() < MIN_TOKEN_CHARS {
+                return Err(ServerError::Config(format!(
+                    "binding {} (not loopback) requires a token of at least {MIN_TOKEN_CHARS} characters",
+                    self.bind
+                )));
+            }
         }
         if self.workers == 0
             || self.query_threads == 0
@@ -267,8 +278,10 @@ async fn auth(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Resp
                 .headers()
                 .get(header::AUTHORIZATION)
                 .and_then(|v| v.to_str().ok())
-                .and_then(|v| v.strip_prefix("Bearer "))
-                .is_some_and(|t| constant_time_eq(t.trim().as_bytes(), token.as_bytes()));
+                .and_then(|v| v.trim().split_once(' '))
+                // The auth scheme is case-insensitive (RFC 7235 §2.1).
+                .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+                .is_some_and(|(_, t)| constant_time_eq(t.trim().as_bytes(), token.as_bytes()));
             if !ok {
                 return ApiError::unauthorized().into_response();
             }
