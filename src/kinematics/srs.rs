@@ -435,7 +435,7 @@ impl PsiAffine {
 /// left side does not depend on ψ).
 fn push_psi_roots(a: f64, b: f64, c: f64, out: &mut Vec<f64>) {
     let r = a.hypot(b);
-    if !(r > 1e-12) {
+    if r.is_nan() || r <= 1e-12 {
         return;
     }
     let x = -c / r;
