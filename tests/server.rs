@@ -844,5 +844,7 @@ async fn token_auth_and_retention() {
     cfg.bind = "0.0.0.0:0".parse().expect("addr");
     assert!(cfg.validate().is_err());
     cfg.token = Some("t".into());
+    assert!(cfg.validate().is_err(), "a short token off loopback");
+    cfg.token = Some("0123456789abcdef".into());
     assert!(cfg.validate().is_ok());
 }

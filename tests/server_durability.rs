@@ -2,64 +2,12 @@
 //! killed with SIGKILL right after it answered `succeeded`, restarted on the same data folder,
 //! and must serve the very same job, byte for byte.
 
-use std::io::{BufRead, BufReader};
-use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+mod process;
+
 use std::time::Duration;
 
+use process::spawn;
 use serde_json::{json, Value};
-
-/// A `manyhands serve` child process on an ephemeral loopback port.
-struct Proc {
-    child: Child,
-    addr: SocketAddr,
-}
-
-fn spawn(data: &Path) -> Proc {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    // MANYHANDS_TEST_BIN runs the test against another build (e.g. the base commit's).
-    let bin = std::env::var("MANYHANDS_TEST_BIN")
-        .unwrap_or_else(|_| env!("CARGO_BIN_EXE_manyhands").to_string());
-    let mut child = Command::new(bin)
-        .args(["--robots", &root.join("robots").display().to_string()])
-        .args(["--scenes", &root.join("scenes").display().to_string()])
-        .args(["serve", "--bind", "127.0.0.1:0", "--workers", "2"])
-        .args(["--query-threads", "1", "--log-format", "json"])
-        .arg("--data-dir")
-        .arg(data)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn manyhands serve");
-    let stderr = child.stderr.take().expect("stderr");
-    let (tx, rx) = mpsc::channel();
-    // Reads the log for the bound address, then keeps draining it so the server never blocks.
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if let Ok(v) = serde_json::from_str::<Value>(&line) {
-                if let Some(a) = v["addr"]
-                    .as_str()
-                    .and_then(|a| a.parse::<SocketAddr>().ok())
-                {
-                    let _ = tx.send(a);
-                }
-            }
-        }
-    });
-    let addr = rx
-        .recv_timeout(Duration::from_secs(60))
-        .expect("the server logs its address");
-    Proc { child, addr }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_succeeded_answer_survives_kill_9_byte_identical() {
@@ -79,7 +27,7 @@ async fn a_succeeded_answer_survives_kill_9_byte_identical() {
     const ROUNDS: usize = 60;
     let mut acknowledged = Vec::new();
     for round in 0..ROUNDS {
-        let mut p = spawn(&data);
+        let mut p = spawn(&data, &[]);
         // A short sweep: its result has floats with all 17 digits (fractions, milliseconds).
         let body = json!({"kind": "collision_sweep", "scene": "kitchen",
                           "samples": 3000 + round as u64, "seed": round as u64, "time_limit": 20});
@@ -99,7 +47,7 @@ async fn a_succeeded_answer_survives_kill_9_byte_identical() {
         acknowledged.push((job["id"].as_str().expect("id").to_string(), bytes));
     }
     // One restart reads every acknowledged job back.
-    let p = spawn(&data);
+    let p = spawn(&data, &[]);
     let (mut found, mut succeeded, mut identical) = (0, 0, 0);
     for (id, served) in &acknowledged {
         let r = http

@@ -101,3 +101,148 @@ fn request_body_schemas_match_the_checked_in_copies() {
         }
     }
 }
+
+/// The README's `curl` request bodies with their method and path (`-d '…'` bodies only).
+fn readme_bodies() -> Vec<(String, String, serde_json::Value)> {
+    let readme =
+        std::fs::read_to_string(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("README.md"))
+            .expect("README.md");
+    let text = readme.replace("\\\n", " ");
+    let mut out = Vec::new();
+    for chunk in text.split("curl ").skip(1) {
+        let Some(rest) = chunk
+            .strip_prefix("-X POST ")
+            .map(|r| ("post", r))
+            .or_else(|| chunk.strip_prefix("-X PUT ").map(|r| ("put", r)))
+        else {
+            continue;
+        };
+        let (method, rest) = rest;
+        let target = rest
+            .split_whitespace()
+            .next()
+            .unwrap_or("")
+            .trim_matches('"');
+        let Some(path) = target.strip_prefix("$S") else {
+            continue;
+        };
+        let path = path.split('?').next().unwrap_or(path).to_string();
+        let Some(i) = rest.find("-d '") else { continue };
+        let body = &rest[i + 4..];
+        let body = &body[..body.find('\'').expect("closing quote")];
+        let v: serde_json::Value = serde_json::from_str(body)
+            .unwrap_or_else(|e| panic!("README body of {method} {path} is not JSON: {e}\n{body}"));
+        out.push((method.to_string(), path, v));
+    }
+    out
+}
+
+/// A validator of the component `$ref` inside the spec (references resolve in the document).
+fn validator(spec: &serde_json::Value, schema: &serde_json::Value) -> jsonschema::Validator {
+    let doc = serde_json::json!({
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "components": spec["components"],
+        "allOf": [schema],
+    });
+    jsonschema::draft202012::new(&doc).expect("the spec's schema compiles")
+}
+
+fn errors(v: &jsonschema::Validator, x: &serde_json::Value) -> Vec<String> {
+    v.iter_errors(x)
+        .map(|e| format!("{} at {}", e, e.instance_path()))
+        .collect()
+}
+
+/// The spec's schemas are honest: every README request body validates against its operation's
+/// request schema (with an independent JSON Schema validator), the server accepts it, and the
+/// server's answer validates against the operation's response schema. Bodies the server refuses
+/// (unknown field, no `kind`) the spec refuses too.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn readme_bodies_and_answers_validate_against_the_spec() {
+    let spec: serde_json::Value =
+        serde_json::from_str(&manyhands::server::openapi::openapi_json()).expect("spec");
+    let bodies = readme_bodies();
+    assert!(bodies.len() >= 14, "{} README bodies", bodies.len());
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    let dir = std::env::temp_dir().join(format!("manyhands-spec-{}-{nanos}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let mut cfg = manyhands::server::Config::new("127.0.0.1:0".parse().expect("addr"), dir.clone());
+    cfg.robots_dir = root.join("robots");
+    cfg.scenes_dir = root.join("scenes");
+    cfg.workers = 1;
+    cfg.query_threads = 1;
+    cfg.heavy_threads = 1;
+    cfg.shutdown_grace = std::time::Duration::from_millis(100);
+    let server = manyhands::server::Server::start(cfg).await.expect("server");
+    let base = format!("http://{}", server.addr());
+    let http = reqwest::Client::builder()
+        .timeout(std::time::Duration::from_secs(120))
+        .build()
+        .expect("client");
+    for (method, path, body) in &bodies {
+        let op = &spec["paths"][path.as_str()][method.as_str()];
+        let req_schema = &op["requestBody"]["content"]["application/json"]["schema"];
+        assert!(req_schema.is_object(), "{method} {path}: no request schema");
+        let v = validator(&spec, req_schema);
+        let e = errors(&v, body);
+        assert!(
+            e.is_empty(),
+            "README body of {method} {path} fails the spec: {e:?}\n{body}"
+        );
+        // What the server refuses, the spec refuses.
+        if let Some(o) = body.as_object() {
+            let mut extra = o.clone();
+            extra.insert("no_such_field".into(), serde_json::json!(1));
+            assert!(
+                !v.is_valid(&serde_json::Value::Object(extra)),
+                "{method} {path}: unknown field accepted"
+            );
+            if o.contains_key("kind") {
+                let mut no_kind = o.clone();
+                no_kind.remove("kind");
+                assert!(
+                    !v.is_valid(&serde_json::Value::Object(no_kind)),
+                    "{path}: no kind accepted"
+                );
+            }
+        }
+        let m = if method == "put" {
+            reqwest::Method::PUT
+        } else {
+            reqwest::Method::POST
+        };
+        let r = http
+            .request(m, format!("{base}{path}"))
+            .json(body)
+            .send()
+            .await
+            .expect("request");
+        let status = r.status().as_u16();
+        let answer: serde_json::Value = r.json().await.unwrap_or(serde_json::Value::Null);
+        assert!(
+            (200..300).contains(&status),
+            "the server refused the README body of {method} {path}: {status} {answer}"
+        );
+        let resp_schema =
+            &op["responses"][status.to_string()]["content"]["application/json"]["schema"];
+        assert!(
+            resp_schema.is_object(),
+            "{method} {path}: no schema for {status}"
+        );
+        let e = errors(&validator(&spec, resp_schema), &answer);
+        assert!(
+            e.is_empty(),
+            "{method} {path}: the {status} answer fails the spec: {e:?}\n{answer}"
+        );
+    }
+    eprintln!(
+        "{} README bodies and their answers validate against api/openapi.json",
+        bodies.len()
+    );
+    server.shutdown().await.expect("shutdown");
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -312,7 +312,7 @@ pub struct FkArgs {
     /// Model name or .urdf path.
     pub robot: String,
     /// `dof` values, or `joint=value` pairs on top of --named (default: the `home` state or zero).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub config: Option<String>,
     /// SRDF group state to start from.
     #[arg(long)]
@@ -365,7 +365,7 @@ pub struct IkArgs {
     #[arg(long, default_value = "root")]
     pub frame: String,
     /// Configuration of the other joints and seed (`joint=value` pairs or all values).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub config: Option<String>,
     /// Use the numeric solver (damped least squares) even for S-R-S arms.
     #[arg(long)]
@@ -458,7 +458,7 @@ pub struct CheckArgs {
     #[arg(long)]
     pub robot: Option<String>,
     /// `joint=value` pairs or all values, on top of the robot's start configuration.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub config: Option<String>,
     /// Named configuration of the placement (scene `configs`) or the model's group states.
     #[arg(long)]

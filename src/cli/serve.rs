@@ -55,6 +55,10 @@ pub struct ServeArgs {
     /// Seconds running jobs get to finish at shutdown before they are interrupted.
     #[arg(long, env = "MANYHANDS_SHUTDOWN_GRACE", default_value_t = 10.0)]
     pub shutdown_grace: f64,
+    /// Seconds the listener stays open at shutdown at least (capped by --shutdown-grace), with
+    /// /readyz answering 503, so a load balancer sees the drain before connections fail.
+    #[arg(long, env = "MANYHANDS_DRAIN", default_value_t = 5.0)]
+    pub drain: f64,
     /// Log format: `text` or `json`.
     #[arg(long, env = "MANYHANDS_LOG_FORMAT", default_value = "text")]
     pub log_format: String,
@@ -123,6 +127,7 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     cfg.max_body = a.max_body;
     cfg.retention = seconds("retention-hours", a.retention_hours * 3600.0)?;
     cfg.shutdown_grace = seconds("shutdown-grace", a.shutdown_grace)?;
+    cfg.drain = seconds("drain", a.drain)?;
     cfg.validate()?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()

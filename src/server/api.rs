@@ -625,6 +625,9 @@ pub struct Job {
     #[schema(value_type = Option<Object>)]
     pub result: Option<Value>,
     pub error: Option<ErrorDetail>,
+    /// What the server changed in the request, e.g. a `time_limit` capped to its maximum.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// `GET /v1/plans`.

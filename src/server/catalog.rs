@@ -147,6 +147,35 @@ fn remove_file(path: &Path) -> ApiResult<()> {
     }
 }
 
+/// Most `<joint>` elements of an uploaded URDF.
+pub const MAX_UPLOAD_JOINTS: usize = 512;
+/// Most `<link>` elements of an uploaded URDF.
+pub const MAX_UPLOAD_LINKS: usize = 512;
+
+/// Bounds an upload's size in joints and links before the model is built (422 naming `urdf`
+/// and the limit). Malformed XML is left to the URDF parser, which names the error.
+fn check_urdf_size(urdf: &str) -> ApiResult<()> {
+    let Ok(doc) = roxmltree::Document::parse(urdf) else {
+        return Ok(());
+    };
+    let count = |tag: &str| {
+        doc.root_element()
+            .children()
+            .filter(|n| n.has_tag_name(tag))
+            .count()
+    };
+    for (tag, max) in [("joint", MAX_UPLOAD_JOINTS), ("link", MAX_UPLOAD_LINKS)] {
+        let n = count(tag);
+        if n > max {
+            return Err(ApiError::invalid(
+                "urdf",
+                format!("{n} <{tag}> elements; an uploaded robot may have at most {max}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl Catalog {
     /// Loads built-in robots and scenes from `robots_dir` / `scenes_dir` (errors there are fatal)
     /// and the uploaded ones under `data_dir` (a broken upload is skipped with a warning).
@@ -185,7 +214,9 @@ impl Catalog {
                 }
                 let srdf = p.with_extension("srdf");
                 match Robot::from_files(p, srdf.is_file().then_some(srdf.as_path())) {
-                    Ok(r) => {
+                    Ok(mut r) => {
+                        // Named as uploaded, whatever the URDF's <robot name>.
+                        r.name = name.clone();
                         robots.insert(
                             name,
                             Arc::new(RobotEntry::new(Arc::new(r), Source::Uploaded)),
@@ -304,8 +335,9 @@ impl Catalog {
     /// Returns true when it was created (false: replaced).
     pub fn put_robot(&self, name: &str, urdf: &str, srdf: Option<&str>) -> ApiResult<bool> {
         check_name(name, "robot")?;
+        check_urdf_size(urdf)?;
         check_urdf_meshes(urdf)?;
-        let robot = Robot::from_strings(urdf, srdf, &self.robots_dir).map_err(|e| {
+        let mut robot = Robot::from_strings(urdf, srdf, &self.robots_dir).map_err(|e| {
             let prefix = match &e {
                 ModelError::Invalid { file, .. }
                 | ModelError::Syntax { file, .. }
@@ -318,6 +350,8 @@ impl Catalog {
             };
             ApiError::from_model(&e, prefix)
         })?;
+        // Errors and answers name the robot as uploaded, not by the URDF's <robot name>.
+        robot.name = name.to_string();
         let _w = self.write.lock().unwrap_or_else(lock_err);
         let existing = self
             .robots

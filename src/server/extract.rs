@@ -77,6 +77,13 @@ fn classify(e: serde_json::Error, path: String) -> ApiError {
     use serde_json::error::Category;
     match e.classify() {
         Category::Data => ApiError::invalid(path, strip_position(&e.to_string())),
+        // Inside the document, "trailing characters" is a fixed-length array given more
+        // elements than it has (e.g. a 3-vector of four): a bad value of that field.
+        Category::Syntax
+            if !path.is_empty() && e.to_string().starts_with("trailing characters") =>
+        {
+            ApiError::invalid(path, "too many elements for this fixed-length array")
+        }
         Category::Syntax | Category::Eof | Category::Io => {
             ApiError::malformed(format!("malformed JSON: {e}")).at(path)
         }

@@ -251,6 +251,17 @@ impl Jobs {
         request: Value,
         prepared: Prepared,
     ) -> ApiResult<Arc<JobEntry>> {
+        self.submit_with_warnings(kind, request, prepared, Vec::new())
+    }
+
+    /// [`Jobs::submit`] with the job's `warnings` (what the server changed in the request).
+    pub fn submit_with_warnings(
+        &self,
+        kind: &str,
+        request: Value,
+        prepared: Prepared,
+        warnings: Vec<String>,
+    ) -> ApiResult<Arc<JobEntry>> {
         {
             let mut q = lock(&self.queue);
             if q.closed {
@@ -280,6 +291,7 @@ impl Jobs {
             progress: None,
             result: None,
             error: None,
+            warnings,
         };
         let persisted = self.persist(&job);
         let mut q = lock(&self.queue);

@@ -55,6 +55,9 @@ use self::store::{Store, StoreError};
 /// threads (`planner_nice`, default 10).
 pub const HEAVY_NICE: i32 = 5;
 
+/// Shortest bearer token accepted when the bind address is not loopback.
+pub const MIN_TOKEN_CHARS: usize = 16;
+
 /// Settings of `manyhands serve`.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -88,6 +91,9 @@ pub struct Config {
     pub retention: Duration,
     /// Running jobs get this long to finish at shutdown.
     pub shutdown_grace: Duration,
+    /// At shutdown the listener stays open at least this long (capped by `shutdown_grace`),
+    /// `/readyz` answering 503, so a load balancer sees the drain before connections fail.
+    pub drain: Duration,
 }
 
 impl Config {
@@ -113,6 +119,7 @@ impl Config {
             max_body: 2 * 1024 * 1024,
             retention: Duration::from_secs(7 * 24 * 3600),
             shutdown_grace: Duration::from_secs(10),
+            drain: Duration::from_secs(5),
         }
     }
 
@@ -122,6 +129,14 @@ impl Config {
                 "binding {} (not loopback) requires a token (--token or MANYHANDS_TOKEN)",
                 self.bind
             )));
+        }
+        if let Some(t) = self.token.as_deref() {
+            if !self.bind.ip().is_loopback() && t.chars().count() < MIN_TOKEN_CHARS {
+                return Err(ServerError::Config(format!(
+                    "binding {} (not loopback) requires a token of at least {MIN_TOKEN_CHARS} characters",
+                    self.bind
+                )));
+            }
         }
         if self.workers == 0
             || self.query_threads == 0
@@ -264,8 +279,10 @@ async fn auth(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Resp
                 .headers()
                 .get(header::AUTHORIZATION)
                 .and_then(|v| v.to_str().ok())
-                .and_then(|v| v.strip_prefix("Bearer "))
-                .is_some_and(|t| constant_time_eq(t.trim().as_bytes(), token.as_bytes()));
+                .and_then(|v| v.trim().split_once(' '))
+                // The auth scheme is case-insensitive (RFC 7235 §2.1).
+                .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+                .is_some_and(|(_, t)| constant_time_eq(t.trim().as_bytes(), token.as_bytes()));
             if !ok {
                 return ApiError::unauthorized().into_response();
             }
@@ -440,18 +457,23 @@ impl Server {
         &self.state
     }
 
-    /// Graceful shutdown: stop accepting, interrupt queued jobs, give running ones the grace
-    /// period, persist everything, close the store, wait for open connections (bounded).
+    /// Graceful shutdown (drain): `/readyz` answers 503 and new jobs 503 + `Retry-After` at once,
+    /// queued jobs become `interrupted`, running ones get the grace period to finish while the
+    /// listener stays open (`/healthz`, `GET`, the jobs' event streams keep working) for at least
+    /// the drain time; then the listener closes, open connections get 5 s, the store is closed.
     pub async fn shutdown(self) -> Result<(), ServerError> {
-        tracing::info!("shutting down");
+        tracing::info!("shutting down: draining");
+        let t0 = tokio::time::Instant::now();
         self.state.shutting_down.store(true, Ordering::SeqCst);
-        let _ = self.stop_tx.send(true);
         self.retention.abort();
         let jobs = self.state.jobs.clone();
         let grace = self.state.cfg.shutdown_grace;
         tokio::task::spawn_blocking(move || jobs.shutdown(grace))
             .await
             .map_err(|e| ServerError::Config(format!("shutdown task: {e}")))?;
+        tokio::time::sleep_until(t0 + self.state.cfg.drain.min(grace)).await;
+        tracing::info!("closing the listener");
+        let _ = self.stop_tx.send(true);
         match tokio::time::timeout(Duration::from_secs(5), self.serve).await {
             Ok(Ok(r)) => r?,
             Ok(Err(e)) => tracing::error!(error = %e, "server task failed"),

@@ -62,11 +62,67 @@ pub struct ApiDoc;
 
 /// The spec as pretty JSON with a trailing newline (the form of `api/openapi.json`).
 pub fn openapi_json() -> String {
-    let mut s = ApiDoc::openapi()
-        .to_pretty_json()
-        .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
+    let spec = ApiDoc::openapi();
+    let mut s = match serde_json::to_value(&spec) {
+        Ok(mut v) => {
+            close_tagged_unions(&mut v);
+            serde_json::to_string_pretty(&v)
+        }
+        Err(e) => Err(e),
+    }
+    .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
     s.push('\n');
     s
+}
+
+/// Makes the schemas of internally tagged enums (`PlanRequest`: `#[serde(tag = "kind")]`)
+/// satisfiable. utoipa renders each variant as `allOf: [{$ref: Variant}, {required: [kind],
+/// properties: {kind}}]`, but the variant's own schema is closed (`additionalProperties: false`,
+/// from `deny_unknown_fields`) and has no `kind`, so no body matches. Each such `allOf` becomes
+/// one closed object: the variant's properties plus `kind`, required as both declare.
+fn close_tagged_unions(spec: &mut serde_json::Value) {
+    use serde_json::Value;
+    let prefix = "#/components/schemas/";
+    let schemas = spec["components"]["schemas"].clone();
+    fn merged(all: &[Value], schemas: &Value, prefix: &str) -> Option<Value> {
+        let [Value::Object(a), Value::Object(tag)] = all else {
+            return None;
+        };
+        let name = a.get("$ref")?.as_str()?.strip_prefix(prefix)?;
+        let mut base = schemas.get(name)?.as_object()?.clone();
+        if base.get("additionalProperties") != Some(&Value::Bool(false)) {
+            return None;
+        }
+        let props = base
+            .entry("properties")
+            .or_insert_with(|| Value::Object(Default::default()));
+        for (k, v) in tag.get("properties")?.as_object()? {
+            props.as_object_mut()?.insert(k.clone(), v.clone());
+        }
+        let mut required: Vec<Value> = tag.get("required")?.as_array()?.clone();
+        if let Some(r) = base.get("required").and_then(Value::as_array) {
+            required.extend(r.iter().cloned());
+        }
+        base.insert("required".into(), Value::Array(required));
+        base.remove("description");
+        base.remove("title");
+        base.insert("title".into(), Value::String(name.to_string()));
+        Some(Value::Object(base))
+    }
+    let Some(map) = spec["components"]["schemas"].as_object_mut() else {
+        return;
+    };
+    for schema in map.values_mut() {
+        let Some(branches) = schema.get_mut("oneOf").and_then(Value::as_array_mut) else {
+            continue;
+        };
+        for b in branches.iter_mut() {
+            let all = b.get("allOf").and_then(Value::as_array).cloned();
+            if let Some(m) = all.and_then(|all| merged(&all, &schemas, prefix)) {
+                *b = m;
+            }
+        }
+    }
 }
 
 /// Standalone JSON Schemas (draft 2020-12) of the request bodies, one per operation that takes a

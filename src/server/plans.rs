@@ -29,6 +29,38 @@ pub const CANCEL_WAIT: Duration = Duration::from_millis(5);
 /// Longest `?wait=` honoured, in seconds.
 pub const MAX_WAIT: f64 = 600.0;
 
+/// Decodes one `application/x-www-form-urlencoded` query component (`%XX`, `+` = space).
+fn percent_decode(s: &str) -> ApiResult<String> {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            b'%' => {
+                let hex = b
+                    .get(i + 1..i + 3)
+                    .and_then(|h| std::str::from_utf8(h).ok())
+                    .and_then(|h| u8::from_str_radix(h, 16).ok())
+                    .ok_or_else(|| {
+                        ApiError::bad_request(format!("query '{s}': bad percent escape"))
+                    })?;
+                out.push(hex);
+                i += 3;
+            }
+            b'+' => {
+                out.push(b' ');
+                i += 1;
+            }
+            c => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8(out)
+        .map_err(|_| ApiError::bad_request(format!("query '{s}': not UTF-8 after decoding")))
+}
+
 fn parse_wait(q: Option<String>) -> ApiResult<Option<Duration>> {
     let mut wait = None;
     for pair in q
@@ -38,6 +70,8 @@ fn parse_wait(q: Option<String>) -> ApiResult<Option<Duration>> {
         .filter(|p| !p.is_empty())
     {
         let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
+        let (k, v) = (percent_decode(k)?, percent_decode(v)?);
+        let (k, v) = (k.as_str(), v.as_str());
         match k {
             "wait" => {
                 let s: f64 = v
@@ -139,7 +173,15 @@ pub async fn submit(
     RawQuery(q): RawQuery,
     ApiJson(body): ApiJson<Value>,
 ) -> ApiResult<Response> {
+    if st.shutting_down.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(ApiError::unavailable(
+            "shutting_down",
+            "the server is shutting down",
+            5,
+        ));
+    }
     let wait = parse_wait(q)?;
+    let requested_limit = body.get("time_limit").and_then(Value::as_f64);
     let req = parse_plan_request(body)?;
     let kind = req.kind();
     let request = serde_json::to_value(&req).map_err(|e| ApiError::internal(e.to_string()))?;
@@ -148,10 +190,19 @@ pub async fn submit(
         .pool
         .run(move || kinds::prepare(&req, &st2.catalog, st2.cfg.max_plan_seconds))
         .await?;
+    let mut warnings = Vec::new();
+    if let Some(t) = requested_limit.filter(|&t| t > prepared.time_limit) {
+        warnings.push(format!(
+            "time_limit {t} s capped to {} s, the server's maximum (--max-plan-seconds)",
+            prepared.time_limit
+        ));
+    }
     let jobs = st.jobs.clone();
-    let entry = tokio::task::spawn_blocking(move || jobs.submit(kind, request, prepared))
-        .await
-        .map_err(|e| ApiError::internal(format!("submit task: {e}")))??;
+    let entry = tokio::task::spawn_blocking(move || {
+        jobs.submit_with_warnings(kind, request, prepared, warnings)
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("submit task: {e}")))??;
     if let Some(d) = wait {
         wait_final(&entry, d).await;
     }

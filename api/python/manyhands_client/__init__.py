@@ -15,7 +15,7 @@ import urllib.request
 from dataclasses import dataclass
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
-__all__ = ["ApiError", "Client", "AsyncClient", "Event", "FINAL_STATES"]
+__all__ = ["ApiError", "WaitTimeout", "Client", "AsyncClient", "Event", "FINAL_STATES"]
 
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled", "interrupted"})
 Json = Dict[str, Any]
@@ -32,6 +32,15 @@ class ApiError(Exception):
         self.message = message
         self.field = field
         self.retry_after = retry_after
+
+
+class WaitTimeout(TimeoutError):
+    """``wait()`` gave up before the job was final; ``job`` is its latest (non-final) state."""
+
+    def __init__(self, job: Json, timeout: float) -> None:
+        super().__init__(f"job {job.get('id')} still {job.get('state')} after {timeout} s")
+        self.job = job
+        self.timeout = timeout
 
 
 @dataclass
@@ -183,14 +192,17 @@ class Client:
         return self._request("DELETE", f"/v1/plans/{job_id}")[2]
 
     def wait(self, job_id: str, timeout: float = 600.0) -> Json:
-        """Blocks until the job is final (or ``timeout`` seconds passed) and returns it."""
+        """Blocks until the job is final and returns it; raises ``WaitTimeout`` (carrying the
+        job as last seen) when it is not final after ``timeout`` seconds."""
         deadline = time.monotonic() + timeout
         while True:
             left = max(0.0, deadline - time.monotonic())
             job = self._request("GET", f"/v1/plans/{job_id}?wait={min(left, 60.0):.3f}",
                                 timeout=self.timeout + 60.0)[2]
-            if job["state"] in FINAL_STATES or left <= 0.0:
+            if job["state"] in FINAL_STATES:
                 return job
+            if left <= 0.0:
+                raise WaitTimeout(job, timeout)
 
     def events(self, job_id: str) -> Iterator[Event]:
         """Iterates the job's Server-Sent Events until the ``end`` event."""

@@ -8,7 +8,7 @@ import sys
 import unittest
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from manyhands_client import ApiError, AsyncClient, Client  # noqa: E402
+from manyhands_client import ApiError, AsyncClient, Client, WaitTimeout  # noqa: E402
 
 URL = os.environ.get("MANYHANDS_URL", "http://127.0.0.1:8080")
 SWEEP = {"kind": "collision_sweep", "scene": "kitchen", "samples": 2000, "time_limit": 5}
@@ -83,7 +83,16 @@ class ClientTest(unittest.TestCase):
         events = list(self.c.events(job["id"]))
         self.assertEqual(events[-1].event, "end")
         job = self.c.submit({**SWEEP, "samples": 10**9, "time_limit": 30})
-        self.assertIn(self.c.cancel(job["id"])["state"], ("cancelled", "running"))
+        self.assertEqual(self.c.cancel(job["id"])["state"], "cancelled")
+
+    def test_wait_timeout_raises_with_the_job(self) -> None:
+        job = self.c.submit({**SWEEP, "samples": 10**9, "time_limit": 30})
+        with self.assertRaises(WaitTimeout) as e:
+            self.c.wait(job["id"], timeout=0.3)
+        self.assertIsInstance(e.exception, TimeoutError)
+        self.assertEqual(e.exception.job["id"], job["id"])
+        self.assertIn(e.exception.job["state"], ("queued", "running"))
+        self.assertEqual(self.c.cancel(job["id"])["state"], "cancelled")
 
     def test_multi_robot_and_schedule(self) -> None:
         job = self.c.multi_robot("kitchen_two", "table", wait=60, seed=2, deterministic=True,
