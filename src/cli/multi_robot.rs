@@ -25,7 +25,7 @@ pub fn robot_names(scene: &Scene, given: &[String]) -> Vec<String> {
 
 pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
     let scene = ctx.scene(&a.scene)?;
-    let names = robot_names(&scene, &a.robots);
+    let names = robot_names(&scene, &a.robot_names);
     let cache = GridCache::new(Some(a.grid_dir.clone()));
     let recipe = GridRecipe {
         samples: a.grid_samples,

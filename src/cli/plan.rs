@@ -163,8 +163,8 @@ pub struct MultiRobotArgs {
     #[arg(long, default_value = "kitchen_two")]
     pub scene: String,
     /// Robot instances, comma-separated (default: every robot of the scene).
-    #[arg(long, value_delimiter = ',')]
-    pub robots: Vec<String>,
+    #[arg(long = "robot", value_delimiter = ',')]
+    pub robot_names: Vec<String>,
     #[arg(long, default_value = "torso_left_arm")]
     pub left: String,
     #[arg(long, default_value = "torso_right_arm")]
