@@ -315,3 +315,38 @@ fn cancel_stops_every_worker() {
         "stopped {latency:?} after the flag"
     );
 }
+
+/// A robot whose start collides with the scene ends the run at once with that reason, naming
+/// the robot, in both modes (not a time-out after the whole limit).
+#[test]
+fn a_colliding_start_is_a_clear_error() {
+    let root = common::root();
+    let text = std::fs::read_to_string(root.join("scenes/kitchen_two.json")).expect("scene");
+    let mut json: serde_json::Value = serde_json::from_str(&text).expect("json");
+    // armar_b's platform inside the back wall's left part.
+    json["robots"][1]["base_pose"]["position"] = serde_json::json!([-3.875, 1.65, 0.0]);
+    let lib = manyhands::model::load_robot_dir(&root.join("robots")).expect("robots");
+    let scene =
+        manyhands::model::Scene::from_str(&json.to_string(), "test", &root.join("scenes"), &lib)
+            .expect("scene");
+    let names = vec!["armar_a".to_string(), "armar_b".to_string()];
+    let p = MultiRobotProblem::with_grids(
+        &scene,
+        &names,
+        "torso_left_arm",
+        "torso_right_arm",
+        "table",
+        grids(),
+        recipe(),
+        Default::default(),
+    )
+    .expect("problem");
+    for deterministic in [true, false] {
+        let t0 = Instant::now();
+        let mut term = Termination::new().with_time_limit(Duration::from_secs(30));
+        let r = multi_robot_rrt(&p, &settings(deterministic), &mut term, 1, &mut |_| {});
+        let e = r.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("armar_b") && e.contains("start"), "{e}");
+        assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
+    }
+}

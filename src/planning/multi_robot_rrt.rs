@@ -711,6 +711,8 @@ struct Worker<'p> {
     attempt: u64,
     delivered: Vec<((usize, usize), Vec<f64>)>,
     stats: WorkerStats,
+    /// An error no further search can change (the start invalid, bad input): ends the run.
+    fatal: Option<PlanError>,
 }
 
 /// A seed per (run seed, member, attempt): SplitMix64 of the three.
@@ -767,6 +769,10 @@ impl<'p> Worker<'p> {
                     }
                     match e {
                         PlanError::Timeout { .. } | PlanError::Stopped { .. } => return None,
+                        PlanError::InvalidStart { .. } | PlanError::InvalidInput(_) => {
+                            self.fatal = Some(e);
+                            return None;
+                        }
                         // A search that ended otherwise (no goal found this time): try again.
                         _ => continue,
                     }
@@ -812,6 +818,7 @@ pub fn multi_robot_rrt(
                 name: m.name.clone(),
                 ..WorkerStats::default()
             },
+            fatal: None,
         })
         .collect();
     let found = if settings.deterministic {
@@ -824,6 +831,14 @@ pub fn multi_robot_rrt(
         *s = w.stats.clone();
     }
     stats.planning_time = t0.elapsed();
+    if let Some(w) = workers.iter_mut().find(|w| w.fatal.is_some()) {
+        if let Some(e) = w.fatal.take() {
+            return Err(PlanError::InPhase {
+                phase: format!("robot '{}'", w.stats.name),
+                error: Box::new(e),
+            });
+        }
+    }
     let Some((idx, score)) = found else {
         let ps = PlanStats {
             time: t0.elapsed(),
@@ -938,13 +953,17 @@ fn parallel(
                         None => break,
                     }
                 }
+                if w.fatal.is_some() {
+                    // No combination can pass without this robot: stop the others too.
+                    stop.store(true, Ordering::Relaxed);
+                }
             });
         }
         drop(tx);
         let mut result = None;
         let mut counts = vec![0u64; c.solutions.len()];
         loop {
-            if term.should_stop_now() {
+            if term.should_stop_now() || stop.load(Ordering::Relaxed) {
                 break;
             }
             match rx.recv_timeout(Duration::from_millis(1)) {
