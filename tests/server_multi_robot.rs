@@ -35,10 +35,10 @@ async fn multi_robot_job_runs_end_to_end_with_events() {
             break;
         }
     }
-    // Progress snapshots (the server keeps the latest, at most one per 50 ms).
-    assert!(text.contains("event: progress"), "{text}");
-    assert!(text.contains("\"combinations_checked\""), "{text}");
-    assert!(text.contains("\"solutions\":{"), "{text}");
+    // Progress snapshots: the server keeps the latest, at most one per 50 ms, so which of the
+    // planner's cumulative snapshots arrive depends on timing; the phases always do.
+    assert!(text.contains("\"phase\":\"reachability grids\""), "{text}");
+    assert!(text.contains("\"planner\":\"multi_robot_rrt\""), "{text}");
     let resp = h
         .http
         .get(format!("{}/v1/plans/{id}", h.base))
