@@ -1,4 +1,4 @@
-//! Grasp wrench space: the reference values of `/work/shared/notes/grasp-quality.md`, the own
+//! Grasp wrench space: the reference values of `../shared/notes/grasp-quality.md`, the own
 //! 6-D hull against brute force, invariances, input errors, and the `grasp quality` command.
 
 use std::process::Command;

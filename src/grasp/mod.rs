@@ -4,7 +4,7 @@
 //! [`crate::model`] (to score a scene object's grasp set), never on the server or tokio, so
 //! planners, the CLI and the HTTP server share it.
 //!
-//! Conventions (`/work/shared/notes/grasp-quality.md`):
+//! Conventions (`../shared/notes/grasp-quality.md`):
 //! - contact i: point p_i and **inward** unit normal n_i; Coulomb friction μ, the cone linearised
 //!   with m edges f_ij = n_i + μ (cos(2πj/m) t1 + sin(2πj/m) t2) (normal component 1, as in
 //!   GraspIt! and Dex-Net);

@@ -1,6 +1,6 @@
 //! Primitive contact wrenches, the rank test and the Ferrari–Canny ε (L1 grasp wrench space).
 //!
-//! Conventions: `/work/shared/notes/grasp-quality.md` (the module docs of [`crate::grasp`]
+//! Conventions: `../shared/notes/grasp-quality.md` (the module docs of [`crate::grasp`]
 //! repeat them). Papers: Ferrari & Canny, "Planning optimal grasps", ICRA 1992 (ε = radius of
 //! the largest origin-centred ball in the convex hull of the primitive wrenches); paper 002
 //! (Vahrenkamp et al. 2010) §IV-B scores multi-robot grasps by their wrench space; paper 001
