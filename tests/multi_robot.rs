@@ -122,25 +122,31 @@ fn assert_plan_valid(p: &MultiRobotProblem, plan: &MultiRobotPlan) {
     }
 }
 
+/// The two ARMARs of the `handoff` scene and their start.
+fn handoff() -> (CollisionWorld, Vec<f64>) {
+    let s = common::scene("handoff");
+    (
+        CollisionWorld::from_scene(&s),
+        CollisionWorld::start_config(&s),
+    )
+}
+
+/// Robot `r`'s start configuration with its platform at base variables (x, y).
+fn platform_at(world: &CollisionWorld, q0: &[f64], r: usize, x: f64, y: f64) -> Vec<f64> {
+    let model = &world.robots[r].robot;
+    let mut c = world.robot_config(r, q0).to_vec();
+    c[model.var("base_x").expect("base_x")] = x;
+    c[model.var("base_y").expect("base_y")] = y;
+    c
+}
+
 /// Two ARMAR platforms whose straight paths cross at the same phase: the straight line in P
 /// collides, a schedule exists (one waits), and it is free when re-checked densely in time.
 #[test]
 fn crossing_trajectories_get_a_waiting_schedule() {
-    let s = common::scene("handoff");
-    let world = CollisionWorld::from_scene(&s);
-    let q0 = CollisionWorld::start_config(&s);
+    let (world, q0) = handoff();
     let dof = world.robots[0].robot.dof();
-    let model = &world.robots[0].robot;
-    let (bx, by) = (
-        model.var("base_x").expect("x"),
-        model.var("base_y").expect("y"),
-    );
-    let robot_q = |r: usize, x: f64, y: f64| {
-        let mut c = world.robot_config(r, &q0).to_vec();
-        c[bx] = x;
-        c[by] = y;
-        c
-    };
+    let robot_q = |r: usize, x: f64, y: f64| platform_at(&world, &q0, r, x, y);
     // armar_a (at the origin, facing +x) drives along y through (0.7, 0); armar_b (at 1.4,
     // facing -x) drives along x through the same point.
     let ta = RobotTrajectory {
@@ -189,20 +195,8 @@ fn crossing_trajectories_get_a_waiting_schedule() {
 /// exists) — the condition the deadlock check rules out.
 #[test]
 fn blocked_goal_has_no_schedule() {
-    let s = common::scene("handoff");
-    let world = CollisionWorld::from_scene(&s);
-    let q0 = CollisionWorld::start_config(&s);
-    let model = &world.robots[0].robot;
-    let (bx, by) = (
-        model.var("base_x").expect("x"),
-        model.var("base_y").expect("y"),
-    );
-    let robot_q = |r: usize, x: f64, y: f64| {
-        let mut c = world.robot_config(r, &q0).to_vec();
-        c[bx] = x;
-        c[by] = y;
-        c
-    };
+    let (world, q0) = handoff();
+    let robot_q = |r: usize, x: f64, y: f64| platform_at(&world, &q0, r, x, y);
     // armar_a ends at (0.7, 0), right on armar_b's path, and armar_b starts on armar_a's path.
     let ta = RobotTrajectory {
         robot: 0,
