@@ -140,25 +140,34 @@ fn platform_at(world: &CollisionWorld, q0: &[f64], r: usize, x: f64, y: f64) -> 
     c
 }
 
+/// Robot `r` driving its platform on a straight line from `from` to `to` (base x, y).
+fn drive(
+    world: &CollisionWorld,
+    q0: &[f64],
+    r: usize,
+    from: (f64, f64),
+    to: (f64, f64),
+) -> RobotTrajectory {
+    RobotTrajectory {
+        robot: r,
+        waypoints: vec![
+            platform_at(world, q0, r, from.0, from.1),
+            platform_at(world, q0, r, to.0, to.1),
+        ],
+        accelerations: None,
+    }
+}
+
 /// Two ARMAR platforms whose straight paths cross at the same phase: the straight line in P
 /// collides, a schedule exists (one waits), and it is free when re-checked densely in time.
 #[test]
 fn crossing_trajectories_get_a_waiting_schedule() {
     let (world, q0) = handoff();
     let dof = world.robots[0].robot.dof();
-    let robot_q = |r: usize, x: f64, y: f64| platform_at(&world, &q0, r, x, y);
     // armar_a (at the origin, facing +x) drives along y through (0.7, 0); armar_b (at 1.4,
     // facing -x) drives along x through the same point.
-    let ta = RobotTrajectory {
-        robot: 0,
-        waypoints: vec![robot_q(0, 0.7, -1.3), robot_q(0, 0.7, 1.3)],
-        accelerations: None,
-    };
-    let tb = RobotTrajectory {
-        robot: 1,
-        waypoints: vec![robot_q(1, -0.6, 0.0), robot_q(1, 2.0, 0.0)],
-        accelerations: None,
-    };
+    let ta = drive(&world, &q0, 0, (0.7, -1.3), (0.7, 1.3));
+    let tb = drive(&world, &q0, 1, (-0.6, 0.0), (2.0, 0.0));
     assert_eq!(ta.waypoints[0].len(), dof);
     let mut ps = PhaseSpace::new(&world, &q0, &[ta.clone(), tb.clone()]).expect("phase space");
     assert!(
@@ -196,18 +205,9 @@ fn crossing_trajectories_get_a_waiting_schedule() {
 #[test]
 fn blocked_goal_has_no_schedule() {
     let (world, q0) = handoff();
-    let robot_q = |r: usize, x: f64, y: f64| platform_at(&world, &q0, r, x, y);
     // armar_a ends at (0.7, 0), right on armar_b's path, and armar_b starts on armar_a's path.
-    let ta = RobotTrajectory {
-        robot: 0,
-        waypoints: vec![robot_q(0, 0.7, -1.3), robot_q(0, 0.7, 0.0)],
-        accelerations: None,
-    };
-    let tb = RobotTrajectory {
-        robot: 1,
-        waypoints: vec![robot_q(1, 0.7, 1.3), robot_q(1, 0.7, -1.3)],
-        accelerations: None,
-    };
+    let ta = drive(&world, &q0, 0, (0.7, -1.3), (0.7, 0.0));
+    let tb = drive(&world, &q0, 1, (0.7, 1.3), (0.7, -1.3));
     let mut ps = PhaseSpace::new(&world, &q0, &[ta, tb]).expect("phase space");
     let settings = PhaseSpaceSettings {
         max_iterations: 300,

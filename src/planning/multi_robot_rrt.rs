@@ -560,7 +560,8 @@ impl<'p> Collector<'p> {
         false
     }
 
-    /// Stores a new solution and checks the combinations it enables; the first that passes.
+    /// Stores a new solution (reported as a [`MultiRobotEvent::Solution`]) and checks the
+    /// combinations it enables; the first that passes.
     fn add(
         &mut self,
         s: Solution,
@@ -569,6 +570,10 @@ impl<'p> Collector<'p> {
         let k = s.member;
         self.solutions[k].push(s);
         let sk = self.solutions[k].len() - 1;
+        progress(MultiRobotEvent::Solution {
+            robot: &self.p.members[k].name,
+            count: self.solutions[k].len() as u64,
+        });
         let n = self.solutions.len();
         if (0..n).any(|j| j != k && self.solutions[j].is_empty()) {
             return None;
@@ -910,10 +915,6 @@ fn deterministic(
             }
             any = true;
             let sol = w.next(s, term)?;
-            progress(MultiRobotEvent::Solution {
-                robot: &w.stats.name,
-                count: w.stats.solutions,
-            });
             if let Some(r) = c.add(sol, progress) {
                 return Some(r);
             }
@@ -961,18 +962,12 @@ fn parallel(
         }
         drop(tx);
         let mut result = None;
-        let mut counts = vec![0u64; c.solutions.len()];
         loop {
             if term.should_stop_now() || stop.load(Ordering::Relaxed) {
                 break;
             }
             match rx.recv_timeout(Duration::from_millis(1)) {
                 Ok(sol) => {
-                    counts[sol.member] += 1;
-                    progress(MultiRobotEvent::Solution {
-                        robot: &c.p.members[sol.member].name,
-                        count: counts[sol.member],
-                    });
                     if let Some(r) = c.add(sol, progress) {
                         result = Some(r);
                         break;

@@ -151,6 +151,8 @@ pub struct Schedule {
 /// One robot's trajectory with phases.
 #[derive(Debug, Clone)]
 struct Track {
+    /// Index of the robot in the world, and where its variables start.
+    robot: usize,
     offset: usize,
     points: Vec<Vec<f64>>,
     /// Phase of each waypoint (0 … 1, non-decreasing; all 0 when the robot does not move).
@@ -279,6 +281,7 @@ impl PhaseSpace {
                 vec![0.0; times.len()]
             };
             tracks.push(Track {
+                robot: t.robot,
                 offset: p.offset,
                 points: t.waypoints.clone(),
                 phase,
@@ -911,13 +914,7 @@ impl PhaseSpace {
     pub fn robot_name(&self, k: usize) -> String {
         self.tracks
             .get(k)
-            .and_then(|t| {
-                self.world
-                    .robots
-                    .iter()
-                    .find(|p| p.offset == t.offset)
-                    .map(|p| p.name.clone())
-            })
+            .map(|t| self.world.robots[t.robot].name.clone())
             .unwrap_or_default()
     }
 }

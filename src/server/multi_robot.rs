@@ -17,7 +17,7 @@ use super::kinds::{
     JobWork, Prepared,
 };
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
-use crate::grasp::{WrenchSpaceSettings, MAX_CONE_EDGES, MIN_CONE_EDGES};
+use crate::grasp::WrenchSpaceSettings;
 use crate::model::Scene;
 use crate::planning::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotEvent, MultiRobotProblem, MultiRobotSettings, Rejection, MAX_ROBOTS,
@@ -208,9 +208,6 @@ pub fn prepare_multi_robot(
     };
     if let Err(e) = wrench.validate() {
         return Err(ApiError::invalid(e.field().to_string(), e.to_string()));
-    }
-    if !(MIN_CONE_EDGES..=MAX_CONE_EDGES).contains(&wrench.cone_edges) {
-        return Err(ApiError::invalid("cone_edges", "out of range"));
     }
     let max_solutions = r.max_solutions.unwrap_or(32);
     if !(1..=256).contains(&max_solutions) {
