@@ -177,8 +177,11 @@ fn crossing_trajectories_get_a_waiting_schedule() {
     let sched = ps
         .plan(&PhaseSpaceSettings::default(), &mut Termination::new(), 1)
         .expect("schedule");
-    assert_ne!(sched.method, ScheduleMethod::Simultaneous);
+    // One after the other is valid here, so the prioritized advance schedules them, with
+    // overlap: faster than sequential execution.
+    assert_eq!(sched.method, ScheduleMethod::Prioritized);
     assert!(sched.duration > 0.0);
+    assert!(sched.duration < sched.robot_durations.iter().sum::<f64>() - 1e-6);
     assert_schedule_free(&world.between_robots(), &q0, &[0, 1], &sched, 0.002);
     // With acceleration limits the schedule is slower, still free and starts and ends at rest.
     let acc = vec![2.0; dof];
@@ -215,6 +218,26 @@ fn blocked_goal_has_no_schedule() {
     };
     let r = ps.plan(&settings, &mut Termination::new(), 1);
     assert!(r.is_err(), "{r:?}");
+}
+
+/// When the robots cannot go one after the other in index order (armar_a ends on armar_b's
+/// path), the prioritized advance does not apply, and RRT-Connect in phase space finds the
+/// schedule where armar_b passes first; it is free when re-checked densely in time.
+#[test]
+fn a_schedule_against_the_index_order_comes_from_the_phase_space_rrt() {
+    let (world, q0) = handoff();
+    let ta = drive(&world, &q0, 0, (0.7, -1.3), (0.7, 0.0));
+    let tb = drive(&world, &q0, 1, (-0.6, 0.0), (2.0, 0.0));
+    let mut ps = PhaseSpace::new(&world, &q0, &[ta, tb]).expect("phase space");
+    assert!(
+        !ps.path_valid(&ps.sequential_path()),
+        "index-order sequential execution must collide"
+    );
+    let sched = ps
+        .plan(&PhaseSpaceSettings::default(), &mut Termination::new(), 1)
+        .expect("schedule");
+    assert_eq!(sched.method, ScheduleMethod::PhaseSpaceRrt);
+    assert_schedule_free(&world.between_robots(), &q0, &[0, 1], &sched, 0.002);
 }
 
 fn settings(deterministic: bool) -> MultiRobotSettings {

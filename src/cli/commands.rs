@@ -549,6 +549,49 @@ pub struct RandomBoxesArgs {
     pub out: Option<PathBuf>,
 }
 
+#[derive(Args, Debug)]
+pub struct PandaFourArgs {
+    /// Model name the scene's arms use.
+    #[arg(long, default_value = "panda")]
+    pub model: String,
+    /// Folder to write `robots/` (the Panda of the fetched MotionBenchMaker data) and
+    /// `scenes/panda_four.json` into (default: print the scene JSON).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn panda_four(a: &PandaFourArgs) -> Result<()> {
+    let scene = manyhands::model::panda_four(&a.model);
+    let text = serde_json::to_string_pretty(&scene)?;
+    let Some(out) = &a.out else {
+        println!("{text}");
+        return Ok(());
+    };
+    let data = manyhands::planning::mbm_data::locate().map_err(|e| anyhow::anyhow!(e))?;
+    let files = manyhands::planning::mbm_data::robot_files(&data, "panda");
+    let (robots, scenes) = (out.join("robots"), out.join("scenes"));
+    for d in [&robots, &scenes] {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    for (from, to) in [
+        (&files.urdf, robots.join(format!("{}.urdf", a.model))),
+        (&files.srdf, robots.join(format!("{}.srdf", a.model))),
+    ] {
+        std::fs::copy(from, &to)
+            .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;
+    }
+    let file = scenes.join("panda_four.json");
+    std::fs::write(&file, text).with_context(|| format!("writing {}", file.display()))?;
+    println!(
+        "wrote {} and {}; use them with --robots {} --scenes {}",
+        robots.display(),
+        file.display(),
+        robots.display(),
+        scenes.display()
+    );
+    Ok(())
+}
+
 pub fn random_boxes(ctx: &Ctx, a: &RandomBoxesArgs) -> Result<()> {
     let lib = ctx.library()?;
     let base = ctx.scene(&a.base)?;

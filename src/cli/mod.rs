@@ -112,6 +112,10 @@ pub enum SceneCmd {
     List,
     /// Writes a scene with N random boxes that touch no robot at its start configuration.
     RandomBoxes(commands::RandomBoxesArgs),
+    /// The `panda_four` cell (four MotionBenchMaker Pandas around a table, issue 23): prints the
+    /// scene, or with `--out DIR` writes DIR/robots/panda.{urdf,srdf} (from the fetched data,
+    /// `manyhands data mbm`) and DIR/scenes/panda_four.json, ready for `--robots`/`--scenes`.
+    PandaFour(commands::PandaFourArgs),
 }
 
 pub fn run() -> Result<()> {
@@ -133,6 +137,9 @@ pub fn run() -> Result<()> {
         Command::Scene {
             cmd: SceneCmd::RandomBoxes(a),
         } => commands::random_boxes(&ctx, a),
+        Command::Scene {
+            cmd: SceneCmd::PandaFour(a),
+        } => commands::panda_four(a),
         Command::Grasp { cmd } => grasp::run(&ctx, cmd),
         Command::Reach { cmd } => reach::run(&ctx, cmd),
         Command::Serve(a) => serve::run(&ctx, a),

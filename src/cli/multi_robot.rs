@@ -170,7 +170,7 @@ pub struct BenchArgs {
     /// Seconds per run (a run over it counts as a failure).
     #[arg(long, default_value_t = 5.0)]
     pub time_limit: f64,
-    /// Only the table whose name contains this (`two`, `three`).
+    /// Only the table whose name contains this (`two`, `three`, `panda`).
     #[arg(long)]
     pub only: Option<String>,
     #[arg(long, default_value = "data/reach")]
@@ -320,6 +320,126 @@ fn bench_table(
     Ok(())
 }
 
+/// The `panda_four` row: four Pandas of the fetched MotionBenchMaker data (an outside robot)
+/// around a table with crossing fixed goals; decoupled (each arm alone with RRT-Connect, then
+/// the phase-space schedule) against RRT-Connect in the composite 28-D space.
+fn bench_panda_four(a: &BenchArgs) -> Result<()> {
+    use manyhands::planning::decoupled::{composite, decoupled, DecoupledSettings, RobotGoal};
+    use manyhands::planning::phase_space::ScheduleMethod;
+    let dir = match manyhands::planning::mbm_data::locate() {
+        Ok(d) => d,
+        Err(why) => {
+            println!("panda_four: skipped ({why})");
+            return Ok(());
+        }
+    };
+    let f = manyhands::planning::mbm_data::robot_files(&dir, "panda");
+    let robot = manyhands::model::Robot::from_files(&f.urdf, Some(&f.srdf))?;
+    let mut lib = manyhands::model::RobotLibrary::new();
+    lib.insert("panda".into(), std::sync::Arc::new(robot));
+    let scene = manyhands::model::Scene::from_json(
+        manyhands::model::panda_four("panda"),
+        "panda_four",
+        std::path::Path::new("."),
+        &lib,
+    )?;
+    let world = manyhands::collision::CollisionWorld::from_scene(&scene);
+    let q0 = manyhands::collision::CollisionWorld::start_config(&scene);
+    let goals: Vec<RobotGoal> = scene
+        .robots
+        .iter()
+        .enumerate()
+        .map(|(r, p)| {
+            p.configs
+                .get("goal")
+                .map(|g| RobotGoal {
+                    robot: r,
+                    goal: g.clone(),
+                })
+                .ok_or_else(|| anyhow!("{}: no `goal` configuration", p.name))
+        })
+        .collect::<Result<_>>()?;
+    let limit = std::time::Duration::from_secs_f64(a.time_limit);
+    let (mut dec, mut com) = (Vec::new(), Vec::new());
+    let (mut phase_ms, mut makespan, mut seq_span) = (Vec::new(), Vec::new(), Vec::new());
+    let mut methods = [0usize; 4];
+    let (mut iters, mut nodes, mut segs) = (Vec::new(), Vec::new(), Vec::new());
+    for run in 0..a.runs {
+        let seed = a.seed + run;
+        let mut term = manyhands::planning::Termination::new().with_time_limit(limit);
+        let t = std::time::Instant::now();
+        if let Ok(p) = decoupled(
+            &world,
+            &q0,
+            &goals,
+            &DecoupledSettings::default(),
+            &mut term,
+            seed,
+        ) {
+            dec.push(t.elapsed().as_secs_f64() * 1e3);
+            phase_ms.push(p.schedule.stats.time.as_secs_f64() * 1e3);
+            makespan.push(p.schedule.duration);
+            iters.push(p.schedule.stats.iterations as f64);
+            nodes.push(p.schedule.stats.tree_nodes as f64);
+            segs.push(p.schedule.stats.segments_checked as f64);
+            seq_span.push(p.schedule.robot_durations.iter().sum::<f64>());
+            methods[match p.schedule.method {
+                ScheduleMethod::Simultaneous => 0,
+                ScheduleMethod::Prioritized => 1,
+                ScheduleMethod::PhaseSpaceRrt => 2,
+                ScheduleMethod::Sequential => 3,
+            }] += 1;
+        }
+        let mut term = manyhands::planning::Termination::new().with_time_limit(limit);
+        let t = std::time::Instant::now();
+        if composite(&world, &q0, &goals, &Default::default(), &mut term, seed).is_ok() {
+            com.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    println!(
+        "panda_four (4 MotionBenchMaker Pandas, 28 DoF, crossing fixed goals), {} runs, {} s each",
+        a.runs, a.time_limit
+    );
+    println!(
+        "  {:<44} {:>8} {:>10} {:>10}",
+        "", "solved", "median ms", "phase ms"
+    );
+    println!(
+        "  {:<44} {:>8} {:>10.2} {:>10.2}",
+        "decoupled RRT-Connect + phase-space schedule",
+        format!("{}/{}", dec.len(), a.runs),
+        median(&mut dec),
+        median(&mut phase_ms)
+    );
+    println!(
+        "  {:<44} {:>8} {:>10.2}",
+        "composite RRT-Connect (28-D)",
+        format!("{}/{}", com.len(), a.runs),
+        median(&mut com)
+    );
+    println!(
+        "  schedules: {} simultaneous, {} prioritized, {} phase-space RRT, {} sequential; \
+         makespan median {:.2} s (one after the other: {:.2} s)",
+        methods[0],
+        methods[1],
+        methods[2],
+        methods[3],
+        median(&mut makespan),
+        median(&mut seq_span)
+    );
+    println!(
+        "  phase space medians: {:.0} iterations, {:.0} tree nodes, {:.0} certified pieces",
+        median(&mut iters),
+        median(&mut nodes),
+        median(&mut segs)
+    );
+    Ok(())
+}
+
 pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
     let want = |s: &str| a.only.as_deref().is_none_or(|o| s.contains(o));
     if want("two") {
@@ -341,6 +461,9 @@ pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
             30,
             "Table II: 8.9 s, 20.2 IK, 13.0 traj, 19434 checks, 37.1 combos, phase space 7.0 s",
         )?;
+    }
+    if want("panda") {
+        bench_panda_four(a)?;
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 //! Pure data, loaders and validation errors. Depends only on `geometry`; knows nothing of
 //! kinematics algorithms, collision checking or planning.
 
+mod cell;
 mod error;
 mod library;
 mod robot;
@@ -11,6 +12,7 @@ mod srdf;
 mod urdf;
 mod write;
 
+pub use cell::{arm_cell, panda_four, ArmCell};
 pub use error::ModelError;
 pub use library::{data_root, load_robot_dir, load_scene_dir};
 pub use robot::{

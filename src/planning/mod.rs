@@ -12,6 +12,7 @@
 //! used as the outside benchmark.
 
 pub mod bimanual_ik_rrt;
+pub mod decoupled;
 pub mod grasping;
 mod ik_rrt;
 pub mod j_plus_rrt;

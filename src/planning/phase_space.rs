@@ -32,6 +32,17 @@
 //! (the shortcut keeps that: it joins two vertices of a monotone path). Robots *wait* where the
 //! path keeps their phase constant.
 //!
+//! **Search order.** The straight line in P (everyone at once, at constant rates) is tried
+//! first. Then, when sequential execution in index order is valid, a *prioritized advance*
+//! (not in the paper; in the spirit of prioritized velocity tuning): from φ = 0 each step moves
+//! the largest set of unfinished robots by ε_extend in phase (sets tried by size, then robot 0's
+//! membership first), keeping only steps after which the robots could still finish one after
+//! the other — so it never deadlocks, and robots overlap in time wherever they can. Only when
+//! that does not apply (a robot's goal lies on a lower-indexed robot's path, say) does
+//! RRT-Connect in P (Alg. 4) search; its samples are half uniform and half "some robots move
+//! on from a tree node while the others wait", the moves schedules are made of. Whatever stage
+//! found it, the returned path is certified again as a whole before it is timed.
+//!
 //! **Fallback.** Sequential execution — robot 1 runs all of its trajectory while the others wait
 //! at their start, then robot 2, … — is valid whenever the trajectories pass 002's deadlock
 //! check (eq. 2); it is tried (and certified like every other path) when the search fails.
@@ -94,6 +105,9 @@ impl Default for PhaseSpaceSettings {
 pub enum ScheduleMethod {
     /// All robots start together and run at constant phase rates (the straight line in P).
     Simultaneous,
+    /// Prioritized advance: robots move on together where they can, lower-priority robots
+    /// wait where they must (module documentation).
+    Prioritized,
     /// RRT-Connect in phase space (Alg. 4).
     PhaseSpaceRrt,
     /// One robot after the other (the fallback guaranteed by the deadlock check).
@@ -443,8 +457,14 @@ impl PhaseSpace {
                 vec![zero.clone(), one.clone()],
             )
         } else {
-            match self.rrt(settings, term, seed, &mut stats) {
-                Some(p) => (ScheduleMethod::PhaseSpaceRrt, p),
+            let found = match self.prioritized(settings.extend, term) {
+                Some(p) => Some((ScheduleMethod::Prioritized, p)),
+                None => self
+                    .rrt(settings, term, seed, &mut stats)
+                    .map(|p| (ScheduleMethod::PhaseSpaceRrt, p)),
+            };
+            match found {
+                Some(f) => f,
                 None => {
                     let seq = self.sequential_path();
                     if settings.sequential_fallback && self.path_valid(&seq) {
@@ -479,6 +499,22 @@ impl PhaseSpace {
             raw
         };
         stats.path_vertices = path.len();
+        // The returned path is certified once more as a whole: whatever stage found it, no
+        // schedule leaves the planner unproven.
+        if let Some(segment) = path
+            .windows(2)
+            .position(|w| !self.segment_valid(&w[0], &w[1]))
+        {
+            return Err(PlanError::PathInvalid {
+                segment,
+                stats: Box::new(PlanStats {
+                    time: t0.elapsed(),
+                    collision_checks: self.checks - c0,
+                    segments_checked: self.segments - s0,
+                    ..PlanStats::default()
+                }),
+            });
+        }
         let (knots, profiles) = self.time(&path);
         stats.time = t0.elapsed();
         stats.collision_checks = self.checks - c0;
@@ -516,6 +552,117 @@ impl PhaseSpace {
         p
     }
 
+    /// Prioritized advance (module documentation): from φ = 0, each step moves the largest set
+    /// of unfinished robots it can by `step` in phase (capped at 1), trying sets by size, then
+    /// by priority (robot 0 first), and keeps only steps after which the robots can still
+    /// finish one after the other in priority order ([`Self::completion`]). That invariant
+    /// holds at φ = 0 when sequential execution is valid, and the lowest unfinished robot
+    /// moving on alone keeps it, so the advance never deadlocks; where no tried set passes, the
+    /// remaining sequential completion ends the path. Runs of the same set merge into one
+    /// straight segment (a union of certified collinear pieces is certified). `None` when
+    /// sequential execution from φ = 0 is itself invalid, or `term` fires.
+    fn prioritized(&mut self, step: f64, term: &mut Termination) -> Option<Vec<Vec<f64>>> {
+        let n = self.dim();
+        if n > 16 {
+            return None;
+        }
+        let mut phi = vec![0.0; n];
+        if !self.completion_valid(&phi) {
+            return None;
+        }
+        // Robot sets as bit masks: all but at most two robots together, or one alone (so a
+        // step tries O(n²) sets), largest first, then robot 0's membership first, robot 1's …
+        let mut masks: Vec<u64> = (1..(1u64 << n))
+            .filter(|m| {
+                let c = m.count_ones() as usize;
+                c + 2 >= n || c == 1
+            })
+            .collect();
+        let priority_key =
+            |m: u64| -> u64 { (0..n).fold(0u64, |acc, k| (acc << 1) | ((m >> k) & 1)) };
+        masks.sort_by(|a, b| {
+            b.count_ones()
+                .cmp(&a.count_ones())
+                .then(priority_key(*b).cmp(&priority_key(*a)))
+        });
+        let mut path = vec![phi.clone()];
+        let mut last_delta = vec![0.0; n];
+        let mut next = vec![0.0; n];
+        let mut tried = Vec::new();
+        loop {
+            if phi.iter().all(|&x| x >= 1.0) {
+                return Some(path);
+            }
+            if term.should_stop() {
+                return None;
+            }
+            let mut moved = false;
+            tried.clear();
+            for &m in &masks {
+                // The robots of `m` that still have phase left; a set whose effective move was
+                // already tried is skipped.
+                let eff = (0..n)
+                    .filter(|&k| (m >> k) & 1 == 1 && phi[k] < 1.0)
+                    .fold(0u64, |acc, k| acc | (1 << k));
+                if eff == 0 || tried.contains(&eff) {
+                    continue;
+                }
+                tried.push(eff);
+                for k in 0..n {
+                    next[k] = if (eff >> k) & 1 == 1 {
+                        (phi[k] + step).min(1.0)
+                    } else {
+                        phi[k]
+                    };
+                }
+                if self.is_valid(&next)
+                    && self.segment_valid(&phi, &next)
+                    && self.completion_valid(&next)
+                {
+                    moved = true;
+                    break;
+                }
+            }
+            if !moved {
+                // The sequential completion from φ is valid (the invariant): take it.
+                path.extend(self.completion(&phi).into_iter().skip(1));
+                return Some(path);
+            }
+            // The same phase step as the last one (same robots, none cut short at its end):
+            // extend the last straight segment instead of adding a vertex.
+            let same = path.len() > 1
+                && (0..n).all(|k| ((next[k] - phi[k]) - last_delta[k]).abs() <= 1e-12);
+            for k in 0..n {
+                last_delta[k] = next[k] - phi[k];
+            }
+            if same {
+                path.pop();
+            }
+            phi.copy_from_slice(&next);
+            path.push(phi.clone());
+        }
+    }
+
+    /// From φ, the robots finish one after the other in index order: φ, then robot 0's phase
+    /// set to 1, then robot 1's, … (unfinished robots only).
+    fn completion(&self, phi: &[f64]) -> Vec<Vec<f64>> {
+        let mut out = vec![phi.to_vec()];
+        for k in 0..phi.len() {
+            if phi[k] < 1.0 {
+                let mut v = out[out.len() - 1].clone();
+                v[k] = 1.0;
+                out.push(v);
+            }
+        }
+        out
+    }
+
+    /// Whether [`Self::completion`] from φ is certified.
+    fn completion_valid(&mut self, phi: &[f64]) -> bool {
+        let c = self.completion(phi);
+        self.path_valid(&c)
+    }
+
     /// RRT-Connect in P with monotone trees (module documentation).
     fn rrt(
         &mut self,
@@ -540,8 +687,27 @@ impl PhaseSpace {
                 break;
             }
             it += 1;
-            for s in sample.iter_mut() {
-                *s = rng.random::<f64>();
+            if rng.random::<bool>() {
+                // Waiting bias: from a random node of the growing tree, a random subset of the
+                // robots moves on (uniformly up to its end, forward; back to its start,
+                // backward) while the others wait. Schedules are made of such moves, and
+                // uniform samples in the interior of P rarely lead along the thin free
+                // regions near its faces where some robots wait.
+                let tree = &trees[side];
+                let node = &tree[rng.random_range(0..tree.len())].0;
+                for (s, &x) in sample.iter_mut().zip(node) {
+                    *s = if rng.random::<bool>() {
+                        x
+                    } else if side == 0 {
+                        x + (1.0 - x) * rng.random::<f64>()
+                    } else {
+                        x * rng.random::<f64>()
+                    };
+                }
+            } else {
+                for s in sample.iter_mut() {
+                    *s = rng.random::<f64>();
+                }
             }
             // Extend tree `side` one step toward the sample.
             if let Some(i) = self.extend(&mut trees[side], side == 0, &sample, eps) {

@@ -142,6 +142,14 @@ impl PlanError {
     }
 
     /// The error itself, or the one inside a failed phase.
+    /// This error as the failure of `phase` (a step of a composed planner).
+    pub fn in_phase(self, phase: impl Into<String>) -> PlanError {
+        PlanError::InPhase {
+            phase: phase.into(),
+            error: Box::new(self),
+        }
+    }
+
     pub fn root(&self) -> &PlanError {
         match self {
             PlanError::InPhase { error, .. } => error.root(),
