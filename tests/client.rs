@@ -1,4 +1,4 @@
-//! The Rust client (`manyhands::client`) against the real server on a loopback port: every
+//! The Rust client (the `manyhands-client` crate) against the real server on a loopback port: every
 //! endpoint kind through typed requests, API errors decoded with their field, a job waited for,
 //! its event stream read to `end`, and a running job cancelled.
 
@@ -7,8 +7,8 @@ use common::server::start;
 
 use std::time::Duration;
 
-use manyhands::client::{Client, ClientError, SseParser};
-use manyhands::server::api::JobState;
+use manyhands_client::api::JobState;
+use manyhands_client::{Client, ClientError};
 use reqwest::StatusCode;
 use serde::de::DeserializeOwned;
 use serde_json::{json, Value};
@@ -169,25 +169,4 @@ async fn client_covers_every_endpoint_kind() {
     assert!(matches!(e, ClientError::WaitTimeout { .. }), "{e}");
     c.cancel(&job.id).await.expect("cancel");
     drop(h);
-}
-
-#[test]
-fn sse_parser_handles_split_chunks_comments_and_multiline_data() {
-    let mut p = SseParser::default();
-    let mut all = Vec::new();
-    for chunk in [
-        &b": keep-alive\n\nevent: sta"[..],
-        b"te\ndata: {\"state\":",
-        b"\"running\"}\n\n",
-        b"data: line one\r\ndata: line two\r\n\r\n",
-        b"event: end\ndata: {\"state\":\"succeeded\"}\n\n",
-    ] {
-        all.extend(p.feed(chunk));
-    }
-    assert_eq!(all.len(), 3, "{all:?}");
-    assert_eq!(all[0].event, "state");
-    assert_eq!(all[0].data, json!({"state": "running"}));
-    assert_eq!(all[1].event, "message");
-    assert_eq!(all[1].data, json!("line one\nline two"));
-    assert_eq!(all[2].event, "end");
 }
