@@ -464,3 +464,41 @@ pub struct JobSummary {
     pub state: JobState,
     pub created_ms: u64,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn kinds_names_and_tags_agree() {
+        let bodies = [
+            json!({"kind": "joint_space", "scene": "s", "robots": []}),
+            json!({"kind": "collision_sweep", "scene": "s", "samples": 1}),
+            json!({"kind": "reach", "scene": "s", "robot": "r", "group": "g", "object": "o"}),
+            json!({"kind": "regrasp", "scene": "s", "giver": {"robot": "a", "group": "g"},
+                "receiver": {"robot": "b", "group": "g"}, "object": "o"}),
+            json!({"kind": "kitchen_task", "scene": "s"}),
+            json!({"kind": "bimanual", "scene": "s", "robot": "r", "object": "o"}),
+            json!({"kind": "multi_robot", "scene": "s", "object": "o"}),
+            json!({"kind": "schedule", "scene": "s", "trajectories": []}),
+        ];
+        assert_eq!(bodies.len(), PlanRequest::KINDS.len());
+        for (body, kind) in bodies.iter().zip(PlanRequest::KINDS) {
+            let r: PlanRequest = serde_json::from_value(body.clone()).expect(kind);
+            assert_eq!(r.kind(), kind);
+            let back = serde_json::to_value(&r).expect("serialise");
+            assert_eq!(back["kind"], json!(kind));
+        }
+        let unknown = json!({"kind": "reach", "scene": "s", "robot": "r", "group": "g",
+            "object": "o", "colour": "red"});
+        assert!(serde_json::from_value::<PlanRequest>(unknown).is_err());
+        for s in JobState::ALL {
+            assert_eq!(serde_json::to_value(s).expect("state"), json!(s.name()));
+            assert_eq!(
+                s.is_final(),
+                !matches!(s, JobState::Queued | JobState::Running)
+            );
+        }
+    }
+}
