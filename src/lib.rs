@@ -2,9 +2,10 @@
 //!
 //! Layers (a module may use only the ones below it):
 //! `collision`, `kinematics` → `model` → `geometry`.
-//! The planning core never depends on tokio or axum.
+//! The planning core never depends on tokio or axum. The HTTP API's request/response types are
+//! the `manyhands-api` crate (re-exported in [`server::api`]); the Rust client is the separate
+//! `manyhands-client` crate, which depends on none of this one.
 
-pub mod client;
 pub mod collision;
 pub mod geometry;
 pub mod grasp;

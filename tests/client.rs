@@ -1,21 +1,80 @@
-//! The Rust client (`manyhands::client`) against the real server on a loopback port: every
+//! The Rust client (the `manyhands-client` crate) against the real server on a loopback port: every
 //! endpoint kind through typed requests, API errors decoded with their field, a job waited for,
 //! its event stream read to `end`, and a running job cancelled.
 
 mod common;
 use common::server::start;
+use common::spec::{errors, spec, validator};
 
 use std::time::Duration;
 
-use manyhands::client::{Client, ClientError, SseParser};
-use manyhands::server::api::JobState;
+use manyhands_client::api::JobState;
+use manyhands_client::{Client, ClientError};
 use reqwest::StatusCode;
 use serde::de::DeserializeOwned;
+use serde::Serialize;
 use serde_json::{json, Value};
 
 /// A typed request from JSON (the same text a curl user would send).
 fn req<T: DeserializeOwned>(v: Value) -> T {
     serde_json::from_value(v).expect("request type")
+}
+
+/// `typed` as the client serialises it (unset options as `null`) validates against the spec's
+/// request schema of `POST path`.
+fn assert_valid_body<T: Serialize>(path: &str, typed: &T) {
+    let spec = spec();
+    let body = serde_json::to_value(typed).expect("serialise");
+    let schema =
+        &spec["paths"][path]["post"]["requestBody"]["content"]["application/json"]["schema"];
+    assert!(schema.is_object(), "POST {path}: no request schema");
+    let e = errors(&validator(&spec, schema), &body);
+    assert!(
+        e.is_empty(),
+        "POST {path}: the client's body fails the spec: {e:?}\n{body}"
+    );
+}
+
+#[test]
+fn typed_requests_as_serialised_validate_against_the_spec() {
+    use manyhands_client::api::*;
+    let fk: FkRequest = req(json!({"robot": "armar", "config": {"right_elbow": -1.2}}));
+    assert_valid_body("/v1/fk", &fk);
+    let ik: IkRequest = req(json!({"robot": "armar", "group": "right_arm",
+        "pose": {"position": [0.45, -0.26, 1.08], "rpy": [-2.7, -1.41, 1.08]}}));
+    assert_valid_body("/v1/ik", &ik);
+    let check: CheckRequest = req(json!({"scene": "kitchen", "robots": [{"name": "armar"}]}));
+    assert_valid_body("/v1/check", &check);
+    let g: GraspIkRequest = req(json!({"scene": "kitchen", "robot": "armar",
+        "group": "torso_right_arm", "object": "wok"}));
+    assert_valid_body("/v1/ik/grasp", &g);
+    let d: DualArmIkRequest = req(
+        json!({"scene": "kitchen", "robot": "armar", "object": "wok",
+        "region": {"min": [0.3, -0.3, 1.0], "max": [0.6, 0.2, 1.4]}}),
+    );
+    assert_valid_body("/v1/ik/dual-arm", &d);
+    let b: BasePlacementRequest =
+        req(json!({"scene": "kitchen", "robot": "armar", "object": "table"}));
+    assert_valid_body("/v1/ik/base-placement", &b);
+    let q: GraspQualityRequest = req(json!({"scene": "kitchen", "object": "wok"}));
+    assert_valid_body("/v1/grasp-quality", &q);
+    for plan in [
+        json!({"kind": "joint_space", "scene": "empty",
+            "robots": [{"name": "armar", "group": "right_arm", "goal": {"right_elbow": -1.0}}]}),
+        json!({"kind": "collision_sweep", "scene": "kitchen", "samples": 100}),
+        json!({"kind": "reach", "scene": "kitchen", "robot": "armar", "group": "torso_right_arm",
+            "object": "wok", "planner": "j_plus_rrt"}),
+        json!({"kind": "regrasp", "scene": "handoff", "giver": {"robot": "armar_a", "group": "torso_right_arm"},
+            "receiver": {"robot": "armar_b", "group": "torso_left_arm"}, "object": "wok"}),
+        json!({"kind": "kitchen_task", "scene": "kitchen"}),
+        json!({"kind": "bimanual", "scene": "kitchen", "robot": "armar", "object": "table"}),
+        json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table"}),
+        json!({"kind": "schedule", "scene": "kitchen_two",
+            "trajectories": [{"robot": "armar_a", "path": [[0.0]]}]}),
+    ] {
+        let p: PlanRequest = req(plan);
+        assert_valid_body("/v1/plans", &p);
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -169,25 +228,4 @@ async fn client_covers_every_endpoint_kind() {
     assert!(matches!(e, ClientError::WaitTimeout { .. }), "{e}");
     c.cancel(&job.id).await.expect("cancel");
     drop(h);
-}
-
-#[test]
-fn sse_parser_handles_split_chunks_comments_and_multiline_data() {
-    let mut p = SseParser::default();
-    let mut all = Vec::new();
-    for chunk in [
-        &b": keep-alive\n\nevent: sta"[..],
-        b"te\ndata: {\"state\":",
-        b"\"running\"}\n\n",
-        b"data: line one\r\ndata: line two\r\n\r\n",
-        b"event: end\ndata: {\"state\":\"succeeded\"}\n\n",
-    ] {
-        all.extend(p.feed(chunk));
-    }
-    assert_eq!(all.len(), 3, "{all:?}");
-    assert_eq!(all[0].event, "state");
-    assert_eq!(all[0].data, json!({"state": "running"}));
-    assert_eq!(all[1].event, "message");
-    assert_eq!(all[1].data, json!("line one\nline two"));
-    assert_eq!(all[2].event, "end");
 }

@@ -3,6 +3,9 @@
 //! `manyhands serve --print-openapi > api/openapi.json`. The same holds for the standalone JSON
 //! Schemas of the request bodies in `api/schemas/` (generated from the spec's components).
 
+mod common;
+use common::spec::{errors, validator};
+
 use std::path::PathBuf;
 
 #[test]
@@ -135,22 +138,6 @@ fn readme_bodies() -> Vec<(String, String, serde_json::Value)> {
         out.push((method.to_string(), path, v));
     }
     out
-}
-
-/// A validator of the component `$ref` inside the spec (references resolve in the document).
-fn validator(spec: &serde_json::Value, schema: &serde_json::Value) -> jsonschema::Validator {
-    let doc = serde_json::json!({
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "components": spec["components"],
-        "allOf": [schema],
-    });
-    jsonschema::draft202012::new(&doc).expect("the spec's schema compiles")
-}
-
-fn errors(v: &jsonschema::Validator, x: &serde_json::Value) -> Vec<String> {
-    v.iter_errors(x)
-        .map(|e| format!("{} at {}", e, e.instance_path()))
-        .collect()
 }
 
 /// The spec's schemas are honest: every README request body validates against its operation's

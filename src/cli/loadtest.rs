@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use manyhands_client::Client;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -202,16 +203,16 @@ pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
         .enable_all()
         .build()?;
     let report = rt.block_on(async {
-        let http = reqwest::Client::builder()
-            .pool_max_idle_per_host(a.clients)
-            .tcp_nodelay(true)
-            .timeout(Duration::from_secs(60))
-            .build()?;
-        let auth = a.token.as_ref().map(|t| Arc::new(format!("Bearer {t}")));
-        let health = http.get(format!("{base}/healthz")).send().await;
-        if !health.as_ref().is_ok_and(|r| r.status().is_success()) {
-            bail!("no healthy server at {base} (start one with `manyhands serve`)");
+        // Health and the final states go through the Rust client; the load itself through
+        // pre-encoded requests on raw keep-alive connections (load_http).
+        let mut api = Client::with_timeout(&base, Duration::from_secs(70))?;
+        if let Some(t) = &a.token {
+            api = api.with_token(t.clone());
         }
+        if let Err(e) = api.health().await {
+            bail!("no healthy server at {base} (start one with `manyhands serve`): {e}");
+        }
+        let auth = a.token.as_ref().map(|t| Arc::new(format!("Bearer {t}")));
         let (addr, prefix) = split_url(&base)?;
         let host = addr.clone();
         let encode = |path: &str, body: &[u8]| {
@@ -251,20 +252,8 @@ pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
         let mut final_states: BTreeMap<String, u64> = BTreeMap::new();
         let mut lost = 0u64;
         for id in &all.accepted {
-            let mut req = http.get(format!("{base}/v1/plans/{id}?wait=60"));
-            if let Some(a) = &auth {
-                req = req.header("authorization", a.as_str());
-            }
-            let state = match req.send().await {
-                Ok(r) if r.status().is_success() => r
-                    .json::<Value>()
-                    .await
-                    .ok()
-                    .and_then(|v| v.get("state").and_then(|s| s.as_str()).map(str::to_string)),
-                _ => None,
-            };
-            match state {
-                Some(s) if !matches!(s.as_str(), "queued" | "running") => *final_states.entry(s).or_insert(0) += 1,
+            match api.job_wait(id, 60.0).await {
+                Ok(job) if job.state.is_final() => *final_states.entry(job.state.name().to_string()).or_insert(0) += 1,
                 _ => lost += 1,
             }
         }

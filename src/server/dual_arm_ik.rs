@@ -20,8 +20,6 @@ use axum::extract::State;
 use axum::Json;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 use crate::collision::CollisionWorld;
 use crate::geometry::PoseJson;
@@ -32,10 +30,13 @@ use crate::planning::{GoalSampler, PlanError};
 use crate::reachability::cache::{GridCache, GridRecipe};
 use crate::reachability::queries::DualArmProblem;
 
+use super::api::pose_body;
 use super::error::{ApiError, ApiResult, ErrorBody};
 use super::extract::ApiJson;
 use super::grasp_ik::{arm_grid, config_map, ik_settings, query_error};
 use super::AppState;
+
+pub use manyhands_api::{BasePlacementRequest, DualArmIkRequest, RegionJson, TwoHandIkResponse};
 
 /// Largest edge of the object's position box (m).
 pub const MAX_REGION_EDGE: f64 = 10.0;
@@ -43,124 +44,6 @@ pub const MAX_REGION_EDGE: f64 = 10.0;
 /// Most platform poses (x, y cells × yaw bins within `radius`) one base-placement request may
 /// evaluate; the default request has 31 × 31 × 16 = 15 376.
 pub const MAX_PLACEMENT_POSES: usize = 250_000;
-
-/// A box of the world frame (metres): `min[i] ≤ max[i]`.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct RegionJson {
-    pub min: [f64; 3],
-    pub max: [f64; 3],
-}
-
-/// `POST /v1/ik/dual-arm`: hip and both arms of `robot` holding `object` with two hands.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct DualArmIkRequest {
-    pub scene: String,
-    /// Robot instance of the scene.
-    pub robot: String,
-    /// Object of the scene with grasps for both hands.
-    pub object: String,
-    /// Chain group "free joints + left 7-DoF S-R-S arm" (default `torso_left_arm`).
-    #[serde(default)]
-    pub left_group: Option<String>,
-    /// Chain group "free joints + right arm" (default `torso_right_arm`); the free joints are
-    /// shared with the left chain.
-    #[serde(default)]
-    pub right_group: Option<String>,
-    /// Where the object's origin may be (world frame); its orientation is free.
-    pub region: RegionJson,
-    /// Name of a left grasp the object is already held by (variant (b), 000 §III); absent: both
-    /// grasps are chosen (variant (a)).
-    #[serde(default)]
-    pub held: Option<String>,
-    /// Use the arms' reachability grids as a filter (default true).
-    #[serde(default)]
-    pub reachability: Option<bool>,
-    /// Samples of object pose and hip before "no solution" (1..=1000000, default 20000).
-    #[serde(default)]
-    pub max_tries: Option<u64>,
-    /// Swivel angles per arm-IK call (1..=360, default 8).
-    #[serde(default)]
-    pub psi_samples: Option<u32>,
-    /// Random seed (default 1): same request and seed, same answer.
-    #[serde(default)]
-    pub seed: Option<u64>,
-}
-
-/// `POST /v1/ik/base-placement`: platform, hip and both arms of a mobile `robot` grasping
-/// `object` where it lies, the platform placed by IkDualArm (002 Alg. 1).
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct BasePlacementRequest {
-    pub scene: String,
-    /// Robot instance of the scene; its SRDF group `base` holds the platform's x, y, yaw.
-    pub robot: String,
-    /// Object of the scene with grasps for both hands.
-    pub object: String,
-    /// Chain group from the platform through the left arm (default `torso_left_arm`).
-    #[serde(default)]
-    pub left_group: Option<String>,
-    /// Chain group from the platform through the right arm (default `torso_right_arm`).
-    #[serde(default)]
-    pub right_group: Option<String>,
-    /// Base positions within this distance of the object (m, (0, 5], default 1.5).
-    #[serde(default)]
-    pub radius: Option<f64>,
-    /// Cell of the base-position grid (m, [0.02, 1], default 0.1).
-    #[serde(default)]
-    pub cell: Option<f64>,
-    /// Base yaw bins (1..=360, default 16).
-    #[serde(default)]
-    pub yaw_bins: Option<usize>,
-    /// Base samples before "no solution" (1..=1000000, default 20000).
-    #[serde(default)]
-    pub max_tries: Option<u64>,
-    /// Swivel angles per arm-IK call (1..=360, default 8).
-    #[serde(default)]
-    pub psi_samples: Option<u32>,
-    /// Random seed (default 1): same request and seed, same answer.
-    #[serde(default)]
-    pub seed: Option<u64>,
-}
-
-/// The answer of both two-handed queries: `found` with the configuration and the grasps, or not
-/// found after `tries`.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-pub struct TwoHandIkResponse {
-    pub found: bool,
-    /// Why nothing was found (`found: false`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub reason: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub left_grasp: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub right_grasp: Option<String>,
-    /// The variables the query chose (hip and both arms; plus the platform for base placement).
-    pub joints: Vec<String>,
-    /// Their values.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub solution: Option<Vec<f64>>,
-    /// Every variable of the robot (`joint: value`): the solution's, the rest from the scene's
-    /// start configuration.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub config: Option<serde_json::Map<String, serde_json::Value>>,
-    /// World pose of the object in the hands (dual-arm; for base placement where it lies).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Object>)]
-    pub object_pose: Option<PoseJson>,
-    /// Samples of the free parameters, analytic arm-IK calls, collision checks.
-    pub tries: u64,
-    pub ik_calls: u64,
-    pub collision_checks: u64,
-    /// Whether reachability filtered the arm-IK calls (always, for base placement).
-    pub reachability: bool,
-    /// Time to build the inverse reachability maps (base placement), µs.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub map_time_us: Option<f64>,
-    /// Wall time of the search (µs), without building or loading grids.
-    pub time_us: f64,
-}
 
 #[utoipa::path(post, path = "/v1/ik/dual-arm", tag = "queries", request_body = DualArmIkRequest,
     responses((status = 200, body = TwoHandIkResponse, description = "a solution, or `found: false` after `max_tries`"),
@@ -347,7 +230,9 @@ pub fn dual_arm_compute(
                 right_grasp: problem.right_grasps.names.get(sol.right_grasp).cloned(),
                 solution: Some(vars.iter().map(|&v| sol.config[v]).collect()),
                 config: Some(config_map(&model, &sol.config)),
-                object_pose: Some(PoseJson::from_pose(&problem.object_pose_of(&sol))),
+                object_pose: Some(pose_body(PoseJson::from_pose(
+                    &problem.object_pose_of(&sol),
+                ))),
                 joints,
                 tries: c.tries,
                 ik_calls: c.ik_calls,
@@ -479,7 +364,7 @@ pub fn base_placement_compute(
                 joints,
                 solution: Some(out),
                 config: Some(config_map(&model, q)),
-                object_pose: Some(PoseJson::from_pose(&problem.object_pose)),
+                object_pose: Some(pose_body(PoseJson::from_pose(&problem.object_pose))),
                 tries: c.tries,
                 ik_calls: c.ik_calls,
                 collision_checks: c.collision_checks,

@@ -3,8 +3,8 @@
 
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
-use serde::Serialize;
-use utoipa::ToSchema;
+
+pub use manyhands_api::{ErrorBody, ErrorDetail};
 
 use crate::model::ModelError;
 
@@ -19,22 +19,6 @@ pub struct ApiError {
     pub field: Option<String>,
     /// Seconds for a `Retry-After` header (429/503).
     pub retry_after: Option<u64>,
-}
-
-/// The JSON body of an error answer.
-#[derive(Debug, Serialize, serde::Deserialize, ToSchema)]
-pub struct ErrorBody {
-    pub error: ErrorDetail,
-}
-
-/// What went wrong.
-#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize, ToSchema)]
-pub struct ErrorDetail {
-    /// Stable code, e.g. `malformed_json`, `invalid_value`, `not_found`, `queue_full`.
-    pub code: String,
-    pub message: String,
-    /// Path of the offending request field (`robots[0].config.right_elbow`), if any.
-    pub field: Option<String>,
 }
 
 impl ApiError {

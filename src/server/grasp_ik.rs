@@ -12,8 +12,6 @@ use axum::extract::State;
 use axum::Json;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 use crate::kinematics::randomized::{
     ArmChain, IkCounters, RandomizedIkError, RandomizedIkSettings,
@@ -27,67 +25,11 @@ use super::error::{ApiError, ApiResult, ErrorBody};
 use super::extract::ApiJson;
 use super::AppState;
 
+pub use manyhands_api::{GraspIkRequest, GraspIkResponse};
+
 /// Largest `max_tries` of one request (a try is a hip sample plus up to one arm IK per grasp;
 /// 10⁶ tries of the kitchen wok take ~2 s).
 pub const MAX_TRIES: u64 = 1_000_000;
-
-/// `POST /v1/ik/grasp`: a configuration of `robot`'s chain `group` whose hand holds one of
-/// `object`'s grasps where the object lies in `scene`.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct GraspIkRequest {
-    pub scene: String,
-    /// Robot instance of the scene.
-    pub robot: String,
-    /// Chain group "free joints + 7-DoF S-R-S arm" (e.g. `torso_right_arm`, 10 DoF).
-    pub group: String,
-    /// Object of the scene; its grasp set for the end effector at the chain's tip is used.
-    pub object: String,
-    /// Samples of the free joints before "no solution" (1..=1000000, default 20000).
-    #[serde(default)]
-    pub max_tries: Option<u64>,
-    /// Swivel angles per arm-IK call (1..=360, default 8).
-    #[serde(default)]
-    pub psi_samples: Option<u32>,
-    /// Random seed (default 1): same request and seed, same answer.
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// Call the arm IK only for grasps whose cell of the arm's 6-D reachability grid is
-    /// reachable (000 §II-B/§II-D; default true). The grid of the arm chain (an SRDF group from
-    /// the arm's base to its tip, e.g. `right_arm`) is built on first use and kept under the
-    /// server's data folder; without such a group the query runs unfiltered.
-    #[serde(default)]
-    pub reachability: Option<bool>,
-}
-
-/// The answer: `found` with the configuration and grasp, or not found after `counters.tries`.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-pub struct GraspIkResponse {
-    pub found: bool,
-    /// Why nothing was found (`found: false`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub reason: Option<String>,
-    /// Name of the grasp reached.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub grasp: Option<String>,
-    /// Names of the chain's joints, the order of `solution`.
-    pub joints: Vec<String>,
-    /// Values of the chain's joints.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub solution: Option<Vec<f64>>,
-    /// Every variable of the robot (`joint: value`), the chain's from the solution, the rest
-    /// from the scene's start configuration.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub config: Option<serde_json::Map<String, serde_json::Value>>,
-    /// Free-joint samples, analytic IK calls, collision checks.
-    pub tries: u64,
-    pub ik_calls: u64,
-    pub collision_checks: u64,
-    /// Whether the reachability filter was used.
-    pub reachability: bool,
-    /// Wall time of the search (µs), without building or loading the grid.
-    pub time_us: f64,
-}
 
 #[utoipa::path(post, path = "/v1/ik/grasp", tag = "queries", request_body = GraspIkRequest,
     responses((status = 200, body = GraspIkResponse, description = "a solution, or `found: false` after `max_tries`"),

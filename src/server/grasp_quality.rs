@@ -9,124 +9,27 @@ use std::time::Instant;
 use axum::extract::State;
 use axum::Json;
 use nalgebra::Vector3;
-use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 use crate::grasp::{
     grasp_quality as quality_of, score_object_grasps, Contact, GraspError, GraspQuality,
     WrenchSpaceSettings, MAX_CONTACTS,
 };
-use crate::model::{GraspType, Scene};
+use crate::model::Scene;
 
+use super::api::grasp_type;
 use super::error::{ApiError, ApiResult, ErrorBody};
 use super::extract::ApiJson;
 use super::AppState;
+
+pub use manyhands_api::{
+    GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,
+};
 
 /// Most primitive wrenches in one wrench space (contacts × (cone_edges + 2 with soft fingers)),
 /// bounding the time and memory of one hull: 64 random contacts with 16 edges (1024 wrenches,
 /// 1.7e5 facets) took 2.5 s and 45 MB, with 32 edges (2048 wrenches, 6e5 facets) 9 s and 140 MB.
 /// The CLI has no such bound.
 pub const MAX_WRENCHES: usize = 1024;
-
-/// A contact of a finger on the object.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct GraspContact {
-    /// Contact point [x, y, z] in metres.
-    pub point: [f64; 3],
-    /// Inward surface normal (the direction of the finger force); any non-zero length.
-    pub normal: [f64; 3],
-}
-
-/// `POST /v1/grasp-quality`: give `contacts` (with `centre`), or `scene` + `object` (its grasps
-/// are scored), or both (the contacts are then in the object frame and share the object's centre
-/// and λ, so their ε compares with the grasps').
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct GraspQualityRequest {
-    /// Contacts to score (at most 64, and at most 1024 primitive wrenches: contacts ×
-    /// (cone_edges + 2 with soft fingers)).
-    #[serde(default)]
-    pub contacts: Vec<GraspContact>,
-    /// Centre of mass of the object, same frame as the contacts. Required without `scene` +
-    /// `object`; with them the default is the object's centre of mass (uniform density).
-    #[serde(default)]
-    pub centre: Option<[f64; 3]>,
-    /// Scene of `object`.
-    #[serde(default)]
-    pub scene: Option<String>,
-    /// Object of `scene` whose grasps are scored (their stored contacts).
-    #[serde(default)]
-    pub object: Option<String>,
-    /// Only these grasps of the object, by name (default: all).
-    #[serde(default)]
-    pub grasps: Option<Vec<String>>,
-    /// Coulomb friction coefficient μ > 0 (default 0.5).
-    #[serde(default)]
-    pub mu: Option<f64>,
-    /// Edges of the linearised friction cone, 3..=32 (default 8).
-    #[serde(default)]
-    pub cone_edges: Option<u32>,
-    /// Torque scale λ in 1/m. Default: 1 / the object's radius about the centre (GraspIt!'s
-    /// 1 / max radius) with `scene` + `object`, else 1 / the largest contact distance from
-    /// `centre`.
-    #[serde(default)]
-    pub lambda: Option<f64>,
-    /// Soft-finger torsional friction γ > 0 in metres: adds the wrenches [0; ±λγn] per contact
-    /// (default: point contacts with friction).
-    #[serde(default)]
-    pub soft_finger: Option<f64>,
-}
-
-/// The quality of one grasp of the object.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-pub struct GraspQualityScore {
-    pub name: String,
-    pub end_effector: String,
-    /// `power`, `precision` or `pinch`.
-    #[serde(rename = "type")]
-    #[schema(value_type = String)]
-    pub kind: GraspType,
-    /// Number of stored contacts (a grasp without contacts has rank 0).
-    pub contacts: usize,
-    /// The `quality` value stored with the grasp in the scene.
-    pub scene_quality: f64,
-    pub force_closure: bool,
-    pub rank: usize,
-    pub epsilon: f64,
-    pub wrenches: usize,
-    pub facets: usize,
-}
-
-/// Answer of `POST /v1/grasp-quality`. The top-level quality fields describe the request's
-/// `contacts` and are null when it had none.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-pub struct GraspQualityResponse {
-    /// The origin of wrench space is strictly inside the hull of the primitive wrenches.
-    pub force_closure: Option<bool>,
-    /// Rank of the 6×N wrench matrix (< 6: never force closure).
-    pub rank: Option<usize>,
-    /// Ferrari–Canny ε (L1): distance from the origin to the nearest hull facet; 0 when not
-    /// force closure.
-    pub epsilon: Option<f64>,
-    /// Number of primitive wrenches N.
-    pub wrenches: Option<usize>,
-    /// Facets of the wrench hull (0 when none was built).
-    pub facets: Option<usize>,
-    /// Torque scale λ used (with `scene` + `object`: the object's, shared by its grasps and the
-    /// contacts; null only for an object of radius 0 without contacts).
-    pub lambda: Option<f64>,
-    /// Centre of mass used.
-    pub centre: [f64; 3],
-    /// Upper bound of the object's extent from `centre` (with `scene` + `object`).
-    pub radius: Option<f64>,
-    pub mu: f64,
-    pub cone_edges: u32,
-    pub soft_finger: Option<f64>,
-    /// One per scored grasp of the object (empty without `scene` + `object`).
-    pub grasps: Vec<GraspQualityScore>,
-    pub time_us: f64,
-}
 
 /// A library error as a 422 naming the request field.
 fn invalid(e: &GraspError) -> ApiError {
@@ -260,7 +163,7 @@ pub fn compute(
                 .map(|(g, q)| GraspQualityScore {
                     name: g.name.clone(),
                     end_effector: g.end_effector.clone(),
-                    kind: g.kind,
+                    kind: grasp_type(g.kind),
                     contacts: g.contacts.len(),
                     scene_quality: g.quality,
                     force_closure: q.force_closure,

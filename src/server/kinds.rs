@@ -18,7 +18,9 @@ use crate::planning::{
     JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, ShortcutSettings, Termination,
 };
 
-use super::api::{CollisionSweep, GraspPlanSettings, JointSpacePlan, PlanRequest};
+use super::api::{
+    CollisionSweep, GraspPlanRequest, GraspPlanSettings, JointSpacePlan, PlanRequest,
+};
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
 use super::queries::{apply_config, placement_base};
@@ -597,7 +599,7 @@ fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Pr
                 robot: r.robot.clone(),
                 group: r.group.clone(),
                 object: r.object.clone(),
-                algorithm: r.planner.unwrap_or_default().algorithm(),
+                algorithm: r.planner.unwrap_or_default().into(),
             }
         }
         PlanRequest::Regrasp(r) => {
@@ -610,7 +612,7 @@ fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Pr
                 object: r.object.clone(),
                 held: r.held.clone(),
                 grid: None,
-                algorithm: r.planner.unwrap_or_default().algorithm(),
+                algorithm: r.planner.unwrap_or_default().into(),
                 planner,
                 ik,
             })

@@ -6,7 +6,7 @@
 //! does I/O. The planning core must not depend on this module (no tokio/axum/HTTP types in
 //! `model`, `kinematics`, `collision`, `planning`).
 //!
-//! Modules: [`api`] request/response types, [`error`] the one error type, [`extract`] the
+//! Modules: [`api`] request/response types (the `manyhands-api` crate, re-exported), [`error`] the one error type, [`extract`] the
 //! strict JSON extractor, [`catalog`] robots and scenes, [`queries`] FK/IK/check, [`kinds`] job
 //! kinds, [`jobs`] the runner, [`store`] persistence, [`metrics`] Prometheus, [`openapi`] the
 //! spec.

@@ -6,9 +6,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
-use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
-use utoipa::ToSchema;
 
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
@@ -25,110 +23,7 @@ use crate::planning::multi_robot_rrt::{
 use crate::planning::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory};
 use crate::reachability::{GridCache, GridRecipe};
 
-/// `kind: multi_robot` — Multi-Robot-RRT (002 Alg. 3): one Bimanual IK-RRT worker per robot,
-/// a collector scoring the wrench space of all hands' contacts (ε > `s_min`) and rejecting
-/// deadlocks (002 eq. 2), then phase-space scheduling (002 §V) so that all robots move at the
-/// same time. The answer holds every robot's trajectory, the schedule on one clock, the phase
-/// path and the statistics of 002 Tables I–II.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct MultiRobotRequest {
-    pub scene: String,
-    /// Robot instances of the scene (default: all of them).
-    #[serde(default)]
-    pub robots: Option<Vec<String>>,
-    /// Left and right chain groups from the platform (default `torso_left_arm`,
-    /// `torso_right_arm`).
-    #[serde(default)]
-    pub left: Option<String>,
-    #[serde(default)]
-    pub right: Option<String>,
-    pub object: String,
-    /// Minimum grasp score s_min: ε of the L1 wrench space of all contacts must exceed it
-    /// (default 0: any force-closure combination).
-    #[serde(default)]
-    pub s_min: Option<f64>,
-    /// Friction coefficient μ of the score (default 0.5).
-    #[serde(default)]
-    pub mu: Option<f64>,
-    /// Friction cone edges of the score (3..=32, default 8).
-    #[serde(default)]
-    pub cone_edges: Option<usize>,
-    /// Torque scale λ of the score (default 1 / the object's radius).
-    #[serde(default)]
-    pub lambda: Option<f64>,
-    /// Probability of an IK query per worker iteration (default 0.03, 002 §VI).
-    #[serde(default)]
-    pub p_ik: Option<f64>,
-    /// Randomized-IK tries per goal query (1..=100000, default 50).
-    #[serde(default)]
-    pub ik_tries: Option<u64>,
-    /// Prune (shortcut) the workers' paths (default true).
-    #[serde(default)]
-    pub simplify: Option<bool>,
-    /// Most solution trajectories per worker (1..=256, default 32).
-    #[serde(default)]
-    pub max_solutions: Option<usize>,
-    /// Workers stepped round-robin on one thread, so request + seed give the same plan
-    /// (default false: one thread per worker).
-    #[serde(default)]
-    pub deterministic: Option<bool>,
-    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
-    #[serde(default)]
-    pub time_limit: Option<f64>,
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
-    #[serde(default)]
-    pub sample_period: Option<f64>,
-}
-
-/// One robot's trajectory for `kind: schedule`.
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct ScheduleTrajectory {
-    /// Robot instance of the scene.
-    pub robot: String,
-    /// The variables the waypoints give, as `joint` or `robot/joint` (a `joint_space` answer's
-    /// `joints`); the others keep the robot's scene start values. Default: all of the robot's
-    /// variables in model order.
-    #[serde(default)]
-    pub joints: Option<Vec<String>>,
-    /// Waypoints (at least one), each with one value per joint of `joints`.
-    pub path: Vec<Vec<f64>>,
-    /// Acceleration limits by joint name (rad/s² or m/s²); joints not named use
-    /// `max_acceleration`. Without either, only velocity limits (URDF) are respected.
-    #[serde(default)]
-    pub accelerations: Option<HashMap<String, f64>>,
-    #[serde(default)]
-    pub max_acceleration: Option<f64>,
-}
-
-/// `kind: schedule` — phase-space scheduling (002 §V, Alg. 4) of given joint trajectories, one
-/// per robot of a scene, for simultaneous execution: a monotone phase path from all-start to
-/// all-goal whose every segment is proven collision-free between the robots, timed on one
-/// clock within the joints' velocity (and given acceleration) limits. Each trajectory must be
-/// free in the scene on its own (refused with 422 naming the robot and waypoint otherwise).
-#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct ScheduleRequest {
-    pub scene: String,
-    pub trajectories: Vec<ScheduleTrajectory>,
-    /// ε_extend of Alg. 4 in phase units (0.001..=1, default 0.1).
-    #[serde(default)]
-    pub extend: Option<f64>,
-    /// Fall back to one robot after the other when the search fails (default true).
-    #[serde(default)]
-    pub sequential_fallback: Option<bool>,
-    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
-    #[serde(default)]
-    pub time_limit: Option<f64>,
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
-    #[serde(default)]
-    pub sample_period: Option<f64>,
-}
+pub use manyhands_api::{MultiRobotRequest, ScheduleRequest, ScheduleTrajectory};
 
 /// Most waypoints of one trajectory of a `schedule` request.
 pub const MAX_WAYPOINTS: usize = 10_000;

@@ -1,4 +1,5 @@
-//! The OpenAPI 3.1 description of the API, generated from the Rust types (utoipa). The checked-in
+//! The OpenAPI 3.1 description of the API, generated from the Rust types (utoipa; the bodies are
+//! the `manyhands-api` crate's types, built with its `openapi` feature). The checked-in
 //! copy is `api/openapi.json`; `tests/server_openapi.rs` fails when it drifts
 //! (regenerate with `manyhands serve --print-openapi > api/openapi.json`).
 

@@ -3,6 +3,7 @@
 #![allow(dead_code)] // each test binary uses its own subset
 
 pub mod server;
+pub mod spec;
 
 use std::path::PathBuf;
 

@@ -11,14 +11,24 @@ import asyncio
 import json
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from dataclasses import dataclass
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
-__all__ = ["ApiError", "WaitTimeout", "Client", "AsyncClient", "Event", "FINAL_STATES"]
+__all__ = ["ApiError", "WaitTimeout", "Client", "AsyncClient", "Event", "FINAL_STATES", "JOB_KINDS"]
 
+# Both are checked against api/openapi.json (`JobState`, the `kind`s of `PlanRequest`) by
+# tests/python_sdk.rs, as is every request body the test suite sends and every answer it gets.
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled", "interrupted"})
+JOB_KINDS = ("joint_space", "collision_sweep", "reach", "regrasp", "kitchen_task", "bimanual",
+             "multi_robot", "schedule")
 Json = Dict[str, Any]
+
+
+def _segment(name: str) -> str:
+    """``name`` as one URL path segment (``/``, ``?``, ``#`` … percent-encoded)."""
+    return urllib.parse.quote(name, safe="")
 
 
 class ApiError(Exception):
@@ -103,25 +113,25 @@ class Client:
         return self._get("/v1/robots")
 
     def robot(self, name: str) -> Json:
-        return self._get(f"/v1/robots/{name}")
+        return self._get(f"/v1/robots/{_segment(name)}")
 
     def put_robot(self, name: str, urdf: str, srdf: Optional[str] = None) -> Json:
-        return self._request("PUT", f"/v1/robots/{name}", {"urdf": urdf, "srdf": srdf})[2]
+        return self._request("PUT", f"/v1/robots/{_segment(name)}", {"urdf": urdf, "srdf": srdf})[2]
 
     def delete_robot(self, name: str) -> None:
-        self._request("DELETE", f"/v1/robots/{name}")
+        self._request("DELETE", f"/v1/robots/{_segment(name)}")
 
     def scenes(self) -> List[Json]:
         return self._get("/v1/scenes")
 
     def scene(self, name: str) -> Json:
-        return self._get(f"/v1/scenes/{name}")
+        return self._get(f"/v1/scenes/{_segment(name)}")
 
     def put_scene(self, name: str, scene: Json) -> Json:
-        return self._request("PUT", f"/v1/scenes/{name}", scene)[2]
+        return self._request("PUT", f"/v1/scenes/{_segment(name)}", scene)[2]
 
     def delete_scene(self, name: str) -> None:
-        self._request("DELETE", f"/v1/scenes/{name}")
+        self._request("DELETE", f"/v1/scenes/{_segment(name)}")
 
     # -- queries ----------------------------------------------------------------------------
     def fk(self, robot: str, config: Optional[Dict[str, float]] = None, **kw: Any) -> Json:
@@ -183,13 +193,13 @@ class Client:
                             **kw}, wait)
 
     def job(self, job_id: str) -> Json:
-        return self._get(f"/v1/plans/{job_id}")
+        return self._get(f"/v1/plans/{_segment(job_id)}")
 
     def jobs(self) -> List[Json]:
         return self._get("/v1/plans")["jobs"]
 
     def cancel(self, job_id: str) -> Json:
-        return self._request("DELETE", f"/v1/plans/{job_id}")[2]
+        return self._request("DELETE", f"/v1/plans/{_segment(job_id)}")[2]
 
     def wait(self, job_id: str, timeout: float = 600.0) -> Json:
         """Blocks until the job is final and returns it; raises ``WaitTimeout`` (carrying the
@@ -197,7 +207,7 @@ class Client:
         deadline = time.monotonic() + timeout
         while True:
             left = max(0.0, deadline - time.monotonic())
-            job = self._request("GET", f"/v1/plans/{job_id}?wait={min(left, 60.0):.3f}",
+            job = self._request("GET", f"/v1/plans/{_segment(job_id)}?wait={min(left, 60.0):.3f}",
                                 timeout=self.timeout + 60.0)[2]
             if job["state"] in FINAL_STATES:
                 return job
@@ -206,7 +216,7 @@ class Client:
 
     def events(self, job_id: str) -> Iterator[Event]:
         """Iterates the job's Server-Sent Events until the ``end`` event."""
-        req = urllib.request.Request(f"{self.base_url}/v1/plans/{job_id}/events")
+        req = urllib.request.Request(f"{self.base_url}/v1/plans/{_segment(job_id)}/events")
         if self.token:
             req.add_header("Authorization", f"Bearer {self.token}")
         try:

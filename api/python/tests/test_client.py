@@ -1,17 +1,71 @@
 """Tests of the Python client against a running server: MANYHANDS_URL (default
 http://127.0.0.1:8080). Skipped when no server answers, unless MANYHANDS_REQUIRE_SERVER=1 (as
-when `cargo test --test python_sdk` starts a server and runs them)."""
+when `cargo test --test python_sdk` starts a server and runs them).
+
+With MANYHANDS_SDK_RECORD=FILE every request the client sends is appended to FILE as one JSON
+line ``{"method", "path", "body", "status", "answer"}``; tests/python_sdk.rs validates each body
+and JSON answer against api/openapi.json with an independent JSON Schema validator."""
 
 import asyncio
+import json
 import os
 import sys
+import threading
 import unittest
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from manyhands_client import ApiError, AsyncClient, Client, WaitTimeout  # noqa: E402
+from manyhands_client import JOB_KINDS, ApiError, AsyncClient, Client, WaitTimeout  # noqa: E402
+
+RECORD = os.environ.get("MANYHANDS_SDK_RECORD")
+if RECORD:
+    _send = Client._request
+    _lock = threading.Lock()
+
+    def _recorded(self, method, path, body=None, timeout=None):  # type: ignore[no-untyped-def]
+        def note(status, answer):  # type: ignore[no-untyped-def]
+            line = {"method": method, "path": path, "body": body, "status": status,
+                    "answer": answer if isinstance(answer, (dict, list)) else None}
+            with _lock, open(RECORD, "a", encoding="utf-8") as f:
+                f.write(json.dumps(line) + "\n")
+
+        try:
+            status, headers, value = _send(self, method, path, body, timeout)
+        except ApiError as e:
+            note(e.status, {"error": {"code": e.code, "message": e.message, "field": e.field}})
+            raise
+        note(status, value)
+        return status, headers, value
+
+    Client._request = _recorded  # type: ignore[method-assign]
 
 URL = os.environ.get("MANYHANDS_URL", "http://127.0.0.1:8080")
 SWEEP = {"kind": "collision_sweep", "scene": "kitchen", "samples": 2000, "time_limit": 5}
+
+MINI_URDF = """<robot name="mini">
+  <link name="base"><collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision></link>
+  <link name="arm"><collision><origin xyz="0 0 0.25"/><geometry><cylinder radius="0.03" length="0.5"/></geometry></collision></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 1 0"/><limit lower="-1.5" upper="1.5" velocity="1" effort="1"/></joint>
+</robot>"""
+MINI_SRDF = """<robot name="mini"><group name="all"><joint name="j1"/></group>
+  <group_state name="home" group="all"><joint name="j1" value="0.2"/></group_state></robot>"""
+
+# One request per job kind (the README's examples), submitted without waiting and cancelled.
+EVERY_KIND = [
+    {"kind": "joint_space", "scene": "empty", "robots": [
+        {"name": "armar", "group": "right_arm", "goal": {"right_elbow": -1.0, "right_shoulder_1": -0.4}}]},
+    {**SWEEP, "samples": 10**9, "time_limit": 30},
+    {"kind": "reach", "scene": "kitchen", "robot": "armar", "group": "torso_right_arm",
+     "object": "wok", "seed": 3, "planner": "j_plus_rrt"},
+    {"kind": "regrasp", "scene": "handoff", "giver": {"robot": "armar_a", "group": "torso_right_arm"},
+     "receiver": {"robot": "armar_b", "group": "torso_left_arm"}, "object": "wok"},
+    {"kind": "kitchen_task", "scene": "kitchen", "seed": 1},
+    {"kind": "bimanual", "scene": "kitchen", "robot": "armar", "object": "table", "p_ik": 0.03},
+    {"kind": "multi_robot", "scene": "kitchen_two", "object": "table", "seed": 2, "s_min": 0.1},
+    {"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x", "base_y"], "path": [[0, -1.2], [0, 2.6]]},
+        {"robot": "armar_b", "joints": ["base_x", "base_y"], "path": [[-1.2, -0.7], [1.2, -0.7]]}]},
+]
 
 
 def server_up() -> bool:
@@ -107,6 +161,35 @@ class ClientTest(unittest.TestCase):
         with self.assertRaises(ApiError) as e:
             self.c.schedule("kitchen_two", [{"robot": "ghost", "path": [[0.0]]}])
         self.assertEqual(e.exception.field, "trajectories[0].robot")
+
+    def test_uploads(self) -> None:
+        self.assertEqual(self.c.put_robot("mini", MINI_URDF, MINI_SRDF)["name"], "mini")
+        self.assertEqual(self.c.robot("mini")["dof"], 1)
+        self.c.put_robot("mini", MINI_URDF)  # replaced, without SRDF
+        self.c.delete_robot("mini")
+        with self.assertRaises(ApiError) as e:
+            self.c.robot("mini")
+        self.assertEqual(e.exception.status, 404)
+        scene = self.c.scene("kitchen")
+        scene["name"] = "kitchen copy/2"  # a name that must be percent-encoded in the path
+        with self.assertRaises(ApiError) as e:
+            self.c.put_scene("kitchen copy/2", scene)
+        self.assertEqual((e.exception.status, e.exception.field), (422, "name"))
+        scene["name"] = "kitchen_copy"
+        self.assertEqual(self.c.put_scene("kitchen_copy", scene)["name"], "kitchen_copy")
+        self.c.delete_scene("kitchen_copy")
+
+    def test_every_job_kind_is_accepted(self) -> None:
+        self.assertEqual(sorted(r["kind"] for r in EVERY_KIND), sorted(JOB_KINDS))
+        for request in EVERY_KIND:
+            job = self.c.submit(request)
+            self.assertEqual(job["kind"], request["kind"])
+            self.assertIn(job["state"], ("queued", "running", "succeeded", "failed"), job)
+            self.c.cancel(job["id"])
+        for request in EVERY_KIND:
+            with self.assertRaises(ApiError) as e:
+                self.c.submit({**request, "no_such_field": 1})
+            self.assertEqual(e.exception.status, 422, request["kind"])
 
     def test_async(self) -> None:
         async def go() -> str:

@@ -1,14 +1,18 @@
-//! Rust client of the manyhands HTTP/JSON API (async, reqwest): typed requests and answers (the
-//! server's own [`crate::server::api`] types), the error body decoded into [`ClientError::Api`]
-//! with the offending field, `wait` for a job's final state and the job's Server-Sent Events.
+//! Rust client of the manyhands HTTP/JSON API (async, reqwest): typed requests and answers
+//! (the [`manyhands_api`] types the server itself uses, re-exported as [`api`]), the error body
+//! decoded into [`ClientError::Api`] with the offending field, [`Client::wait`] for a job's
+//! final state and the job's Server-Sent Events ([`Client::events`]).
 //!
 //! ```text
-//! let c = Client::new("http://127.0.0.1:8080")?;
+//! let c = Client::new("http://127.0.0.1:8080")?.with_token("…");
 //! let job = c.submit(&request, Some(30.0)).await?;        // POST /v1/plans?wait=30
 //! let done = c.wait(&job.id, Duration::from_secs(60)).await?;
 //! ```
 //!
-//! Owns nothing of the planning core; it is a thin adapter over HTTP like the server.
+//! A controller that only talks to the server depends on this crate alone: it pulls in the API
+//! types, reqwest, serde and thiserror — none of the planning core (no parry, nalgebra, axum;
+//! `tests/dependencies.rs` fails if they appear). Calls must run inside a tokio runtime (the one
+//! reqwest uses). Transport is plain HTTP: reqwest is built without TLS.
 
 use std::time::{Duration, Instant};
 
@@ -18,13 +22,15 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use thiserror::Error;
 
-use crate::server::api::{
-    BasePlacementRequest, CheckRequest, CheckResponse, DualArmIkRequest, FkRequest, FkResponse,
-    GraspIkRequest, GraspIkResponse, GraspQualityRequest, GraspQualityResponse, Health, IkRequest,
-    IkResponse, Job, JobList, PlanRequest, RobotDetail, RobotSummary, RobotUpload, SceneSummary,
-    TwoHandIkResponse,
+/// The request and response types of the API (the `manyhands-api` crate).
+pub use manyhands_api as api;
+
+use manyhands_api::{
+    BasePlacementRequest, CheckRequest, CheckResponse, DualArmIkRequest, ErrorBody, ErrorDetail,
+    FkRequest, FkResponse, GraspIkRequest, GraspIkResponse, GraspQualityRequest,
+    GraspQualityResponse, Health, IkRequest, IkResponse, Job, JobList, PlanRequest, RobotDetail,
+    RobotSummary, RobotUpload, SceneSummary, TwoHandIkResponse,
 };
-use crate::server::error::{ErrorBody, ErrorDetail};
 
 /// What a call can fail with.
 #[derive(Debug, Error)]
@@ -32,7 +38,9 @@ pub enum ClientError {
     /// The server answered 4xx/5xx with its error body (`field` names the request field).
     #[error("HTTP {status}: {}{}", .detail.message, .retry_after.map(|s| format!(" (retry after {s} s)")).unwrap_or_default())]
     Api {
+        /// The HTTP status.
         status: StatusCode,
+        /// The decoded error body (or, when the body was not one, its text as `message`).
         detail: ErrorDetail,
         /// `Retry-After` of a 429/503, seconds.
         retry_after: Option<u64>,
@@ -46,10 +54,14 @@ pub enum ClientError {
     /// [`Client::wait`] ran out of time before the job's final state.
     #[error("job {id} not final after {waited:?} (state {state})")]
     WaitTimeout {
+        /// The job.
         id: String,
+        /// How long it was waited for.
         waited: Duration,
+        /// Its last state (`queued` or `running`).
         state: String,
     },
+    /// [`Client::new`] got a base URL that is not `http://…` or `https://…`.
     #[error("invalid base URL '{0}'")]
     BadUrl(String),
 }
@@ -73,12 +85,15 @@ impl ClientError {
     }
 }
 
+/// The result of a client call.
 pub type ClientResult<T> = Result<T, ClientError>;
 
 /// One Server-Sent Event of `GET /v1/plans/{id}/events`: `state`, `progress` or `end`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobEvent {
+    /// The `event:` field (`message` when the event had none).
     pub event: String,
+    /// The `data:` lines joined, decoded as JSON (a JSON string when they are not JSON).
     pub data: Value,
 }
 
@@ -119,6 +134,7 @@ impl Client {
         self
     }
 
+    /// The base URL, without a trailing `/`.
     pub fn base_url(&self) -> &str {
         &self.base
     }
@@ -223,51 +239,61 @@ impl Client {
 
     // --- resources ----------------------------------------------------------------------------
 
+    /// `GET /v1/robots`: every robot model.
     pub async fn robots(&self) -> ClientResult<Vec<RobotSummary>> {
         self.get("/v1/robots").await
     }
 
+    /// `GET /v1/robots/{name}`: joints, links, groups, end effectors of one model.
     pub async fn robot(&self, name: &str) -> ClientResult<RobotDetail> {
-        self.get(&format!("/v1/robots/{name}")).await
+        self.get(&format!("/v1/robots/{}", segment(name))).await
     }
 
     /// `PUT /v1/robots/{name}`: URDF (+ SRDF) text, validated by the server.
     pub async fn put_robot(&self, name: &str, upload: &RobotUpload) -> ClientResult<Value> {
-        self.put(&format!("/v1/robots/{name}"), upload).await
+        self.put(&format!("/v1/robots/{}", segment(name)), upload)
+            .await
     }
 
+    /// `DELETE /v1/robots/{name}` of an uploaded robot.
     pub async fn delete_robot(&self, name: &str) -> ClientResult<()> {
-        self.delete(&format!("/v1/robots/{name}")).await
+        self.delete(&format!("/v1/robots/{}", segment(name))).await
     }
 
+    /// `GET /v1/scenes`: every scene.
     pub async fn scenes(&self) -> ClientResult<Vec<SceneSummary>> {
         self.get("/v1/scenes").await
     }
 
     /// `GET /v1/scenes/{name}`: the scene JSON.
     pub async fn scene(&self, name: &str) -> ClientResult<Value> {
-        self.get(&format!("/v1/scenes/{name}")).await
+        self.get(&format!("/v1/scenes/{}", segment(name))).await
     }
 
     /// `PUT /v1/scenes/{name}` with a scene JSON (see `api/scene.schema.json`).
     pub async fn put_scene(&self, name: &str, scene: &Value) -> ClientResult<SceneSummary> {
-        self.put(&format!("/v1/scenes/{name}"), scene).await
+        self.put(&format!("/v1/scenes/{}", segment(name)), scene)
+            .await
     }
 
+    /// `DELETE /v1/scenes/{name}` of an uploaded scene.
     pub async fn delete_scene(&self, name: &str) -> ClientResult<()> {
-        self.delete(&format!("/v1/scenes/{name}")).await
+        self.delete(&format!("/v1/scenes/{}", segment(name))).await
     }
 
     // --- synchronous queries --------------------------------------------------------------------
 
+    /// `POST /v1/fk`: link poses of a configuration.
     pub async fn fk(&self, req: &FkRequest) -> ClientResult<FkResponse> {
         self.post("/v1/fk", req).await
     }
 
+    /// `POST /v1/ik`: IK of a chain group for a tip pose.
     pub async fn ik(&self, req: &IkRequest) -> ClientResult<IkResponse> {
         self.post("/v1/ik", req).await
     }
 
+    /// `POST /v1/check`: collision check of a scene at given configurations.
     pub async fn check(&self, req: &CheckRequest) -> ClientResult<CheckResponse> {
         self.post("/v1/check", req).await
     }
@@ -290,6 +316,7 @@ impl Client {
         self.post("/v1/ik/base-placement", req).await
     }
 
+    /// `POST /v1/grasp-quality`: force closure and Ferrari–Canny ε of contacts or scene grasps.
     pub async fn grasp_quality(
         &self,
         req: &GraspQualityRequest,
@@ -310,10 +337,19 @@ impl Client {
         self.post(&Self::plans_path(wait), req).await
     }
 
+    /// `GET /v1/plans/{id}`: the job now.
     pub async fn job(&self, id: &str) -> ClientResult<Job> {
-        self.get(&format!("/v1/plans/{id}")).await
+        self.get(&format!("/v1/plans/{}", segment(id))).await
     }
 
+    /// `GET /v1/plans/{id}?wait=SECONDS`: the job once final, or as it is after `wait` seconds
+    /// (the server honours at most 600; the request timeout must exceed `wait`).
+    pub async fn job_wait(&self, id: &str, wait: f64) -> ClientResult<Job> {
+        self.get(&format!("/v1/plans/{}?wait={wait}", segment(id)))
+            .await
+    }
+
+    /// `GET /v1/plans`: every job.
     pub async fn jobs(&self) -> ClientResult<JobList> {
         self.get("/v1/plans").await
     }
@@ -321,7 +357,7 @@ impl Client {
     /// `DELETE /v1/plans/{id}`: the job after the cancel request.
     pub async fn cancel(&self, id: &str) -> ClientResult<Job> {
         Self::answer(
-            self.request(Method::DELETE, &format!("/v1/plans/{id}"))
+            self.request(Method::DELETE, &format!("/v1/plans/{}", segment(id)))
                 .send()
                 .await?,
         )
@@ -360,7 +396,7 @@ impl Client {
     ) -> ClientResult<Vec<JobEvent>> {
         let mut r = self
             .stream_http
-            .get(format!("{}/v1/plans/{id}/events", self.base));
+            .get(format!("{}/v1/plans/{}/events", self.base, segment(id)));
         if let Some(t) = &self.token {
             r = r.bearer_auth(t);
         }
@@ -382,6 +418,20 @@ impl Client {
         }
         Ok(out)
     }
+}
+
+/// `s` as one URL path segment: everything but the unreserved characters of RFC 3986
+/// percent-encoded, so a name with `/`, `?` or `#` cannot change the route.
+fn segment(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for b in s.bytes() {
+        if b.is_ascii_alphanumeric() || matches!(b, b'-' | b'.' | b'_' | b'~') {
+            out.push(b as char);
+        } else {
+            out.push_str(&format!("%{b:02X}"));
+        }
+    }
+    out
 }
 
 /// Incremental parser of a `text/event-stream` (fields `event:` and `data:`, blank line ends an
@@ -428,5 +478,48 @@ impl SseParser {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn sse_parser_handles_split_chunks_comments_and_multiline_data() {
+        let mut p = SseParser::default();
+        let mut all = Vec::new();
+        for chunk in [
+            &b": keep-alive\n\nevent: sta"[..],
+            b"te\ndata: {\"state\":",
+            b"\"running\"}\n\n",
+            b"data: line one\r\ndata: line two\r\n\r\n",
+            b"event: end\ndata: {\"state\":\"succeeded\"}\n\n",
+        ] {
+            all.extend(p.feed(chunk));
+        }
+        assert_eq!(all.len(), 3, "{all:?}");
+        assert_eq!(all[0].event, "state");
+        assert_eq!(all[0].data, json!({"state": "running"}));
+        assert_eq!(all[1].event, "message");
+        assert_eq!(all[1].data, json!("line one\nline two"));
+        assert_eq!(all[2].event, "end");
+    }
+
+    #[test]
+    fn path_segments_are_percent_encoded() {
+        assert_eq!(segment("armar_b-2.v~1"), "armar_b-2.v~1");
+        assert_eq!(segment("../a b?c#d/é"), "..%2Fa%20b%3Fc%23d%2F%C3%A9");
+    }
+
+    #[test]
+    fn base_urls_need_a_scheme() {
+        assert!(matches!(
+            Client::new("localhost:8080"),
+            Err(ClientError::BadUrl(_))
+        ));
+        let c = Client::new("http://127.0.0.1:8080/").expect("client");
+        assert_eq!(c.base_url(), "http://127.0.0.1:8080");
     }
 }

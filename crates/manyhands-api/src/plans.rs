@@ -1,0 +1,504 @@
+//! Planning jobs (`/v1/plans`): the request of every job kind and the job as answered.
+
+use std::collections::HashMap;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::error::ErrorDetail;
+use crate::queries::ConfigMap;
+
+/// One robot of a joint-space planning problem.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct PlanRobot {
+    /// Robot instance name in the scene.
+    pub name: String,
+    /// Group whose joints are planned (default: all joints of the robot).
+    #[serde(default)]
+    pub group: Option<String>,
+    /// Start, on top of the scene's start configuration (default: that configuration).
+    #[serde(default)]
+    pub start: ConfigMap,
+    /// Goal, on top of the scene's start configuration.
+    pub goal: ConfigMap,
+}
+
+/// `kind: joint_space` — RRT-Connect from start to goal configurations of one or more robots
+/// of a scene, then shortcutting.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct JointSpacePlan {
+    pub scene: String,
+    pub robots: Vec<PlanRobot>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Shortcut the path (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+    /// EXTEND step (joint-space distance; default 0.2 × the space's extent).
+    #[serde(default)]
+    pub range: Option<f64>,
+    /// Dynamic-domain sampling radius (joint-space distance, Yershova et al. 2005; VAMP uses
+    /// 4). Default: off.
+    #[serde(default)]
+    pub dynamic_domain: Option<f64>,
+    /// Grow the smaller tree each iteration instead of alternating (default false).
+    #[serde(default)]
+    pub balance: Option<bool>,
+    /// Certified motion checks for robots made of spheres: every segment is proven free as a
+    /// continuous motion, spheres inflated by at most this many metres per checked state
+    /// (0 < certify ≤ 0.5). Other robots keep checking states at the resolution. Default: off.
+    #[serde(default)]
+    pub certify: Option<f64>,
+}
+
+/// `kind: collision_sweep` — uniform random configurations of a scene's robots checked for
+/// collision: free-space fraction and the most frequent colliding pairs.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSweep {
+    pub scene: String,
+    /// Robot instances whose joints are sampled (default: all robots of the scene).
+    #[serde(default)]
+    pub robots: Option<Vec<String>>,
+    /// Number of samples (1..=1e9).
+    pub samples: u64,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+}
+
+/// `kind: reach` — grasp an object of the scene with one hand (IK-RRT, 000 Alg. 3, or J+-RRT,
+/// Alg. 1–2). IK-RRT's randomized IK is filtered by the arm's reachability grid (000 §II-D),
+/// built on first use and cached under the data folder.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct ReachPlan {
+    pub scene: String,
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// Chain group from the free joints to the hand (e.g. `torso_right_arm`).
+    pub group: String,
+    pub object: String,
+    /// `ik_rrt` (default) or `j_plus_rrt`.
+    #[serde(default)]
+    pub planner: Option<GraspPlannerName>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// Grasp planner of a `reach` or `regrasp` job (paper 000).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum GraspPlannerName {
+    /// IK-RRT (Alg. 3) / dual-arm IK-RRT (§V-B).
+    #[default]
+    IkRrt,
+    /// J+-RRT (Alg. 1–2) / dual-arm J+-RRT (Alg. 4–5), approaching each grasp through its
+    /// pre-grasp pose (the grasp's `pregrasp_offset`); `p_ik` and `ik_tries` do not apply.
+    JPlusRrt,
+}
+
+/// A hand: robot instance and chain group.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct HandRef {
+    pub robot: String,
+    pub group: String,
+}
+
+/// `kind: regrasp` — dual-arm re-grasping (000 §V) or a hand-off between two robots
+/// (000 §VI-D): the object goes from the giver's hand to the receiver's (grasped first when it
+/// rests on something). Dual-arm IK-RRT filters its IK by the receiver arm's reachability grid
+/// (000 §III-B), built on first use and cached under the data folder.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct RegraspPlan {
+    pub scene: String,
+    pub giver: HandRef,
+    pub receiver: HandRef,
+    pub object: String,
+    /// Giver grasp holding the object at the start (it is put into the hand there).
+    #[serde(default)]
+    pub held: Option<String>,
+    /// `ik_rrt` (default: IK-RRT grasp, dual-arm IK-RRT re-grasp) or `j_plus_rrt` (J+-RRT,
+    /// dual-arm J+-RRT).
+    #[serde(default)]
+    pub planner: Option<GraspPlannerName>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// `kind: kitchen_task` — paper 000's kitchen experiment (§VI-C) on a kitchen-like scene:
+/// `armar` grasps the wok with the right hand, re-grasps it to the left, moves the right arm
+/// away and places the wok on a shelf of the cabinet. The IK is filtered by both arms'
+/// reachability grids, built on first use and cached under the data folder.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct KitchenTaskPlan {
+    pub scene: String,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// `kind: bimanual` — Bimanual IK-RRT (002 Alg. 2): platform + hip + both arms to a two-hand
+/// grasp of an object, goals from IkDualArm with base placement. The platform-frame
+/// reachability grids are built on first use and cached under the data folder.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct BimanualPlan {
+    pub scene: String,
+    pub robot: String,
+    /// Left and right chain groups from the platform (default `torso_left_arm`,
+    /// `torso_right_arm`).
+    #[serde(default)]
+    pub left: Option<String>,
+    #[serde(default)]
+    pub right: Option<String>,
+    pub object: String,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
+    /// 0.03 (002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+}
+
+/// `kind: multi_robot` — Multi-Robot-RRT (002 Alg. 3): one Bimanual IK-RRT worker per robot,
+/// a collector scoring the wrench space of all hands' contacts (ε > `s_min`) and rejecting
+/// deadlocks (002 eq. 2), then phase-space scheduling (002 §V) so that all robots move at the
+/// same time. The answer holds every robot's trajectory, the schedule on one clock, the phase
+/// path and the statistics of 002 Tables I–II.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct MultiRobotRequest {
+    pub scene: String,
+    /// Robot instances of the scene (default: all of them).
+    #[serde(default)]
+    pub robots: Option<Vec<String>>,
+    /// Left and right chain groups from the platform (default `torso_left_arm`,
+    /// `torso_right_arm`).
+    #[serde(default)]
+    pub left: Option<String>,
+    #[serde(default)]
+    pub right: Option<String>,
+    pub object: String,
+    /// Minimum grasp score s_min: ε of the L1 wrench space of all contacts must exceed it
+    /// (default 0: any force-closure combination).
+    #[serde(default)]
+    pub s_min: Option<f64>,
+    /// Friction coefficient μ of the score (default 0.5).
+    #[serde(default)]
+    pub mu: Option<f64>,
+    /// Friction cone edges of the score (3..=32, default 8).
+    #[serde(default)]
+    pub cone_edges: Option<usize>,
+    /// Torque scale λ of the score (default 1 / the object's radius).
+    #[serde(default)]
+    pub lambda: Option<f64>,
+    /// Probability of an IK query per worker iteration (default 0.03, 002 §VI).
+    #[serde(default)]
+    pub p_ik: Option<f64>,
+    /// Randomized-IK tries per goal query (1..=100000, default 50).
+    #[serde(default)]
+    pub ik_tries: Option<u64>,
+    /// Prune (shortcut) the workers' paths (default true).
+    #[serde(default)]
+    pub simplify: Option<bool>,
+    /// Most solution trajectories per worker (1..=256, default 32).
+    #[serde(default)]
+    pub max_solutions: Option<usize>,
+    /// Workers stepped round-robin on one thread, so request + seed give the same plan
+    /// (default false: one thread per worker).
+    #[serde(default)]
+    pub deterministic: Option<bool>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+}
+
+/// One robot's trajectory for `kind: schedule`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct ScheduleTrajectory {
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// The variables the waypoints give, as `joint` or `robot/joint` (a `joint_space` answer's
+    /// `joints`); the others keep the robot's scene start values. Default: all of the robot's
+    /// variables in model order.
+    #[serde(default)]
+    pub joints: Option<Vec<String>>,
+    /// Waypoints (at least one), each with one value per joint of `joints`.
+    pub path: Vec<Vec<f64>>,
+    /// Acceleration limits by joint name (rad/s² or m/s²); joints not named use
+    /// `max_acceleration`. Without either, only velocity limits (URDF) are respected.
+    #[serde(default)]
+    pub accelerations: Option<HashMap<String, f64>>,
+    #[serde(default)]
+    pub max_acceleration: Option<f64>,
+}
+
+/// `kind: schedule` — phase-space scheduling (002 §V, Alg. 4) of given joint trajectories, one
+/// per robot of a scene, for simultaneous execution: a monotone phase path from all-start to
+/// all-goal whose every segment is proven collision-free between the robots, timed on one
+/// clock within the joints' velocity (and given acceleration) limits. Each trajectory must be
+/// free in the scene on its own (refused with 422 naming the robot and waypoint otherwise).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct ScheduleRequest {
+    pub scene: String,
+    pub trajectories: Vec<ScheduleTrajectory>,
+    /// ε_extend of Alg. 4 in phase units (0.001..=1, default 0.1).
+    #[serde(default)]
+    pub extend: Option<f64>,
+    /// Fall back to one robot after the other when the search fails (default true).
+    #[serde(default)]
+    pub sequential_fallback: Option<bool>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+}
+
+/// `POST /v1/plans`: a problem, selected by `kind`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum PlanRequest {
+    JointSpace(JointSpacePlan),
+    CollisionSweep(CollisionSweep),
+    Reach(ReachPlan),
+    Regrasp(RegraspPlan),
+    KitchenTask(KitchenTaskPlan),
+    Bimanual(BimanualPlan),
+    MultiRobot(MultiRobotRequest),
+    Schedule(ScheduleRequest),
+}
+
+impl PlanRequest {
+    /// Every `kind` tag, in the order of the variants.
+    pub const KINDS: [&'static str; 8] = [
+        "joint_space",
+        "collision_sweep",
+        "reach",
+        "regrasp",
+        "kitchen_task",
+        "bimanual",
+        "multi_robot",
+        "schedule",
+    ];
+
+    /// The `kind` tag of this request.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PlanRequest::JointSpace(_) => "joint_space",
+            PlanRequest::CollisionSweep(_) => "collision_sweep",
+            PlanRequest::Reach(_) => "reach",
+            PlanRequest::Regrasp(_) => "regrasp",
+            PlanRequest::KitchenTask(_) => "kitchen_task",
+            PlanRequest::Bimanual(_) => "bimanual",
+            PlanRequest::MultiRobot(_) => "multi_robot",
+            PlanRequest::Schedule(_) => "schedule",
+        }
+    }
+}
+
+/// Life cycle of a job.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum JobState {
+    Queued,
+    Running,
+    Succeeded,
+    Failed,
+    Cancelled,
+    /// The server stopped (or died) while the job was queued or running.
+    Interrupted,
+}
+
+impl JobState {
+    /// Every state, in life-cycle order.
+    pub const ALL: [JobState; 6] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Succeeded,
+        JobState::Failed,
+        JobState::Cancelled,
+        JobState::Interrupted,
+    ];
+
+    /// Succeeded, failed, cancelled or interrupted: the state will not change any more.
+    pub fn is_final(self) -> bool {
+        !matches!(self, JobState::Queued | JobState::Running)
+    }
+
+    /// The state as serialised (`queued`, `running`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Succeeded => "succeeded",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+            JobState::Interrupted => "interrupted",
+        }
+    }
+}
+
+/// A planning job: its request, state, progress and (when final) result or error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct Job {
+    pub id: String,
+    pub kind: String,
+    pub state: JobState,
+    /// Unix time in milliseconds.
+    pub created_ms: u64,
+    pub started_ms: Option<u64>,
+    pub finished_ms: Option<u64>,
+    /// Effective time limit in seconds (after the server's cap).
+    pub time_limit: f64,
+    /// The request as accepted.
+    #[cfg_attr(feature = "openapi", schema(value_type = Object))]
+    pub request: Value,
+    /// Latest progress (kind-specific counters: iterations, tree sizes, samples, …).
+    #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
+    pub progress: Option<Value>,
+    /// Result of a succeeded job (kind-specific; `joint_space`: `joints`, `path`, `stats`).
+    #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
+    pub result: Option<Value>,
+    pub error: Option<ErrorDetail>,
+    /// What the server changed in the request, e.g. a `time_limit` capped to its maximum.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+/// `GET /v1/plans`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct JobList {
+    pub jobs: Vec<JobSummary>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct JobSummary {
+    pub id: String,
+    pub kind: String,
+    pub state: JobState,
+    pub created_ms: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn kinds_names_and_tags_agree() {
+        let bodies = [
+            json!({"kind": "joint_space", "scene": "s", "robots": []}),
+            json!({"kind": "collision_sweep", "scene": "s", "samples": 1}),
+            json!({"kind": "reach", "scene": "s", "robot": "r", "group": "g", "object": "o"}),
+            json!({"kind": "regrasp", "scene": "s", "giver": {"robot": "a", "group": "g"},
+                "receiver": {"robot": "b", "group": "g"}, "object": "o"}),
+            json!({"kind": "kitchen_task", "scene": "s"}),
+            json!({"kind": "bimanual", "scene": "s", "robot": "r", "object": "o"}),
+            json!({"kind": "multi_robot", "scene": "s", "object": "o"}),
+            json!({"kind": "schedule", "scene": "s", "trajectories": []}),
+        ];
+        assert_eq!(bodies.len(), PlanRequest::KINDS.len());
+        for (body, kind) in bodies.iter().zip(PlanRequest::KINDS) {
+            let r: PlanRequest = serde_json::from_value(body.clone()).expect(kind);
+            assert_eq!(r.kind(), kind);
+            let back = serde_json::to_value(&r).expect("serialise");
+            assert_eq!(back["kind"], json!(kind));
+        }
+        let unknown = json!({"kind": "reach", "scene": "s", "robot": "r", "group": "g",
+            "object": "o", "colour": "red"});
+        assert!(serde_json::from_value::<PlanRequest>(unknown).is_err());
+        for s in JobState::ALL {
+            assert_eq!(serde_json::to_value(s).expect("state"), json!(s.name()));
+            assert_eq!(
+                s.is_final(),
+                !matches!(s, JobState::Queued | JobState::Running)
+            );
+        }
+    }
+}
