@@ -470,6 +470,65 @@ pub struct FastChecker {
     /// Counts of certified checks and the smallest inflation a proof needed.
     certify_stats: CertifyStats,
     certify_finest: f64,
+    /// The motions most recently proven free ([`Self::certify_motion`]).
+    proven: ProvenMotions,
+}
+
+/// The last [`PROVEN_SLOTS`] motions a checker proved free, by the exact bits of both ends and
+/// of the coarse inflation: the same call again (a planner's final re-validation of the segments
+/// it accepted) gets the same answer without repeating the same deterministic computation.
+#[derive(Debug, Clone, Default)]
+struct ProvenMotions {
+    /// Per slot: a hash of the key, the coarse inflation's bits; the ends in `ends`
+    /// (`2 · dof` values per slot).
+    keys: Vec<(u64, u64)>,
+    ends: Vec<f64>,
+    next: usize,
+}
+
+/// Slots of [`ProvenMotions`].
+const PROVEN_SLOTS: usize = 64;
+
+impl ProvenMotions {
+    fn hash(a: &[f64], b: &[f64]) -> u64 {
+        // FNV-1a over the bits.
+        a.iter().chain(b).fold(0xcbf2_9ce4_8422_2325u64, |h, v| {
+            (h ^ v.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+    }
+
+    fn contains(&self, a: &[f64], b: &[f64], inflation: f64) -> bool {
+        let n = a.len() + b.len();
+        let h = ProvenMotions::hash(a, b);
+        self.keys.iter().enumerate().any(|(i, &(kh, ki))| {
+            kh == h && ki == inflation.to_bits() && {
+                let e = &self.ends[i * n..(i + 1) * n];
+                a.iter()
+                    .chain(b)
+                    .zip(e)
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+            }
+        })
+    }
+
+    fn insert(&mut self, a: &[f64], b: &[f64], inflation: f64) {
+        let n = a.len() + b.len();
+        let key = (ProvenMotions::hash(a, b), inflation.to_bits());
+        let i = if self.keys.len() < PROVEN_SLOTS {
+            self.keys.push(key);
+            self.ends.resize(self.keys.len() * n, 0.0);
+            self.keys.len() - 1
+        } else {
+            let i = self.next;
+            self.next = (self.next + 1) % PROVEN_SLOTS;
+            self.keys[i] = key;
+            i
+        };
+        let e = &mut self.ends[i * n..(i + 1) * n];
+        for (x, y) in e.iter_mut().zip(a.iter().chain(b)) {
+            *x = *y;
+        }
+    }
 }
 
 /// What a certified motion check found ([`FastChecker::certify_motion`]).
@@ -768,6 +827,7 @@ impl FastChecker {
             certify: Some(FastChecker::CERTIFY_INFLATION),
             certify_stats: CertifyStats::default(),
             certify_finest: f64::INFINITY,
+            proven: ProvenMotions::default(),
         };
         if let Some((active, q0)) = freeze {
             checker.split_constant_pairs(active, q0);
@@ -945,9 +1005,22 @@ impl FastChecker {
     }
 
     /// [`Self::segment_certified`] with the reason of a refusal; counted in
-    /// [`Self::certify_stats`].
+    /// [`Self::certify_stats`]. The last 64 motions proven free are remembered by the exact bits
+    /// of `a`, `b` and `max_inflation`: asked again (a planner's final re-validation of the
+    /// segments it accepted), the answer is that proof's, without computing it again (the
+    /// check is deterministic: the same input gives the same proof).
     pub fn certify_motion(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> Certification {
-        let r = self.certify_segment(a, b, max_inflation);
+        let dof = self.world.dof();
+        let keyed = a.len() == dof && b.len() == dof;
+        let r = if keyed && self.proven.contains(a, b, max_inflation) {
+            Certification::Free
+        } else {
+            let r = self.certify_segment(a, b, max_inflation);
+            if keyed && r == Certification::Free {
+                self.proven.insert(a, b, max_inflation);
+            }
+            r
+        };
         let st = &mut self.certify_stats;
         st.motions += 1;
         st.max_inflation = st.max_inflation.max(max_inflation);

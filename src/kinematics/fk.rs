@@ -333,11 +333,18 @@ impl FkModel {
     /// Speed bounds of a ball (`centre` in the frame of computed link `link`, `radius`) for
     /// straight motions in joint space: one `(variable, w)` per movable joint from `link` up to
     /// the root, in that order, such that no point of the ball moves faster than `w` metres per
-    /// unit of the variable through that joint. A revolute joint's axis passes through its
-    /// child frame's origin, so `w = |multiplier| · D` with `D` the ball's farthest distance
-    /// from that origin, which grows by each joint's offset and prismatic travel on the way up;
-    /// a prismatic joint gives `|multiplier|`. Summed over the joints, `Σ |Δq_v| · w` bounds how
-    /// far any point of the ball travels along the segment. `None` when a prismatic joint on
+    /// unit of the variable through that joint. A revolute joint turns its child frame about an
+    /// axis through that frame's origin, so a point moves at `|multiplier|` times its distance
+    /// from that axis line: `w = |multiplier| · ρ` with `ρ` a bound of the ball's distance from
+    /// the axis over every configuration of the joints below. For the first joint the ball is
+    /// fixed in the child frame and `ρ` is exact (the centre's distance from the axis plus the
+    /// radius); further up the ball lies within `D` of the lower joint's origin `t` (`D` its
+    /// farthest distance from the lower frame's origin, growing by each joint's offset and
+    /// prismatic travel on the way up), so `ρ ≤ dist(t, axis) + D`, and `ρ ≤ D + |t|` (the
+    /// ball's farthest distance from this frame's origin) always. A prismatic joint gives
+    /// `|multiplier|`. Summed over the joints, `Σ |Δq_v| · w` bounds how far any point of the
+    /// ball travels along the segment (Schwarzer, Saha & Latombe, IEEE T-RO 2005, distance
+    /// bounds of a link point along a joint-space segment). `None` when a prismatic joint on
     /// the way has unbounded travel.
     pub fn speed_bounds(
         &self,
@@ -346,9 +353,21 @@ impl FkModel {
         centre: &nalgebra::Vector3<f64>,
         radius: f64,
     ) -> Option<Vec<(usize, f64)>> {
+        // Distance of point `p` from the line through the origin along `axis`.
+        let from_axis = |p: &nalgebra::Vector3<f64>, axis: &nalgebra::Vector3<f64>| {
+            let n = axis.norm();
+            if n > 0.0 {
+                p.cross(axis).norm() / n
+            } else {
+                p.norm()
+            }
+        };
         let mut out = Vec::new();
         let mut k = self.rep[link];
+        // The ball lies within `d` of the current frame's origin; its points are within
+        // `base` of `at` (a point fixed in the current frame).
         let mut d = centre.norm() + radius;
+        let (mut at, mut base) = (*centre, radius);
         while let Some(j) = self.joints.iter().find(|j| j.child == k) {
             let (w, travel) = match j.kind {
                 JointKind::Prismatic => {
@@ -362,11 +381,18 @@ impl FkModel {
                     (j.mul.abs(), t)
                 }
                 JointKind::Fixed => (0.0, 0.0),
-                JointKind::Revolute | JointKind::Continuous => (j.mul.abs() * d, 0.0),
+                JointKind::Revolute | JointKind::Continuous => {
+                    let rho = (from_axis(&at, &j.axis) + base).min(d);
+                    (j.mul.abs() * rho, 0.0)
+                }
             };
             if j.kind != JointKind::Fixed {
                 out.push((j.var as usize, w));
             }
+            // In the parent frame: this joint's origin is fixed, the ball within `d + travel`
+            // of it (the child frame's origin slides by at most `travel`).
+            at = j.origin.t;
+            base = d + travel;
             d += j.origin.t.norm() + travel;
             k = j.parent;
         }
