@@ -290,9 +290,10 @@ fn sphere_checker_solves_two_panda_problems_per_set_exactly_valid() {
     }
 }
 
-/// `bench mbm`'s default configuration: certified motion checks (4 cm), dynamic domain (radius
-/// 4), balanced trees, VAMP's ranges. Every path must pass the exact check at `check_deg`.
-fn certified_bench_settings_solve(name: &str, range: f64, per_set: usize, check_deg: f64) {
+/// `bench mbm`'s default configuration: certified motion checks (4 cm), range and
+/// dynamic-domain radius derived from the robot and space (`planning::range`), balanced trees.
+/// Every path must pass the exact check at `check_deg`.
+fn certified_bench_settings_solve(name: &str, per_set: usize, check_deg: f64) {
     let Some(dir) = data_for_test() else { return };
     let file = MbmFile::load(&dir.join(format!("{name}/problems.json"))).expect("problems");
     let robot = Arc::new(
@@ -302,24 +303,25 @@ fn certified_bench_settings_solve(name: &str, range: f64, per_set: usize, check_
         )
         .expect("robot"),
     );
-    certified_settings_solve(&robot, &file, range, per_set, check_deg);
+    certified_settings_solve(&robot, &file, per_set, check_deg);
 }
 
 /// Every valid problem (at most `per_set` per set) of `file` solved with `bench mbm`'s default
 /// settings and exactly valid at `check_deg`.
-fn certified_settings_solve(
-    robot: &Arc<Robot>,
-    file: &MbmFile,
-    range: f64,
-    per_set: usize,
-    check_deg: f64,
-) {
+fn certified_settings_solve(robot: &Arc<Robot>, file: &MbmFile, per_set: usize, check_deg: f64) {
     use manyhands::collision::AutoChecker;
     let vars = file.joint_vars(robot).expect("joints");
+    let p0 = &file.sets[0].problems[0];
+    let world0 = p0.world(robot.clone());
+    let derived = manyhands::planning::range::DerivedSettings::of(
+        &world0,
+        &p0.space(&world0, &vars).expect("space"),
+    )
+    .expect("derived settings");
     let settings = RrtConnectSettings {
-        range: Some(range),
+        range: Some(derived.range),
         certify: Some(0.04),
-        dynamic_domain: Some(4.0),
+        dynamic_domain: Some(derived.dynamic_domain),
         balance: true,
         revalidate: false,
         ..RrtConnectSettings::default()
@@ -339,12 +341,12 @@ fn certified_settings_solve(
 
 #[test]
 fn certified_planning_solves_panda_problems_exactly_valid_at_fine_resolution() {
-    certified_bench_settings_solve("panda", 1.0, 2, 0.05);
+    certified_bench_settings_solve("panda", 2, 0.05);
 }
 
 #[test]
 fn certified_planning_solves_baxter_problems_exactly_valid() {
-    certified_bench_settings_solve("baxter", 0.5, 1, 0.25);
+    certified_bench_settings_solve("baxter", 1, 0.25);
 }
 
 /// A problem file in the benchmark's form for `twin_arms`, written here: a table under the
@@ -392,5 +394,5 @@ fn twin_arms_problem_is_solved_with_the_bench_settings_and_exactly_valid() {
             p.goals.push(g.clone());
         }
     }
-    certified_settings_solve(&robot, &file, 0.5, 1, 0.25);
+    certified_settings_solve(&robot, &file, 1, 0.25);
 }

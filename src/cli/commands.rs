@@ -128,6 +128,72 @@ fn pose_json(p: &Pose) -> Value {
     json!({"position": [t.x, t.y, t.z], "rpy": quat_to_rpy(&p.rotation), "quat_xyzw": [q.i, q.j, q.k, q.w]})
 }
 
+/// `robot check`: the always-colliding pairs found at load ([`manyhands::collision::always`]),
+/// the revolute joints whose limits are ±π within the tolerance, and the load warnings.
+pub fn robot_check(ctx: &Ctx, name: &str, srdf: Option<&Path>) -> Result<()> {
+    use manyhands::collision::always;
+    let r = match srdf {
+        Some(s) => Arc::new(
+            Robot::from_files(Path::new(name), Some(s))
+                .with_context(|| format!("loading {name} with {}", s.display()))?,
+        ),
+        None => ctx.robot(name)?,
+    };
+    let pairs: Vec<Value> = r
+        .always_colliding
+        .iter()
+        .map(|c| {
+            json!({"link1": r.links[c.a].name, "link2": r.links[c.b].name,
+                "fraction": c.fraction, "srdf": always::srdf_line(&r, c)})
+        })
+        .collect();
+    let pi_joints: Vec<Value> = (0..r.dof())
+        .filter(|&v| r.var_limits(v).is_revolute_pi())
+        .map(|v| {
+            let l = r.var_limits(v);
+            json!({"joint": r.var_name(v), "lower": l.lower, "upper": l.upper})
+        })
+        .collect();
+    let v = json!({
+        "name": r.name, "samples": always::SAMPLES, "min_fraction": always::MIN_FRACTION,
+        "always_colliding": pairs, "revolute_pi_joints": pi_joints,
+        "limit_tolerance": manyhands::model::Limits::TOLERANCE, "warnings": r.warnings,
+    });
+    ctx.print(&v, || {
+        let mut s = format!(
+            "robot {}: link pairs colliding in ≥ {:.0} % of {} random configurations, not disabled by the SRDF: {}\n",
+            r.name,
+            100.0 * always::MIN_FRACTION,
+            always::SAMPLES,
+            r.always_colliding.len()
+        );
+        for c in &r.always_colliding {
+            s += &format!(
+                "  {} – {} ({:.1} %): treated as disabled; SRDF line: {}\n",
+                r.links[c.a].name,
+                r.links[c.b].name,
+                100.0 * c.fraction,
+                always::srdf_line(&r, c)
+            );
+        }
+        s += &format!(
+            "revolute joints with limits ±π (within {:e}; values ±π accepted, clamped): {}\n",
+            manyhands::model::Limits::TOLERANCE,
+            pi_joints.len()
+        );
+        for v in (0..r.dof()).filter(|&v| r.var_limits(v).is_revolute_pi()) {
+            let l = r.var_limits(v);
+            s += &format!("  {} [{}, {}]\n", r.var_name(v), l.lower, l.upper);
+        }
+        s += &format!("warnings: {}\n", r.warnings.len());
+        for w in &r.warnings {
+            s += &format!("  {w}\n");
+        }
+        s.trim_end().to_string()
+    });
+    Ok(())
+}
+
 pub fn robot_show(ctx: &Ctx, name: &str) -> Result<()> {
     let r = ctx.robot(name)?;
     let joints: Vec<Value> = r

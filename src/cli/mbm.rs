@@ -14,6 +14,7 @@ use serde_json::json;
 use manyhands::collision::{AutoChecker, ExactChecker, FastChecker, FastModelSettings};
 use manyhands::planning::mbm::{MbmFile, MbmProblem};
 use manyhands::planning::mbm_data;
+use manyhands::planning::range::{self, DerivedSettings};
 use manyhands::planning::{
     PlanError, RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
 };
@@ -56,8 +57,9 @@ pub struct MbmArgs {
     /// Resolution of the exact re-check of returned paths, degrees.
     #[arg(long, default_value_t = 0.25)]
     pub check_resolution: f64,
-    /// RRT-Connect range (joint-space distance); default VAMP's per-robot setting for the
-    /// benchmark's robots (panda 1.0, baxter 0.5), else 0.2 × the space's extent (OMPL).
+    /// RRT-Connect range (joint-space distance); default derived from the robot: the step
+    /// that moves its collision geometry at most 2 m (`planning::range`, README "Settings
+    /// derived from the robot").
     #[arg(long)]
     pub range: Option<f64>,
     /// Padding added to every robot sphere of the planner's collision model, metres (a safety
@@ -70,9 +72,10 @@ pub struct MbmArgs {
     /// exactly at --check-resolution.
     #[arg(long, default_value_t = 0.04)]
     pub certify: f64,
-    /// Dynamic-domain radius (joint-space distance) of RRT-Connect; 0 = off. VAMP's default: 4.
-    #[arg(long, default_value_t = 4.0)]
-    pub dynamic_domain: f64,
+    /// Dynamic-domain radius (joint-space distance) of RRT-Connect; 0 = off. Default derived
+    /// from the space: 0.3 × its maximum extent (the Panda's is VAMP's 4).
+    #[arg(long)]
+    pub dynamic_domain: Option<f64>,
     /// Alternate the trees instead of growing the smaller one (VAMP and this bench balance).
     #[arg(long)]
     pub no_balance: bool,
@@ -144,17 +147,36 @@ struct Summary {
     vamp_median_us: Option<f64>,
 }
 
-/// VAMP 0.6.4 RRT-Connect, one core, this machine type (shared/benchmarks/mbm/README.md):
-/// median planning µs per Panda set, and overall figures.
+/// VAMP 0.6.4 RRT-Connect, one core, this machine type, run alternated with manyhands 7f3f3ea
+/// (`../shared/benchmarks/mbm/README.md`, 2026-12-01): median planning µs per set and overall,
+/// of the benchmark's data sets by the problem file's robot name. Labels of the comparison
+/// only: no planner setting depends on them.
 const VAMP_PANDA: &[(&str, f64)] = &[
-    ("table_pick", 41.0),
-    ("table_under_pick", 77.0),
-    ("box", 108.0),
-    ("bookshelf_small", 45.0),
-    ("bookshelf_tall", 47.0),
-    ("bookshelf_thin", 50.0),
-    ("cage", 292.0),
+    ("table_pick", 44.6),
+    ("table_under_pick", 88.6),
+    ("box", 106.1),
+    ("bookshelf_small", 53.0),
+    ("bookshelf_tall", 56.3),
+    ("bookshelf_thin", 61.4),
+    ("cage", 330.2),
+    ("overall", 72.9),
 ];
+const VAMP_BAXTER: &[(&str, f64)] = &[
+    ("bookshelf_tall_both_arms_easy", 8720.0),
+    ("bookshelf_tall_both_arms_medium", 7570.0),
+    ("bookshelf_tall_both_arms_hard", 8310.0),
+    ("overall", 8090.0),
+];
+
+/// VAMP's median of a set (or "overall") of the benchmark's data set `robot`, when known.
+fn vamp_median(robot: &str, set: &str) -> Option<f64> {
+    let table = match robot {
+        "panda" => VAMP_PANDA,
+        "baxter" => VAMP_BAXTER,
+        _ => return None,
+    };
+    table.iter().find(|(n, _)| *n == set).map(|x| x.1)
+}
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
@@ -275,8 +297,17 @@ fn run_problem(
                 a.check_resolution.to_radians(),
                 0.005,
             );
-            let ends_ok = r.path.first() == Some(&p.start)
-                && r.path.last().is_some_and(|q| p.goals.contains(q));
+            // The planner clamps values within `Limits::TOLERANCE` outside the limits.
+            let near = |a: &[f64], b: &[f64]| {
+                a.len() == b.len()
+                    && a.iter()
+                        .zip(b)
+                        .all(|(x, y)| (x - y).abs() <= manyhands::model::Limits::TOLERANCE)
+            };
+            let ends_ok = r.path.first().is_some_and(|q| near(q, &p.start))
+                && r.path
+                    .last()
+                    .is_some_and(|q| p.goals.iter().any(|g| near(q, g)));
             match exact.validate_path(&r.path) {
                 Ok(()) if ends_ok => run.solved = true,
                 Ok(()) => {
@@ -346,7 +377,9 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if !(a.certify.is_finite() && a.certify >= 0.0) {
         bail!("--certify must be ≥ 0 metres");
     }
-    if !(a.dynamic_domain.is_finite() && a.dynamic_domain >= 0.0) {
+    if a.dynamic_domain
+        .is_some_and(|d| !(d.is_finite() && d >= 0.0))
+    {
         bail!("--dynamic-domain must be ≥ 0");
     }
     if a.trials == 0 {
@@ -377,29 +410,43 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
             bail!("unknown set '{s}' (the file has {names:?})");
         }
     }
+    // Range and dynamic-domain radius from the robot and the planned joints (the obstacles do
+    // not enter): the space of any problem of the file, without its obstacles.
+    let derived = {
+        let empty = MbmProblem {
+            obstacles: Vec::new(),
+            ..file
+                .sets
+                .iter()
+                .flat_map(|s| s.problems.iter())
+                .next()
+                .context("the problem file has no problem")?
+                .clone()
+        };
+        let world = empty.world(robot.clone());
+        let space = empty.space(&world, &vars)?;
+        DerivedSettings::of(&world, &space)
+            .context("no link with collision geometry moves with the problem's joints")?
+    };
+    let dynamic_domain = a.dynamic_domain.unwrap_or(derived.dynamic_domain);
     let settings = RrtConnectSettings {
-        range: a.range.or(match file.robot.as_str() {
-            "panda" => Some(1.0),
-            "baxter" => Some(0.5),
-            _ => None,
-        }),
+        range: Some(a.range.unwrap_or(derived.range)),
         angular_resolution: a.resolution.to_radians(),
         linear_resolution: 0.005,
         direct_connect: true,
         shortcut: (!a.no_simplify).then(ShortcutSettings::default),
         revalidate: a.revalidate,
         certify: (a.certify > 0.0).then_some(a.certify),
-        dynamic_domain: (a.dynamic_domain > 0.0).then_some(a.dynamic_domain),
+        dynamic_domain: (dynamic_domain > 0.0).then_some(dynamic_domain),
         balance: !a.no_balance,
     };
-    let is_panda = file.robot == "panda";
     let started = chrono_like_now();
     let t_all = Instant::now();
     let mut runs: Vec<Run> = Vec::new();
     let mut summaries: Vec<Summary> = Vec::new();
     if !ctx.json {
         println!(
-            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, motion checks: {}, range {}, dynamic domain {}, {} trees, padding {} m, exact re-check at {}°, {}",
+            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, motion checks: {}, range {:.4}{}, dynamic domain {}, {} trees, padding {} m, exact re-check at {}°, {}",
             file.robot,
             vars.len(),
             robot.dof(),
@@ -411,11 +458,25 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
             } else {
                 format!("states every {}°", a.resolution)
             },
-            settings
-                .range
-                .map_or("0.2 × extent".to_string(), |r| r.to_string()),
-            if a.dynamic_domain > 0.0 {
-                a.dynamic_domain.to_string()
+            settings.range.unwrap_or(derived.range),
+            if a.range.is_none() {
+                format!(
+                    " (= {} m / motion scale {:.4} m)",
+                    range::WORKSPACE_STEP,
+                    derived.motion.scale
+                )
+            } else {
+                String::new()
+            },
+            if dynamic_domain > 0.0 {
+                format!(
+                    "{dynamic_domain:.4}{}",
+                    if a.dynamic_domain.is_none() {
+                        format!(" (= {} × extent)", range::DOMAIN_PER_EXTENT)
+                    } else {
+                        String::new()
+                    }
+                )
             } else {
                 "off".into()
             },
@@ -458,31 +519,20 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
                 runs.push(run_problem(&robot, &vars, p, &settings, a, trial, seed)?);
             }
         }
-        let vamp = if is_panda {
-            VAMP_PANDA.iter().find(|(n, _)| *n == set.name).map(|x| x.1)
-        } else {
-            None
-        };
+        let vamp = vamp_median(&file.robot, &set.name);
         let refs: Vec<&Run> = runs[first..].iter().collect();
         let s = summarize(&set.name, &refs, vamp);
         print_summary(ctx, &s);
         summaries.push(s);
     }
     let all: Vec<&Run> = runs.iter().collect();
-    let vamp_all = if is_panda {
-        Some(65.8)
-    } else if file.robot == "baxter" {
-        Some(8380.0)
-    } else {
-        None
-    };
-    let overall = summarize("overall", &all, vamp_all);
+    let overall = summarize("overall", &all, vamp_median(&file.robot, "overall"));
     print_summary(ctx, &overall);
     if !ctx.json {
-        if is_panda {
-            println!("VAMP 0.6.4 (README, 699 problems, one core): median 65.8 µs, mean 145 µs, all solved; with simplification median 223 µs total. OMPL RRTConnect: median 5.2 ms.");
-        } else if file.robot == "baxter" {
-            println!("VAMP 0.6.4 (README, 1 470 problems, one core): 1 398 solved, median 8.38 ms, mean 15.2 ms, p95 53.8 ms, median 80 390 iterations.");
+        match file.robot.as_str() {
+            "panda" => println!("VAMP 0.6.4 (../shared/benchmarks/mbm/README.md, 699 problems, one core, alternated with manyhands 7f3f3ea): median 72.9 µs, all solved. OMPL RRTConnect: median 5.2 ms."),
+            "baxter" => println!("VAMP 0.6.4 (../shared/benchmarks/mbm/README.md, 1 470 problems, one core): 1 398 solved, median 8.09 ms."),
+            _ => {}
         }
         println!(
             "times: planning = search + start/goal checks{} (setup of the collision model excluded, shown as 'setup'); collision model: {}; obstacles' cylinders are exact cylinders.",

@@ -104,6 +104,16 @@ pub enum RobotCmd {
         /// Model name (from the robots folder) or a path to a .urdf file.
         robot: String,
     },
+    /// What loading tolerated: link pairs colliding in (nearly) every configuration that the
+    /// SRDF does not disable (each with the SRDF line that would), continuous joints written as
+    /// revolute ±π, other warnings.
+    Check {
+        /// Model name (from the robots folder) or a path to a .urdf file.
+        robot: String,
+        /// The SRDF of a .urdf path (default: the .srdf beside it with the same stem).
+        #[arg(long)]
+        srdf: Option<std::path::PathBuf>,
+    },
 }
 
 #[derive(Subcommand, Debug)]
@@ -128,6 +138,9 @@ pub fn run() -> Result<()> {
         Command::Robot {
             cmd: RobotCmd::Show { robot },
         } => commands::robot_show(&ctx, robot),
+        Command::Robot {
+            cmd: RobotCmd::Check { robot, srdf },
+        } => commands::robot_check(&ctx, robot, srdf.as_deref()),
         Command::Fk(a) => commands::fk(&ctx, a),
         Command::Ik(a) => commands::ik(&ctx, a),
         Command::Check(a) => commands::check(&ctx, a),

@@ -305,6 +305,26 @@ impl ExactChecker {
         }
     }
 
+    /// Places every body at world configuration `q` for [`Self::pair_within`].
+    pub(crate) fn set_config(&mut self, q: &[f64]) {
+        self.checks += 1;
+        self.update(q);
+    }
+
+    /// True when the bodies of checked pair `p` (index in [`CollisionWorld::pairs`] order)
+    /// intersect or come within `margin` at the configuration of the last
+    /// [`Self::set_config`].
+    pub(crate) fn pair_within(&self, p: usize, margin: f64) -> bool {
+        let (a, b) = self.pairs[p];
+        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
+        (ba.first..ba.end).any(|i| {
+            (bb.first..bb.end).any(|j| {
+                self.sphere_gap(i, j) <= margin
+                    && (self.shapes_intersect(i, j) || self.shape_distance(i, j) <= margin)
+            })
+        })
+    }
+
     /// Lower bound on the distance between shapes `i` and `j` from their bounding spheres.
     #[inline]
     fn sphere_gap(&self, i: usize, j: usize) -> f64 {

@@ -9,6 +9,7 @@
 //!
 //! Depends on `model`, `kinematics`, `geometry`; must not depend on planning or the server.
 
+pub mod always;
 mod exact;
 mod fast;
 mod generate;

@@ -1,7 +1,9 @@
 //! The robot and scene model: `Robot` from URDF + SRDF, `Scene` from scene JSON.
 //!
 //! Pure data, loaders and validation errors. Depends only on `geometry`; knows nothing of
-//! kinematics algorithms, collision checking or planning.
+//! kinematics algorithms, collision checking or planning — except that the robot loaders end
+//! with the sampled search for always-colliding link pairs of `collision::always` (MoveIt's
+//! "Always" category), which needs forward kinematics and the exact checker.
 
 mod cell;
 mod error;
@@ -16,8 +18,8 @@ pub use cell::{arm_cell, panda_four, ArmCell};
 pub use error::ModelError;
 pub use library::{data_root, load_robot_dir, load_scene_dir};
 pub use robot::{
-    EndEffector, Group, GroupMember, GroupState, Joint, JointKind, Limits, Link, Mimic, Robot,
-    RobotLibrary,
+    AlwaysColliding, EndEffector, Group, GroupMember, GroupState, Joint, JointKind, Limits, Link,
+    Mimic, Robot, RobotLibrary,
 };
 pub use scene::{
     Body, BodyJson, ContactPoint, GeometryJson, Grasp, GraspJson, GraspType, Object,

@@ -58,6 +58,46 @@ impl Limits {
     pub fn contains(&self, v: f64) -> bool {
         !self.bounded || (v >= self.lower && v <= self.upper)
     }
+
+    /// How far outside its limits a given start or goal value may lie and still be accepted
+    /// (then clamped): values written with fewer digits than the limits (a problem's π against
+    /// a URDF's 3.14159, 2.65e-6 apart) or rounded by a conversion.
+    pub const TOLERANCE: f64 = 1e-5;
+
+    /// `v` clamped into the limits when it lies within them or at most [`Self::TOLERANCE`]
+    /// outside (`None` beyond that, or when `v` is not finite). Unbounded joints take any
+    /// finite value.
+    pub fn clamp_near(&self, v: f64) -> Option<f64> {
+        if !v.is_finite() {
+            return None;
+        }
+        if !self.bounded {
+            return Some(v);
+        }
+        (v >= self.lower - Self::TOLERANCE && v <= self.upper + Self::TOLERANCE)
+            .then(|| v.clamp(self.lower, self.upper))
+    }
+
+    /// True for the limits of a continuous joint written as a revolute one: within
+    /// [`Self::TOLERANCE`] of ±π (e.g. ±3.14159), so that values ±π are meant to be valid.
+    pub fn is_revolute_pi(&self) -> bool {
+        use std::f64::consts::PI;
+        self.bounded
+            && (self.lower + PI).abs() <= Self::TOLERANCE
+            && (self.upper - PI).abs() <= Self::TOLERANCE
+    }
+}
+
+/// A pair of links that collides in (nearly) every configuration of the collision model and
+/// was not disabled by the SRDF (found at load by [`crate::collision::always`], then treated as
+/// disabled with reason `Always`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlwaysColliding {
+    /// Link indices, `a < b`.
+    pub a: usize,
+    pub b: usize,
+    /// Fraction of the sampled configurations in which the pair collides.
+    pub fraction: f64,
 }
 
 /// A joint that follows another: `value = multiplier * value(joint) + offset`.
@@ -163,24 +203,39 @@ pub struct Robot {
     pub disabled_reasons: Vec<(usize, usize, String)>,
     /// Things in the files that were tolerated but ignored (e.g. SRDF pairs naming absent links).
     pub warnings: Vec<String>,
+    /// Link pairs found colliding in (nearly) every configuration at load and therefore
+    /// disabled (also listed in `disabled_reasons` with reason `Always`).
+    pub always_colliding: Vec<AlwaysColliding>,
     link_index: HashMap<String, usize>,
     joint_index: HashMap<String, usize>,
 }
 
 impl Robot {
-    /// Loads a robot from a URDF file and, optionally, its SRDF.
+    /// Loads a robot from a URDF file and, optionally, its SRDF. Link pairs colliding in
+    /// (nearly) every configuration that the SRDF does not disable are disabled with a warning
+    /// ([`crate::collision::always`]).
     pub fn from_files(urdf_path: &Path, srdf_path: Option<&Path>) -> Result<Robot, ModelError> {
         let urdf_text = read(urdf_path)?;
         let base_dir = urdf_path.parent().unwrap_or(Path::new("."));
         let mut robot = urdf::parse(&urdf_text, &urdf_path.display().to_string(), base_dir)?;
-        if let Some(sp) = srdf_path {
-            let text = read(sp)?;
-            srdf::apply(&mut robot, &text, &sp.display().to_string())?;
-        }
+        let srdf_text = match srdf_path {
+            Some(sp) => {
+                let text = read(sp)?;
+                srdf::apply(&mut robot, &text, &sp.display().to_string())?;
+                Some(text)
+            }
+            None => None,
+        };
+        crate::collision::always::disable_always_colliding(
+            &mut robot,
+            &urdf_text,
+            srdf_text.as_deref(),
+        );
         Ok(robot)
     }
 
-    /// Parses a robot from URDF and SRDF text. `base_dir` resolves relative mesh paths.
+    /// Parses a robot from URDF and SRDF text. `base_dir` resolves relative mesh paths. As
+    /// [`Self::from_files`], always-colliding pairs are disabled with a warning.
     pub fn from_strings(
         urdf_text: &str,
         srdf_text: Option<&str>,
@@ -190,6 +245,7 @@ impl Robot {
         if let Some(s) = srdf_text {
             srdf::apply(&mut robot, s, "robot.srdf")?;
         }
+        crate::collision::always::disable_always_colliding(&mut robot, urdf_text, srdf_text);
         Ok(robot)
     }
 
@@ -221,6 +277,7 @@ impl Robot {
             disabled: vec![false; n * n],
             disabled_reasons: Vec::new(),
             warnings: Vec::new(),
+            always_colliding: Vec::new(),
             link_index,
             joint_index,
         };
@@ -325,6 +382,16 @@ impl Robot {
         }
     }
 
+    /// Clamps into the limits every value of `q` lying at most [`Limits::TOLERANCE`] outside
+    /// them (values farther out are left for [`Self::check_config`] to refuse).
+    pub fn clamp_config(&self, q: &mut [f64]) {
+        for (v, x) in q.iter_mut().enumerate().take(self.dof()) {
+            if let Some(c) = self.var_limits(v).clamp_near(*x) {
+                *x = c;
+            }
+        }
+    }
+
     /// Checks a configuration: length, finiteness and limits. The error names the joint.
     pub fn check_config(&self, q: &[f64]) -> Result<(), String> {
         if q.len() != self.dof() {
@@ -365,6 +432,7 @@ impl Robot {
                 .ok_or_else(|| format!("{name}: no such movable joint in robot '{}'", self.name))?;
             q[v] = x;
         }
+        self.clamp_config(&mut q);
         self.check_config(&q)?;
         Ok(q)
     }

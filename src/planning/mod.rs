@@ -20,6 +20,7 @@ pub mod mbm;
 pub mod mbm_data;
 pub mod multi_robot_rrt;
 pub mod phase_space;
+pub mod range;
 mod result;
 mod rng;
 mod rrt_connect;

@@ -187,7 +187,9 @@ impl<C: SegmentChecker> RrtConnect<C> {
         &mut self.validator
     }
 
-    /// Plans from `start` to any of `goals` (states of the space). Invalid goals are skipped;
+    /// Plans from `start` to any of `goals` (states of the space; values at most
+    /// [`Limits::TOLERANCE`](crate::model::Limits::TOLERANCE) outside the bounds are clamped
+    /// into them, see [`JointSpace::snap_to_bounds`]). Invalid goals are skipped;
     /// the query fails cleanly when the start or every goal is invalid, or when `term` fires.
     /// The raw path is re-validated at the configured resolution, then simplified when the
     /// settings ask for it. All randomness comes from `seed`.
@@ -205,6 +207,14 @@ impl<C: SegmentChecker> RrtConnect<C> {
         let mut rng = PlannerRng::seed_from_u64(seed);
         let mut stats = PlanStats::default();
 
+        // Values at most `Limits::TOLERANCE` outside the bounds are clamped into them (the
+        // returned path starts at the clamped start and ends at a clamped goal).
+        let start = self.validator.space().snap_to_bounds(start).into_owned();
+        let goals: Vec<Vec<f64>> = goals
+            .iter()
+            .map(|g| self.validator.space().snap_to_bounds(g).into_owned())
+            .collect();
+        let (start, goals) = (start.as_slice(), goals.as_slice());
         if let Some(why) = self.validator.invalidity(start) {
             return Err(PlanError::InvalidStart { reason: why });
         }

@@ -223,6 +223,33 @@ impl JointSpace {
                 .all(|(i, v)| v.is_finite() && *v >= self.lower[i] && *v <= self.upper[i])
     }
 
+    /// `q` with every value lying at most [`Limits::TOLERANCE`](crate::model::Limits::TOLERANCE)
+    /// outside the bounds clamped into them (a start or goal written with fewer digits than the
+    /// limits, e.g. π against 3.14159); `q` itself when no value needs it. Values farther out
+    /// stay, for [`Self::bounds_violation`] to name.
+    pub fn snap_to_bounds<'a>(&self, q: &'a [f64]) -> std::borrow::Cow<'a, [f64]> {
+        let tol = crate::model::Limits::TOLERANCE;
+        let near = |i: usize, v: f64| {
+            (v < self.lower[i] && v >= self.lower[i] - tol)
+                || (v > self.upper[i] && v <= self.upper[i] + tol)
+        };
+        if q.len() != self.dim() || !q.iter().enumerate().any(|(i, &v)| near(i, v)) {
+            return std::borrow::Cow::Borrowed(q);
+        }
+        std::borrow::Cow::Owned(
+            q.iter()
+                .enumerate()
+                .map(|(i, &v)| {
+                    if near(i, v) {
+                        v.clamp(self.lower[i], self.upper[i])
+                    } else {
+                        v
+                    }
+                })
+                .collect(),
+        )
+    }
+
     /// Why `q` is not a state of the space (`None` when it is).
     pub fn bounds_violation(&self, q: &[f64]) -> Option<String> {
         if q.len() != self.dim() {

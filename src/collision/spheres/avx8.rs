@@ -1,0 +1,175 @@
+//! The 8-lane tests of [`super::SphereChecker::body_env_avx`] and [`super::SphereChecker::pair_hits_avx`] in
+//! AVX2 + FMA intrinsics; each mirrors the generic function of the same name (`obs_mask`,
+//! `near_mask`, `point_near_mask`, `lin4`).
+
+use super::{Lane, Obs};
+use std::arch::x86_64::*;
+
+type V = __m256;
+
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn load3(w: &[Lane; 3]) -> [V; 3] {
+    // SAFETY: each lane array holds 8 f32 (unaligned loads).
+    unsafe {
+        [
+            _mm256_loadu_ps(w[0].as_ptr()),
+            _mm256_loadu_ps(w[1].as_ptr()),
+            _mm256_loadu_ps(w[2].as_ptr()),
+        ]
+    }
+}
+
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn store3(w: &mut [Lane; 3], v: [V; 3]) {
+    // SAFETY: each lane array holds 8 f32 (unaligned stores).
+    unsafe {
+        _mm256_storeu_ps(w[0].as_mut_ptr(), v[0]);
+        _mm256_storeu_ps(w[1].as_mut_ptr(), v[1]);
+        _mm256_storeu_ps(w[2].as_mut_ptr(), v[2]);
+    }
+}
+
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn load(l: &Lane) -> V {
+    // SAFETY: 8 f32.
+    unsafe { _mm256_loadu_ps(l.as_ptr()) }
+}
+
+/// World position of the point `p` of frame `f`, all lanes.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn place(f: &[Lane; 12], p: &[f32; 3]) -> [V; 3] {
+    let (x, y, z) = (
+        _mm256_set1_ps(p[0]),
+        _mm256_set1_ps(p[1]),
+        _mm256_set1_ps(p[2]),
+    );
+    let row = |r: usize| {
+        _mm256_fmadd_ps(
+            load(&f[6 + r]),
+            z,
+            _mm256_fmadd_ps(
+                load(&f[3 + r]),
+                y,
+                _mm256_fmadd_ps(load(&f[r]), x, load(&f[9 + r])),
+            ),
+        )
+    };
+    [row(0), row(1), row(2)]
+}
+
+/// Lanes whose `d` is ≤ 0 (NaN: not set).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn le_zero(d: V) -> u32 {
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(d, _mm256_setzero_ps())) as u32
+}
+
+/// |d|² − r² per lane.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn dist2_minus(dx: V, dy: V, dz: V, r2: f32) -> V {
+    _mm256_fmadd_ps(
+        dz,
+        dz,
+        _mm256_fmadd_ps(dy, dy, _mm256_fmsub_ps(dx, dx, _mm256_set1_ps(r2))),
+    )
+}
+
+/// Lanes whose two points are at most `r` apart.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn near(a: [V; 3], b: [V; 3], r: f32) -> u32 {
+    let d = dist2_minus(
+        _mm256_sub_ps(a[0], b[0]),
+        _mm256_sub_ps(a[1], b[1]),
+        _mm256_sub_ps(a[2], b[2]),
+        r * r,
+    );
+    le_zero(d)
+}
+
+/// Lanes whose point is at most `r` from the fixed point `p` (first three values).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn point_near(a: [V; 3], p: &[f32; 4], r: f32) -> u32 {
+    let d = dist2_minus(
+        _mm256_sub_ps(a[0], _mm256_set1_ps(p[0])),
+        _mm256_sub_ps(a[1], _mm256_set1_ps(p[1])),
+        _mm256_sub_ps(a[2], _mm256_set1_ps(p[2])),
+        r * r,
+    );
+    le_zero(d)
+}
+
+/// Lanes whose sphere (centre `p`, radius `r`) touches the obstacle.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn obs(o: &Obs, p: [V; 3], r: f32) -> u32 {
+    let zero = _mm256_setzero_ps();
+    let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+    let rel = |c: &[f32; 3]| {
+        [
+            _mm256_sub_ps(p[0], _mm256_set1_ps(c[0])),
+            _mm256_sub_ps(p[1], _mm256_set1_ps(c[1])),
+            _mm256_sub_ps(p[2], _mm256_set1_ps(c[2])),
+        ]
+    };
+    let dot = |a: &[f32; 3], d: &[V; 3]| {
+        _mm256_fmadd_ps(
+            _mm256_set1_ps(a[2]),
+            d[2],
+            _mm256_fmadd_ps(
+                _mm256_set1_ps(a[1]),
+                d[1],
+                _mm256_mul_ps(_mm256_set1_ps(a[0]), d[0]),
+            ),
+        )
+    };
+    let d = match o {
+        Obs::Sphere { c, r: ro } => {
+            let d = rel(c);
+            dist2_minus(d[0], d[1], d[2], (r + ro) * (r + ro))
+        }
+        Obs::Box { c, rt, half } => {
+            let d = rel(c);
+            let mut acc = _mm256_set1_ps(-(r * r));
+            for k in 0..3 {
+                let q = _mm256_and_ps(dot(&rt[k], &d), abs_mask);
+                let e = _mm256_max_ps(_mm256_sub_ps(q, _mm256_set1_ps(half[k])), zero);
+                acc = _mm256_fmadd_ps(e, e, acc);
+            }
+            acc
+        }
+        Obs::Cylinder { c, axis, r: rc, h } => {
+            let d = rel(c);
+            let pz = dot(axis, &d);
+            let all = dist2_minus(d[0], d[1], d[2], 0.0);
+            let rad2 = _mm256_max_ps(_mm256_fnmadd_ps(pz, pz, all), zero);
+            let dr = _mm256_max_ps(
+                _mm256_sub_ps(_mm256_sqrt_ps(rad2), _mm256_set1_ps(*rc)),
+                zero,
+            );
+            let ez = _mm256_max_ps(
+                _mm256_sub_ps(_mm256_and_ps(pz, abs_mask), _mm256_set1_ps(*h)),
+                zero,
+            );
+            _mm256_fmadd_ps(dr, dr, _mm256_fmsub_ps(ez, ez, _mm256_set1_ps(r * r)))
+        }
+        Obs::Capsule { c, axis, r: rc, h } => {
+            let d = rel(c);
+            let pz = dot(axis, &d);
+            let t = _mm256_min_ps(_mm256_max_ps(pz, _mm256_set1_ps(-h)), _mm256_set1_ps(*h));
+            let e = [
+                _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[0]), d[0]),
+                _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[1]), d[1]),
+                _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[2]), d[2]),
+            ];
+            dist2_minus(e[0], e[1], e[2], (r + rc) * (r + rc))
+        }
+    };
+    le_zero(d)
+}

@@ -1,0 +1,240 @@
+//! Certified motion checks of the sphere checker ([`SphereChecker::segment_certified`]): a
+//! whole straight segment proven collision-free as a continuous motion from bounds on how fast
+//! each link's and each self pair's spheres move (Schwarzer, Saha & Latombe, "Adaptive dynamic
+//! collision checking for single and multiple articulated robots", IEEE T-RO 2005, with
+//! inflated spheres instead of distances), refined where the first pass is tight.
+
+use super::{SphereChecker, LANES, NO_FOCUS};
+
+/// Appends to `out` the ids (bodies, self pairs) tight at state `i` or `i + 1`, each once;
+/// `tight` holds (state, id) sorted and without repeats.
+pub(super) fn focus_of_states(tight: &[(usize, u32)], i: usize, out: &mut Vec<u32>) {
+    let start = out.len();
+    let lo = tight.partition_point(|e| e.0 < i);
+    let hi = tight.partition_point(|e| e.0 <= i + 1);
+    for &(_, id) in &tight[lo..hi] {
+        if !out[start..].contains(&id) {
+            out.push(id);
+        }
+    }
+}
+
+/// Appends to `out` the ids of a check's tight log (each id once there) tight in lane `l` or
+/// `l + 1`: the ends of the sub-interval between them.
+pub(super) fn focus_of_lanes(log: &[(u32, u32)], l: usize, out: &mut Vec<u32>) {
+    let ends = 0b11u32 << l;
+    out.extend(log.iter().filter(|e| e.1 & ends != 0).map(|e| e.0));
+}
+
+impl SphereChecker {
+    /// Largest number of states of the first, uniform pass of [`Self::segment_certified`] (a
+    /// longer segment is checked with larger inflations, which stays sound).
+    pub const CERTIFY_MAX_STATES: usize = 1 << 16;
+    /// Most bisection levels below the uniform pass before a segment is declared uncertifiable.
+    pub const CERTIFY_MAX_DEPTH: u32 = 10;
+    /// Most refinement checks per segment before it is declared uncertifiable.
+    pub const CERTIFY_MAX_REFINEMENTS: usize = 4096;
+
+    /// Whether [`Self::segment_certified`] applies (every prismatic joint's travel is bounded).
+    pub fn certifiable(&self) -> bool {
+        self.certifiable
+    }
+
+    /// Writes the states `a + (b − a)·t` of the lanes' parameters into the lane buffer.
+    #[inline]
+    pub(super) fn load_lanes(&mut self, a: &[f64], b: &[f64], ts: &[f64; LANES]) {
+        for (i, v) in self.qv.iter_mut().enumerate() {
+            let (ai, di) = (a[i], b[i] - a[i]);
+            for l in 0..LANES {
+                v[l] = (ai + di * ts[l]) as f32;
+            }
+        }
+    }
+
+    /// Inflation of every body for sub-intervals of length `h` (segment parameter): half the
+    /// distance its spheres can travel along such a sub-interval.
+    #[inline]
+    pub(super) fn set_inflation(&mut self, h: f64) {
+        for (i, l) in self.infl.iter_mut().zip(&self.seg_len) {
+            *i = (0.5 * l * h) as f32;
+        }
+        self.pair_scale = 0.5 * h;
+    }
+
+    /// Extra distance self pair `pi`'s spheres must keep in the current check: half what
+    /// both bodies can travel along a sub-interval, counting only the joints below their common
+    /// ancestor (those above move both rigidly). At most `infl[a] + infl[b]`, which the
+    /// body-level test uses instead, so this is computed only for pairs that pass it.
+    #[inline(always)]
+    pub(super) fn pair_inflation(&self, pi: usize) -> f32 {
+        if self.pair_scale == 0.0 {
+            return 0.0;
+        }
+        let (pa, pb) = self.pair_cum[pi];
+        (self.pair_scale * (self.cum[pa as usize] + self.cum[pb as usize])) as f32
+    }
+
+    /// Certified motion check: true only when the whole continuous straight segment `a → b`
+    /// (world configurations, `a` included) is collision-free — not just states sampled on it.
+    ///
+    /// Along the segment a sphere centre moves at most `L = Σ_v |b_v − a_v|·w_v` (w_v bounds its
+    /// distance to the axis of every joint driven by variable v), uniformly in the segment
+    /// parameter. A sub-interval of length h is therefore free when both its end states are
+    /// free with every sphere inflated by `L·h/2` (each point of the sub-interval lies within
+    /// that distance of one end). The segment is split into the fewest equal sub-intervals whose
+    /// inflation stays at most `max_inflation` metres, their end states are checked 8 per call
+    /// in raked order, and sub-intervals next to a state that is free only with plain spheres
+    /// are split in 7 (one 8-lane call, a 7× smaller inflation) until certified. A refinement
+    /// tests only the bodies (against their obstacles) and self pairs tight at its ends: the
+    /// coarser check certified every other one free over the whole sub-interval. A state colliding with plain
+    /// spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
+    /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
+    pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
+        debug_assert!(self.certifiable && max_inflation > 0.0);
+        let mut lmax = 0.0f64;
+        for ((d, &x), &y) in self.seg_dq.iter_mut().zip(a).zip(b) {
+            *d = (y - x).abs();
+        }
+        let dq = &self.seg_dq;
+        for ((len, &(c0, c1)), &o) in self
+            .seg_len
+            .iter_mut()
+            .zip(&self.chain_range)
+            .zip(&self.cum_off)
+        {
+            let chain = &self.chain[c0 as usize..c1 as usize];
+            let o = o as usize;
+            let cum = &mut self.cum[o..o + chain.len() + 1];
+            cum[0] = 0.0;
+            let mut l = 0.0;
+            for (&(v, w), c) in chain.iter().zip(&mut cum[1..]) {
+                l += dq[v as usize] * w;
+                *c = l;
+            }
+            *len = l;
+            lmax = lmax.max(l);
+        }
+        let n = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, Self::CERTIFY_MAX_STATES);
+        // The n + 1 states fill whole 8-lane calls: the spare lanes make sub-intervals shorter
+        // (smaller inflations) at no cost.
+        let n = (n + 1).div_ceil(LANES) * LANES - 1;
+        let ok = self.certify(a, b, n);
+        self.infl.iter_mut().for_each(|i| *i = 0.0);
+        self.pair_scale = 0.0;
+        ok
+    }
+
+    pub(super) fn certify(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
+        let h = 1.0 / n as f64;
+        self.set_inflation(h);
+        // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches).
+        let total = n + 1;
+        let batches = total.div_ceil(LANES);
+        self.tight_states.clear();
+        for j in 0..batches {
+            let mut ts = [0.0; LANES];
+            let mut ks = [usize::MAX; LANES];
+            let mut used = 0u64;
+            for l in 0..LANES {
+                let k = total as isize - 1 - j as isize - (l * batches) as isize;
+                if k >= 0 {
+                    ks[l] = k as usize;
+                    used += 1;
+                }
+                ts[l] = if k >= 0 { k as f64 * h } else { 1.0 };
+            }
+            self.load_lanes(a, b, &ts);
+            self.checks += used;
+            if self.collides8() {
+                return false;
+            }
+            for e in 0..self.tight_log.len() {
+                let (id, mut m) = self.tight_log[e];
+                while m != 0 {
+                    let l = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if ks[l] != usize::MAX {
+                        self.tight_states.push((ks[l], id));
+                    }
+                }
+            }
+        }
+        if self.tight_states.is_empty() {
+            return true;
+        }
+        // Sub-intervals [i, i+1] with a tight end, each once. A body (against all its
+        // obstacles) or self pair free with the inflation at both ends is free over the whole
+        // sub-interval (the certificate above, applied to it alone), so the refinement tests
+        // only what was tight at either end.
+        self.refine.clear();
+        self.focus_pool.clear();
+        self.tight_states.sort_unstable();
+        self.tight_states.dedup();
+        let tight = &self.tight_states;
+        let mut last = usize::MAX;
+        for idx in 0..tight.len() {
+            let k = tight[idx].0;
+            if idx > 0 && tight[idx - 1].0 == k {
+                continue;
+            }
+            for i in [k.wrapping_sub(1), k] {
+                if i < n && i != last && (last == usize::MAX || i > last) {
+                    let (fs, fe) = if self.focus {
+                        let start = self.focus_pool.len();
+                        focus_of_states(tight, i, &mut self.focus_pool);
+                        (start as u32, self.focus_pool.len() as u32)
+                    } else {
+                        (NO_FOCUS, NO_FOCUS)
+                    };
+                    self.refine
+                        .push((i as f64 * h, (i + 1) as f64 * h, 0, fs, fe));
+                    last = i;
+                }
+            }
+        }
+        let mut budget = Self::CERTIFY_MAX_REFINEMENTS;
+        while let Some((t0, t1, depth, fs, fe)) = self.refine.pop() {
+            if depth >= Self::CERTIFY_MAX_DEPTH || budget == 0 {
+                return false;
+            }
+            budget -= 1;
+            // One call: the 8 states splitting [t0, t1] into 7 sub-intervals.
+            let parts = (LANES - 1) as f64;
+            let hs = (t1 - t0) / parts;
+            self.set_inflation(hs);
+            let mut ts = [0.0; LANES];
+            for (l, t) in ts.iter_mut().enumerate() {
+                *t = if l == LANES - 1 {
+                    t1
+                } else {
+                    t0 + hs * l as f64
+                };
+            }
+            self.load_lanes(a, b, &ts);
+            self.checks += LANES as u64;
+            let hit = if fs == NO_FOCUS {
+                self.collides8()
+            } else {
+                self.collides8_focus(fs as usize, fe as usize)
+            };
+            if hit {
+                return false;
+            }
+            // Lanes free with the plain spheres but not with the inflation.
+            let m = self.tight_log.iter().fold(0, |m, e| m | e.1);
+            for l in 0..LANES - 1 {
+                if m & (0b11 << l) != 0 {
+                    let (fs, fe) = if fs == NO_FOCUS {
+                        (NO_FOCUS, NO_FOCUS)
+                    } else {
+                        let start = self.focus_pool.len();
+                        focus_of_lanes(&self.tight_log, l, &mut self.focus_pool);
+                        (start as u32, self.focus_pool.len() as u32)
+                    };
+                    self.refine.push((ts[l], ts[l + 1], depth + 1, fs, fe));
+                }
+            }
+        }
+        true
+    }
+}

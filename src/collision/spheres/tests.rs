@@ -1,0 +1,251 @@
+/// A MotionBenchMaker robot (spherized URDF and SRDF) from the data folder of
+/// [`crate::planning::mbm_data::data_for_test`]; `None` (the test is skipped) without it.
+fn mbm_robot(name: &str) -> Option<std::sync::Arc<crate::Robot>> {
+    let dir = crate::planning::mbm_data::data_for_test()?.join(name);
+    Some(std::sync::Arc::new(
+        crate::Robot::from_files(
+            &dir.join(format!("{name}_spherized.urdf")),
+            Some(&dir.join(format!("{name}.srdf"))),
+        )
+        .expect("robot"),
+    ))
+}
+
+/// The suite's own sphere robot `tests/robots/twin_arms` (two arms with the Panda's
+/// kinematics, its truncated quarter turns included, on a torso).
+fn twin_arms() -> std::sync::Arc<crate::Robot> {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
+    std::sync::Arc::new(
+        crate::Robot::from_files(
+            &dir.join("twin_arms.urdf"),
+            Some(&dir.join("twin_arms.srdf")),
+        )
+        .expect("tests/robots/twin_arms"),
+    )
+}
+
+/// The node-level cull of a pair group is a bound of every pair in it: over random
+/// configurations (8 lanes) and random inflations, whenever the nodes' spheres are apart in
+/// every lane, so is every pair's body-level test that the cull skips. Both outcomes
+/// occur, and pairs near in some lane occur in culled-free groups.
+#[test]
+fn node_cull_bounds_every_pair_of_its_group() {
+    node_cull_bounds_every_pair(twin_arms());
+}
+
+#[test]
+fn node_cull_bounds_every_pair_of_its_group_on_baxter() {
+    if let Some(r) = mbm_robot("baxter") {
+        node_cull_bounds_every_pair(r);
+    }
+}
+
+fn node_cull_bounds_every_pair(robot: std::sync::Arc<crate::Robot>) {
+    use super::*;
+    use crate::geometry::Pose;
+    use rand::{Rng, SeedableRng};
+    let world = CollisionWorld::single(robot.clone(), Pose::identity());
+    let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    assert!(
+        sc.pair_group_end.iter().any(|&e| e != 0),
+        "{} has pair groups",
+        robot.name
+    );
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let (mut culled, mut kept, mut near_pairs) = (0, 0, 0);
+    for _ in 0..300 {
+        for (v, lanes) in sc.qv.iter_mut().enumerate() {
+            let l = robot.var_limits(v);
+            for x in lanes.iter_mut() {
+                *x = rng.random_range(l.lower.max(-4.0)..=l.upper.min(4.0)) as f32;
+            }
+        }
+        for x in sc.infl.iter_mut() {
+            *x = rng.random_range(0.0..0.05);
+        }
+        sc.epoch = sc.epoch.wrapping_add(1).max(1);
+        for si in 0..sc.steps.len() {
+            sc.step::<LANES, false>(si);
+        }
+        for b in 0..sc.bodies.len() {
+            let body = &sc.bodies[b];
+            let c = SphereChecker::place::<LANES, false>(&sc.frames[body.node as usize], &body.bc);
+            sc.bcw[b] = c;
+        }
+        for pi in 0..sc.self_pairs.len() {
+            let end = sc.pair_group_end[pi] as usize;
+            if end == 0 {
+                continue;
+            }
+            let (a, b) = sc.self_pairs[pi];
+            let (na, nb) = (sc.bodies[a as usize].node, sc.bodies[b as usize].node);
+            let node_near = sc.nodes_near::<LANES, false>(na as usize, nb as usize);
+            if node_near {
+                kept += 1;
+            } else {
+                culled += 1;
+            }
+            for &(a, b) in &sc.self_pairs[pi..end] {
+                let (a, b) = (a as usize, b as usize);
+                let r = sc.bodies[a].br + sc.bodies[b].br + (sc.infl[a] + sc.infl[b]);
+                let m = near_mask::<LANES>(&sc.bcw[a], &sc.bcw[b], r);
+                if m != 0 {
+                    near_pairs += 1;
+                    assert!(
+                        node_near,
+                        "pair ({a}, {b}) near in lanes {m:b}, nodes culled"
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        culled > 100 && kept > 100 && near_pairs > 100,
+        "{culled} {kept} {near_pairs}"
+    );
+}
+
+/// Quarter-turn and identity origins (Panda's `rpy="±1.57079632679 0 0"`) are recognised,
+/// and the kinematics through them (AVX and generic) give the frames of the general
+/// product within f32 rounding, over random 8-lane states of arms with the Panda's
+/// kinematics.
+#[test]
+fn specialised_origins_give_the_general_frames() {
+    specialised_origins(twin_arms());
+}
+
+#[test]
+fn specialised_origins_give_the_general_frames_on_panda() {
+    if let Some(r) = mbm_robot("panda") {
+        specialised_origins(r);
+    }
+}
+
+fn specialised_origins(robot: std::sync::Arc<crate::Robot>) {
+    use super::*;
+    use crate::geometry::Pose;
+    use rand::{Rng, SeedableRng};
+    // The URDF's truncated π/2 and π/4, as written there.
+    #[allow(clippy::approx_constant)]
+    let (half_pi, quarter_pi) = (1.57079632679, 0.785398163397);
+    let quarter = nalgebra::Rotation3::from_euler_angles(-half_pi, 0.0, 0.0);
+    match OriginRot::classify(quarter.matrix()) {
+        OriginRot::Permutation(cols) => {
+            assert_eq!(cols, [(0, 0), (2, 0x8000_0000), (1, 0)], "x, −z, y")
+        }
+        k => panic!("{k:?}"),
+    }
+    let yaw = nalgebra::Rotation3::from_euler_angles(0.0, 0.0, -quarter_pi);
+    assert_eq!(OriginRot::classify(yaw.matrix()), OriginRot::General);
+    assert_eq!(
+        OriginRot::classify(&Matrix3::identity()),
+        OriginRot::Identity
+    );
+    assert_eq!(
+        origin_terms(&Vector3::new(-0.0825, 3e-17, 0.384)),
+        ([-0.0825, 0.0, 0.384], 0b101)
+    );
+    let world = CollisionWorld::single(robot.clone(), Pose::identity());
+    let mut fast = SphereChecker::new(&world, 0.0).expect("spheres");
+    let (mut perms, mut sparse) = (0, 0);
+    for s in &fast.steps[1..] {
+        perms += usize::from(matches!(s.rot_kind, OriginRot::Permutation(_)));
+        sparse += usize::from(s.t_terms != 0b111);
+    }
+    assert!(
+        perms >= 6 && sparse >= 6,
+        "{perms} quarter turns, {sparse} sparse"
+    );
+    let mut general = fast.clone();
+    for s in &mut general.steps[1..] {
+        s.rot_kind = OriginRot::General;
+        s.t_terms = 0b111;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut worst = 0.0f32;
+    for _ in 0..200 {
+        for (v, lanes) in fast.qv.iter_mut().enumerate() {
+            let l = robot.var_limits(v);
+            for x in lanes.iter_mut() {
+                *x = rng.random_range(l.lower.max(-4.0)..=l.upper.min(4.0)) as f32;
+            }
+        }
+        general.qv.clone_from(&fast.qv);
+        let mut avx = fast.clone();
+        for si in 0..fast.steps.len() {
+            fast.step::<LANES, false>(si);
+            general.step::<LANES, false>(si);
+        }
+        // No obstacles: every step is computed before the self pairs.
+        #[cfg(target_arch = "x86_64")]
+        if avx.avx2 {
+            // SAFETY: AVX2 + FMA are present (checked at construction).
+            unsafe { avx.run8_avx2() };
+        }
+        for (si, (f, g)) in fast.frames.iter().zip(&general.frames).enumerate() {
+            for k in 0..12 {
+                for l in 0..LANES {
+                    worst = worst.max((f[k][l] - g[k][l]).abs());
+                    if avx.avx2 {
+                        let a = avx.frames[si][k][l];
+                        assert!((a - g[k][l]).abs() < 1e-5, "step {si} entry {k}");
+                    }
+                }
+            }
+        }
+    }
+    assert!(worst < 1e-5, "worst {worst:e}");
+}
+
+/// A refinement's focus holds every id tight at either end of its sub-interval, once, and
+/// nothing else.
+#[test]
+fn focus_holds_what_is_tight_at_either_end() {
+    use super::certified::{focus_of_lanes, focus_of_states};
+    use super::SELF_PAIR;
+    let states = [(2, 4), (3, 1), (3, 4), (4, 7), (5, SELF_PAIR | 2), (9, 1)];
+    let mut out = vec![99];
+    focus_of_states(&states, 3, &mut out);
+    assert_eq!(out, [99, 1, 4, 7], "state 3 and state 4, 4 once");
+    out.clear();
+    focus_of_states(&states, 4, &mut out);
+    assert_eq!(out, [7, SELF_PAIR | 2]);
+    out.clear();
+    focus_of_states(&states, 1, &mut out);
+    assert_eq!(out, [4], "only the right end tight");
+    out.clear();
+    focus_of_states(&states, 6, &mut out);
+    assert!(out.is_empty());
+    let log = [
+        (3, 0b0000_0001),
+        (5, 0b0100_0000),
+        (SELF_PAIR | 1, 0b1000_0000),
+    ];
+    out.clear();
+    focus_of_lanes(&log, 0, &mut out);
+    assert_eq!(out, [3]);
+    out.clear();
+    focus_of_lanes(&log, 5, &mut out);
+    assert_eq!(out, [5], "only the right end tight");
+    out.clear();
+    focus_of_lanes(&log, 6, &mut out);
+    assert_eq!(out, [5, SELF_PAIR | 1]);
+    out.clear();
+    focus_of_lanes(&log, 2, &mut out);
+    assert!(out.is_empty());
+}
+
+#[test]
+fn sincos_f32_is_accurate() {
+    let mut worst: f64 = 0.0;
+    for i in 0..=200_000 {
+        let x = -10.0 + 20.0 * i as f64 / 200_000.0;
+        let (s, c) = super::sincos_lanes::<1, false>(&[x as f32]);
+        let (s, c) = (s[0], c[0]);
+        let xr = x as f32 as f64;
+        worst = worst
+            .max((s as f64 - xr.sin()).abs())
+            .max((c as f64 - xr.cos()).abs());
+    }
+    assert!(worst < 5e-7, "worst {worst:e}");
+}
