@@ -457,18 +457,33 @@ impl Jobs {
         let Some(job) = started else { return };
         self.persist_logged(&job);
         tracing::info!(job = %job.id, kind = %job.kind, "job running");
+        // Progress is published at most every 50 ms, except that a snapshot of a new `phase`
+        // is published at once; a snapshot held back by the throttle is kept and published
+        // when the next one is due or when the planner returns, so the last one is never lost.
         let tx = entry.tx.clone();
+        let held: Arc<Mutex<Option<Value>>> = Arc::new(Mutex::new(None));
+        let held_in = held.clone();
         let mut last = Instant::now() - Duration::from_secs(1);
+        let mut last_phase: Option<Value> = None;
         let progress = Box::new(move |v: Value| {
             let now = Instant::now();
-            if now - last >= Duration::from_millis(50) {
+            let phase = v.get("phase").cloned();
+            if now - last >= Duration::from_millis(50) || phase != last_phase {
                 last = now;
+                last_phase = phase;
+                lock(&held_in).take();
                 tx.send_modify(|j| j.progress = Some(v));
+            } else {
+                *lock(&held_in) = Some(v);
             }
         });
         let limit = Duration::from_secs_f64(job.time_limit.max(0.0));
         let mut ctx = JobContext::new(entry.stop.clone(), limit, progress);
         let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work.run(&mut ctx)));
+        drop(ctx);
+        if let Some(v) = lock(&held).take() {
+            entry.tx.send_modify(|j| j.progress = Some(v));
+        }
         match out {
             Ok(Ok(result)) => self.finish(entry, JobState::Succeeded, Some(result), None, None),
             Ok(Err(JobFailure {
