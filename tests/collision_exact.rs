@@ -249,12 +249,33 @@ fn self_collision_and_srdf_disabled_pairs() {
     );
     assert!((c.clearance(&parallel) - 0.3).abs() < 1e-9);
 
-    // Without the SRDF, the adjacent links overlap at their joints.
+    // Without the SRDF, the adjacent links overlap at their joints in every configuration:
+    // found at load as always colliding (issue 28) and disabled, each with a warning giving
+    // the SRDF line; link1–link3 stays checked.
     let r = robot(&folding_urdf(), None);
-    let mut c = ExactChecker::new(&CollisionWorld::single(r, Pose::identity()));
+    let found: Vec<(String, String)> = r
+        .always_colliding
+        .iter()
+        .map(|p| (r.links[p.a].name.clone(), r.links[p.b].name.clone()))
+        .collect();
     assert_eq!(
-        c.first_contact(&parallel),
-        contact("fold/link1", "fold/link2")
+        found,
+        [("link1", "link2"), ("link2", "link3")].map(|(a, b)| (a.to_string(), b.to_string()))
+    );
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w
+                .contains(r#"<disable_collisions link1="link1" link2="link2" reason="Always"/>"#)),
+        "{:?}",
+        r.warnings
+    );
+    let mut c = ExactChecker::new(&CollisionWorld::single(r, Pose::identity()));
+    assert_eq!(c.num_pairs(), 1);
+    assert_eq!(c.first_contact(&parallel), None);
+    assert_eq!(
+        c.first_contact(&folded),
+        contact("fold/link1", "fold/link3")
     );
 
     // link1–link3 disabled too: nothing left to check.

@@ -173,7 +173,9 @@ impl<C: SegmentChecker> IkRrt<C> {
         let mut found: Option<(u32, u32)> = None;
         let mut start_side = true;
         while found.is_none() {
-            if term.should_stop() {
+            // An iteration may sample IK goals and certify motions, so the clock is read every
+            // iteration (tens of ns against µs): the time limit holds within one iteration.
+            if term.should_stop() || term.should_stop_now() {
                 stats.start_tree_size = ts.len();
                 stats.goal_tree_size = tg.len();
                 stats.ik_calls = goals.ik_calls() - ik0;

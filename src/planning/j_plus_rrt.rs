@@ -980,7 +980,9 @@ impl<C: SegmentChecker> JPlusRrt<C> {
             .start(start, self.targets.len(), |wq| hand.tcp(wq))?;
         let p = self.core.settings.p_extend_to_goal;
         loop {
-            if term.should_stop() {
+            // An iteration costs Jacobian steps and certified motion checks (tens of µs and
+            // more), so the clock is read every iteration: the time limit holds within one.
+            if term.should_stop() || term.should_stop_now() {
                 return Err(self.core.stopped(stats, counters, term));
             }
             stats.iterations += 1;
@@ -1205,7 +1207,9 @@ impl<C: SegmentChecker> DualArmJPlusRrt<C> {
         })?;
         let p = self.core.settings.p_extend_to_goal;
         loop {
-            if term.should_stop() {
+            // An iteration costs Jacobian steps and certified motion checks (tens of µs and
+            // more), so the clock is read every iteration: the time limit holds within one.
+            if term.should_stop() || term.should_stop_now() {
                 return Err(self.core.stopped(stats, counters, term));
             }
             stats.iterations += 1;
