@@ -9,11 +9,10 @@
 mod common;
 
 use std::path::Path;
-use std::sync::Arc;
 
 use common::server::start;
 use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker, MotionValidator};
-use manyhands::model::{panda_four, Robot, RobotLibrary, Scene};
+use manyhands::model::{panda_four, Scene};
 use manyhands::planning::decoupled::{composite, decoupled, RobotGoal};
 use manyhands::planning::phase_space::ScheduleMethod;
 use manyhands::planning::{JointSpace, Termination};
@@ -21,11 +20,7 @@ use reqwest::StatusCode;
 use serde_json::{json, Value};
 
 fn local_scene(dir: &Path) -> Scene {
-    let f = manyhands::planning::mbm_data::robot_files(dir, "panda");
-    let robot = Robot::from_files(&f.urdf, Some(&f.srdf)).expect("panda");
-    let mut lib = RobotLibrary::new();
-    lib.insert("panda".into(), Arc::new(robot));
-    Scene::from_json(panda_four("panda"), "panda_four", Path::new("."), &lib).expect("scene")
+    manyhands::planning::mbm_data::panda_four_scene(dir).expect("panda_four")
 }
 
 fn goals(scene: &Scene) -> Vec<RobotGoal> {

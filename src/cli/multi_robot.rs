@@ -333,16 +333,7 @@ fn bench_panda_four(a: &BenchArgs) -> Result<()> {
             return Ok(());
         }
     };
-    let f = manyhands::planning::mbm_data::robot_files(&dir, "panda");
-    let robot = manyhands::model::Robot::from_files(&f.urdf, Some(&f.srdf))?;
-    let mut lib = manyhands::model::RobotLibrary::new();
-    lib.insert("panda".into(), std::sync::Arc::new(robot));
-    let scene = manyhands::model::Scene::from_json(
-        manyhands::model::panda_four("panda"),
-        "panda_four",
-        std::path::Path::new("."),
-        &lib,
-    )?;
+    let scene = manyhands::planning::mbm_data::panda_four_scene(&dir)?;
     let world = manyhands::collision::CollisionWorld::from_scene(&scene);
     let q0 = manyhands::collision::CollisionWorld::start_config(&scene);
     let goals: Vec<RobotGoal> = scene

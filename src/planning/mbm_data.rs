@@ -86,6 +86,21 @@ pub struct RobotFiles {
     pub problems: PathBuf,
 }
 
+/// Issue 23's `panda_four` cell ([`crate::model::panda_four`]) over the Panda of data folder
+/// `dir`, loaded as an outside robot under the model name `panda`.
+pub fn panda_four_scene(dir: &Path) -> Result<crate::model::Scene, ModelError> {
+    let f = robot_files(dir, "panda");
+    let robot = Robot::from_files(&f.urdf, Some(&f.srdf))?;
+    let mut lib = crate::model::RobotLibrary::new();
+    lib.insert("panda".into(), Arc::new(robot));
+    crate::model::Scene::from_json(
+        crate::model::panda_four("panda"),
+        "panda_four",
+        Path::new("."),
+        &lib,
+    )
+}
+
 /// The files of `robot` in data folder `dir` (whether or not they exist).
 pub fn robot_files(dir: &Path, robot: &str) -> RobotFiles {
     let d = dir.join(robot);
