@@ -11,7 +11,7 @@ use manyhands::model::Scene;
 use manyhands::planning::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotEvent, MultiRobotPlan, MultiRobotProblem, MultiRobotSettings,
 };
-use manyhands::planning::phase_space::{phase_space_svg, PhaseSpace, RobotTrajectory};
+use manyhands::planning::phase_space::{phase_space_svg, PhaseSpace};
 use manyhands::reachability::{GridCache, GridRecipe};
 
 /// The robot instances of a request: the given names, else every robot of the scene.
@@ -74,15 +74,7 @@ pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
 
 /// The phase space of an accepted plan as SVG (002 Fig. 9).
 pub fn svg_of(p: &MultiRobotProblem, plan: &MultiRobotPlan) -> Result<String> {
-    let trajectories: Vec<RobotTrajectory> = plan
-        .solutions
-        .iter()
-        .map(|s| RobotTrajectory {
-            robot: p.members[s.member].robot,
-            waypoints: s.path.clone(),
-            accelerations: None,
-        })
-        .collect();
+    let trajectories = p.trajectories(&plan.solutions);
     let mut ps = PhaseSpace::new(&p.world, &p.world_q, &trajectories)?;
     let res = if trajectories.len() > 2 { 40 } else { 80 };
     Ok(phase_space_svg(&mut ps, &plan.schedule.phase_path, res))

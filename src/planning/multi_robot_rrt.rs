@@ -290,6 +290,19 @@ impl MultiRobotProblem {
             .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))
     }
 
+    /// The scheduler's input for some solutions: each one's robot and path (velocity limits
+    /// only).
+    pub fn trajectories(&self, solutions: &[Solution]) -> Vec<RobotTrajectory> {
+        solutions
+            .iter()
+            .map(|s| RobotTrajectory {
+                robot: self.members[s.member].robot,
+                waypoints: s.path.clone(),
+                accelerations: None,
+            })
+            .collect()
+    }
+
     /// Whether the score of a combination exceeds `s_min`, decided cheaply first: the cone
     /// edges of m' = 2, 4, … dividing m are an exact subset of the m edges (every (m/m')-th
     /// primitive wrench of each contact, taken from the same list), so their wrench hull lies
@@ -873,21 +886,11 @@ pub fn multi_robot_rrt(
         .map(|(k, &i)| collector.solutions[k][i].clone())
         .collect();
     let t1 = Instant::now();
-    let trajectories: Vec<RobotTrajectory> = solutions
-        .iter()
-        .map(|s| RobotTrajectory {
-            robot: p.members[s.member].robot,
-            waypoints: s.path.clone(),
-            accelerations: None,
-        })
-        .collect();
+    let trajectories = p.trajectories(&solutions);
     let mut ps = PhaseSpace::new(&p.world, &p.world_q, &trajectories)?;
     let schedule = ps
         .plan(&settings.phase, term, seed)
-        .map_err(|e| PlanError::InPhase {
-            phase: "phase space".into(),
-            error: Box::new(e),
-        })?;
+        .map_err(|e| e.in_phase("phase space"))?;
     stats.phase_space_time = t1.elapsed();
     stats.total_time = t0.elapsed();
     Ok(MultiRobotPlan {
