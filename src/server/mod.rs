@@ -28,6 +28,7 @@ pub mod pool;
 pub mod queries;
 pub mod resources;
 pub mod store;
+pub mod viewer;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -272,7 +273,7 @@ async fn auth(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Resp
     if let Some(token) = st.cfg.token.as_deref().filter(|t| !t.is_empty()) {
         let open = matches!(
             req.uri().path(),
-            "/healthz" | "/readyz" | "/metrics" | "/openapi.json"
+            "/healthz" | "/readyz" | "/metrics" | "/openapi.json" | "/viewer" | "/viewer/viewer.js"
         );
         if !open {
             let ok = req
@@ -332,6 +333,7 @@ pub fn router(state: Arc<AppState>) -> Router {
                 .put(resources::put_robot)
                 .delete(resources::delete_robot),
         )
+        .route("/v1/robots/{name}/urdf", get(resources::get_robot_urdf))
         .route("/v1/scenes", get(resources::list_scenes))
         .route(
             "/v1/scenes/{name}",
@@ -349,6 +351,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/v1/plans", post(plans::submit).get(plans::list))
         .route("/v1/plans/{id}", get(plans::get).delete(plans::cancel))
         .route("/v1/plans/{id}/events", get(plans::events))
+        .route("/viewer", get(viewer::page))
+        .route("/viewer/viewer.js", get(viewer::script))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(middleware::from_fn_with_state(state.clone(), auth))

@@ -33,7 +33,7 @@ impl Modify for BearerAuth {
     ),
     paths(
         super::healthz, super::readyz, super::metrics_handler,
-        super::resources::list_robots, super::resources::get_robot, super::resources::put_robot,
+        super::resources::list_robots, super::resources::get_robot, super::resources::get_robot_urdf, super::resources::put_robot,
         super::resources::delete_robot, super::resources::list_scenes, super::resources::get_scene,
         super::resources::put_scene, super::resources::delete_scene,
         super::queries::fk, super::queries::ik, super::queries::check,

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
+use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde_json::Value;
@@ -115,6 +115,23 @@ pub async fn get_robot(
 ) -> ApiResult<Json<RobotDetail>> {
     let e = st.catalog.robot(&name, "name")?;
     Ok(Json(robot_detail(&name, &e.robot, e.source)))
+}
+
+/// The robot's model as URDF: its collision geometry as the planners check it (after the
+/// catalog's load-time fixes), written by `model::to_urdf`. The 3-D viewer draws robots from it.
+#[utoipa::path(get, path = "/v1/robots/{name}/urdf", tag = "resources", params(("name" = String, Path)),
+    responses((status = 200, content_type = "application/xml", body = String, description = "URDF text"),
+              (status = 404, body = ErrorBody)))]
+pub async fn get_robot_urdf(
+    State(st): State<Arc<AppState>>,
+    Path(name): Path<String>,
+) -> ApiResult<Response> {
+    let e = st.catalog.robot(&name, "name")?;
+    Ok((
+        [(header::CONTENT_TYPE, "application/xml; charset=utf-8")],
+        crate::model::to_urdf(&e.robot),
+    )
+        .into_response())
 }
 
 #[utoipa::path(put, path = "/v1/robots/{name}", tag = "resources", params(("name" = String, Path)),
