@@ -30,6 +30,7 @@ mod space;
 pub mod task;
 mod termination;
 pub mod timing;
+pub mod trajectory;
 mod tree;
 mod validity;
 

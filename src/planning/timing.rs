@@ -37,7 +37,10 @@
 //! optimal among the trajectories that follow the polyline exactly. Deterministic (no
 //! randomness).
 
+use manyhands_api::{JointTrajectory, TimedWaypoint, TrajectoryEvent, TrajectoryPoint};
 use thiserror::Error;
+
+use crate::collision::CollisionWorld;
 
 /// Velocity (rad/s or m/s) used for a joint whose URDF and joint-limits file give none
 /// (0, missing or not finite).
@@ -451,6 +454,111 @@ impl TimedPath {
         } else {
             (self.duration / (MAX_POINTS - 2) as f64).max(period)
         }
+    }
+}
+
+/// The timing settings of a request: sampling period and MoveIt's scaling factors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimingOptions {
+    pub sample_period: f64,
+    pub velocity_scaling: f64,
+    pub acceleration_scaling: f64,
+}
+
+impl Default for TimingOptions {
+    fn default() -> Self {
+        TimingOptions {
+            sample_period: DEFAULT_SAMPLE_PERIOD,
+            velocity_scaling: 1.0,
+            acceleration_scaling: 1.0,
+        }
+    }
+}
+
+impl TimingOptions {
+    /// The options of a request's fields (`sample_period`, `velocity_scaling`,
+    /// `acceleration_scaling`), checked, with the defaults for those not given.
+    pub fn from_request(
+        sample_period: Option<f64>,
+        velocity_scaling: Option<f64>,
+        acceleration_scaling: Option<f64>,
+    ) -> Result<TimingOptions, TimingError> {
+        let o = TimingOptions {
+            sample_period: sample_period.unwrap_or(DEFAULT_SAMPLE_PERIOD),
+            velocity_scaling: velocity_scaling.unwrap_or(1.0),
+            acceleration_scaling: acceleration_scaling.unwrap_or(1.0),
+        };
+        check_sample_period("sample_period", o.sample_period)?;
+        check_scaling("velocity_scaling", o.velocity_scaling)?;
+        check_scaling("acceleration_scaling", o.acceleration_scaling)?;
+        Ok(o)
+    }
+}
+
+/// The limits of every variable of `world` (in world order): each robot's
+/// [`crate::Robot::velocity_limit`] and [`crate::Robot::acceleration_limit`].
+pub fn world_limits(world: &CollisionWorld) -> TimingLimits {
+    let mut l = TimingLimits {
+        velocity: Vec::new(),
+        acceleration: Vec::new(),
+    };
+    for p in &world.robots {
+        for v in 0..p.robot.dof() {
+            l.velocity.push(p.robot.velocity_limit(v));
+            l.acceleration.push(p.robot.acceleration_limit(v));
+        }
+    }
+    l
+}
+
+impl TimingLimits {
+    /// The limits of the variables `vars` (indices into these limits).
+    pub fn select(&self, vars: &[usize]) -> TimingLimits {
+        TimingLimits {
+            velocity: vars.iter().map(|&v| self.velocity[v]).collect(),
+            acceleration: vars.iter().map(|&v| self.acceleration[v]).collect(),
+        }
+    }
+}
+
+impl TimedPath {
+    /// The trajectory as answered (`trajectory_msgs/JointTrajectory`'s shape): `joint_names`,
+    /// points every `period` s — or, when that would exceed [`MAX_POINTS`], every
+    /// [`Self::feasible_period`] s, as `sample_period` then says — the waypoints with their
+    /// times, and `events`.
+    pub fn to_trajectory(
+        &self,
+        joint_names: &[String],
+        period: f64,
+        events: Vec<TrajectoryEvent>,
+    ) -> Result<JointTrajectory, TimingError> {
+        let period = self.feasible_period(period);
+        let points = self
+            .sample(period, "sample_period")?
+            .into_iter()
+            .map(|p| TrajectoryPoint {
+                positions: p.positions,
+                velocities: p.velocities,
+                accelerations: p.accelerations,
+                time_from_start: p.time,
+            })
+            .collect();
+        Ok(JointTrajectory {
+            joint_names: joint_names.to_vec(),
+            points,
+            sample_period: period,
+            duration: self.duration,
+            waypoints: self
+                .waypoints
+                .iter()
+                .zip(&self.waypoint_times)
+                .map(|(q, &t)| TimedWaypoint {
+                    positions: q.clone(),
+                    time_from_start: t,
+                })
+                .collect(),
+            events,
+        })
     }
 }
 
