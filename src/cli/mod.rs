@@ -14,6 +14,7 @@ mod plan;
 mod query;
 mod reach;
 mod serve;
+mod time;
 
 use std::path::PathBuf;
 
@@ -76,6 +77,10 @@ pub enum Command {
     /// Phase-space scheduling (002 §V) of given trajectories, one per robot of a scene: the
     /// `schedule` job's JSON body in (text, `@FILE` or `-`), its answer out.
     Schedule(multi_robot::ScheduleArgs),
+    /// Time-optimal trajectory (TOPP-RA on the polyline, within the joints' velocity and
+    /// acceleration limits) of a plan JSON as `--json plan …` prints it, or of a bare
+    /// `{robot, joint_names, waypoints}`; prints the trajectory JSON.
+    Time(time::TimeArgs),
     /// Grasp IK queries run locally with the HTTP endpoints' JSON bodies: ik-grasp, ik-dual-arm,
     /// ik-base-placement.
     Query(query::QueryArgs),
@@ -161,6 +166,7 @@ pub fn run() -> Result<()> {
         Command::Plan { cmd } => plan::run(&ctx, cmd),
         Command::Query(a) => query::run(&ctx, a),
         Command::Schedule(a) => multi_robot::schedule(&ctx, a),
+        Command::Time(a) => time::run(&ctx, a),
         Command::Data { cmd } => data::run(&ctx, cmd),
     }
 }

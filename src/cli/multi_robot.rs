@@ -5,13 +5,13 @@ use anyhow::{anyhow, Result};
 use clap::Args;
 
 use super::commands::Ctx;
-use super::plan::{settings, termination, MultiRobotArgs};
+use super::plan::{settings, termination, timing, MultiRobotArgs};
 use manyhands::grasp::WrenchSpaceSettings;
 use manyhands::model::Scene;
 use manyhands::planning::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotEvent, MultiRobotPlan, MultiRobotProblem, MultiRobotSettings,
 };
-use manyhands::planning::phase_space::{phase_space_svg, PhaseSpace};
+use manyhands::planning::phase_space::{phase_space_svg, PhaseSpace, PhaseSpaceSettings};
 use manyhands::reachability::{GridCache, GridRecipe};
 
 /// The robot instances of a request: the given names, else every robot of the scene.
@@ -42,6 +42,7 @@ pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
         Default::default(),
     )?;
     let (planner, ik) = settings(&a.common, 0.03)?;
+    let opts = timing(&a.common)?;
     let s = MultiRobotSettings {
         s_min: a.s_min,
         wrench: WrenchSpaceSettings {
@@ -54,6 +55,11 @@ pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
         ik,
         deterministic: a.deterministic,
         max_solutions: a.max_solutions,
+        phase: PhaseSpaceSettings {
+            velocity_scaling: opts.velocity_scaling,
+            acceleration_scaling: opts.acceleration_scaling,
+            ..MultiRobotSettings::default().phase
+        },
         ..MultiRobotSettings::default()
     };
     let mut term = termination(&a.common)?;
@@ -68,7 +74,8 @@ pub fn plan(ctx: &Ctx, a: &MultiRobotArgs) -> Result<()> {
         let svg = svg_of(&p, &plan)?;
         std::fs::write(path, svg)?;
     }
-    ctx.print(&plan.to_json(&p, a.sample_period), || summary(&p, &plan));
+    let json = plan.to_json(&p, a.sample_period, opts.sample_period)?;
+    ctx.print(&json, || summary(&p, &plan));
     Ok(())
 }
 

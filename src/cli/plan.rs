@@ -16,9 +16,10 @@ use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
 use manyhands::planning::grasping::arm_grid;
 use manyhands::planning::task::{
-    bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
-    KitchenTask, RegraspTask, TaskPlan,
+    bimanual_task, kitchen_task, reach_task, regrasp_task, GraspAlgorithm, KitchenTask,
+    RegraspTask, TaskPlan,
 };
+use manyhands::planning::timing::TimingOptions;
 use manyhands::planning::{IkRrtSettings, Termination};
 use manyhands::reachability::{GridCache, GridRecipe};
 
@@ -41,6 +42,25 @@ pub struct Common {
     /// Skip path pruning (shortcutting).
     #[arg(long)]
     pub no_prune: bool,
+    /// Seconds between the points of the answer's timed `trajectory` (0.001..=10).
+    #[arg(long, default_value_t = manyhands::planning::timing::DEFAULT_SAMPLE_PERIOD)]
+    pub trajectory_period: f64,
+    /// Factor (0, 1] on the joints' velocity limits for the trajectory.
+    #[arg(long, default_value_t = 1.0)]
+    pub velocity_scaling: f64,
+    /// Factor (0, 1] on the joints' acceleration limits for the trajectory.
+    #[arg(long, default_value_t = 1.0)]
+    pub acceleration_scaling: f64,
+}
+
+/// The trajectory timing options of the common settings, checked.
+pub(super) fn timing(c: &Common) -> Result<TimingOptions> {
+    TimingOptions::from_request(
+        Some(c.trajectory_period),
+        Some(c.velocity_scaling),
+        Some(c.acceleration_scaling),
+    )
+    .map_err(|e| anyhow!("--{}: {}", e.field.replace('_', "-"), e.reason))
 }
 
 /// The arm grids that filter IK-RRT's randomized IK (000 §II-D, §III-B).
@@ -247,6 +267,13 @@ pub(super) fn termination(c: &Common) -> Result<Termination> {
 }
 
 pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
+    let opts = match cmd {
+        PlanCmd::MultiRobot(_) => TimingOptions::default(),
+        PlanCmd::Reach { common, .. }
+        | PlanCmd::Regrasp { common, .. }
+        | PlanCmd::Kitchen { common, .. }
+        | PlanCmd::Bimanual { common, .. } => timing(common)?,
+    };
     let (scene, plan, extra): (Scene, TaskPlan, String) = match cmd {
         PlanCmd::MultiRobot(a) => return super::multi_robot::plan(ctx, a),
         PlanCmd::Reach {
@@ -382,8 +409,8 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
             (s, plan, extra)
         }
     };
-    let vars = world_variables(&CollisionWorld::from_scene(&scene));
-    ctx.print(&plan.to_json(&vars), || summary(&plan, &extra));
+    let json = plan.to_json(&CollisionWorld::from_scene(&scene), &opts)?;
+    ctx.print(&json, || summary(&plan, &extra));
     Ok(())
 }
 

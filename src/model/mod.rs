@@ -7,6 +7,7 @@
 
 mod cell;
 mod error;
+mod joint_limits;
 mod library;
 mod robot;
 mod scene;
@@ -16,6 +17,7 @@ mod write;
 
 pub use cell::{arm_cell, panda_four, ArmCell};
 pub use error::ModelError;
+pub use joint_limits::{parse_joint_limits, VarDynamics};
 pub use library::{data_root, load_robot_dir, load_scene_dir};
 pub use robot::{
     AlwaysColliding, EndEffector, Group, GroupMember, GroupState, Joint, JointKind, Limits, Link,

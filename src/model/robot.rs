@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use nalgebra::{Unit, Vector3};
 
+use super::joint_limits::VarDynamics;
 use super::{srdf, urdf, ModelError};
 use crate::geometry::{Geometry, Pose};
 
@@ -206,6 +207,9 @@ pub struct Robot {
     /// Link pairs found colliding in (nearly) every configuration at load and therefore
     /// disabled (also listed in `disabled_reasons` with reason `Always`).
     pub always_colliding: Vec<AlwaysColliding>,
+    /// Per configuration variable, the limits of the robot's joint-limits file
+    /// (`NAME.joint_limits.yaml`, MoveIt's format; [`super::joint_limits`]), none by default.
+    pub dynamics: Vec<VarDynamics>,
     link_index: HashMap<String, usize>,
     joint_index: HashMap<String, usize>,
 }
@@ -231,6 +235,12 @@ impl Robot {
             &urdf_text,
             srdf_text.as_deref(),
         );
+        // MoveIt's joint limits next to the URDF: NAME.urdf → NAME.joint_limits.yaml.
+        let limits = urdf_path.with_extension("joint_limits.yaml");
+        if limits.is_file() {
+            let text = read(&limits)?;
+            robot.apply_joint_limits(&text, &limits.display().to_string())?;
+        }
         Ok(robot)
     }
 
@@ -278,13 +288,47 @@ impl Robot {
             disabled_reasons: Vec::new(),
             warnings: Vec::new(),
             always_colliding: Vec::new(),
+            dynamics: Vec::new(),
             link_index,
             joint_index,
         };
         for i in 0..n {
             r.disabled[i * n + i] = true;
         }
+        r.dynamics = vec![VarDynamics::default(); r.vars.len()];
         r
+    }
+
+    /// Applies a joint-limits file's text (MoveIt's `joint_limits.yaml`; `file` names it in
+    /// errors) to the robot: [`Self::velocity_limit`] and [`Self::acceleration_limit`].
+    pub fn apply_joint_limits(&mut self, text: &str, file: &str) -> Result<(), ModelError> {
+        self.dynamics = super::joint_limits::parse_joint_limits(self, text, file)?;
+        Ok(())
+    }
+
+    /// Velocity limit of variable `v` (rad/s or m/s): the joint-limits file's `max_velocity`,
+    /// else the URDF's `<limit velocity>` when finite and > 0, else
+    /// [`crate::planning::timing::DEFAULT_VELOCITY`].
+    pub fn velocity_limit(&self, v: usize) -> f64 {
+        if let Some(x) = self.dynamics.get(v).and_then(|d| d.velocity) {
+            return x;
+        }
+        let x = self.var_limits(v).velocity;
+        if x.is_finite() && x > 0.0 {
+            x
+        } else {
+            crate::planning::timing::DEFAULT_VELOCITY
+        }
+    }
+
+    /// Acceleration limit of variable `v` (rad/s² or m/s²): the joint-limits file's
+    /// `max_acceleration`, else [`crate::planning::timing::DEFAULT_ACCELERATION`] (URDF has
+    /// none).
+    pub fn acceleration_limit(&self, v: usize) -> f64 {
+        self.dynamics
+            .get(v)
+            .and_then(|d| d.acceleration)
+            .unwrap_or(crate::planning::timing::DEFAULT_ACCELERATION)
     }
 
     /// Number of configuration variables.

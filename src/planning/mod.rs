@@ -9,7 +9,8 @@
 //! This module owns planning. It uses `collision`, `kinematics` and `model`, and must not depend on
 //! the server (no tokio, no axum, no HTTP types): a planner is a function of (problem, settings,
 //! termination, seed) → result with statistics. [`mbm`] loads the MotionBenchMaker problem sets
-//! used as the outside benchmark.
+//! used as the outside benchmark. [`timing`] gives a path its time-optimal parameterisation
+//! (TOPP-RA, Pham & Pham 2018) under joint velocity and acceleration limits.
 
 pub mod bimanual_ik_rrt;
 pub mod decoupled;
@@ -28,6 +29,8 @@ pub mod shortcut;
 mod space;
 pub mod task;
 mod termination;
+pub mod timing;
+pub mod trajectory;
 mod tree;
 mod validity;
 

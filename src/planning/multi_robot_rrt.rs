@@ -290,15 +290,25 @@ impl MultiRobotProblem {
             .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))
     }
 
-    /// The scheduler's input for some solutions: each one's robot and path (velocity limits
-    /// only).
+    /// The scheduler's input for some solutions: each one's robot and path, with the robot's
+    /// acceleration limits (its joint-limits file or the default,
+    /// [`crate::Robot::acceleration_limit`]), so that the schedule starts and ends at rest and
+    /// its trajectories respect both limits.
     pub fn trajectories(&self, solutions: &[Solution]) -> Vec<RobotTrajectory> {
         solutions
             .iter()
-            .map(|s| RobotTrajectory {
-                robot: self.members[s.member].robot,
-                waypoints: s.path.clone(),
-                accelerations: None,
+            .map(|s| {
+                let robot = self.members[s.member].robot;
+                let model = &self.world.robots[robot].robot;
+                RobotTrajectory {
+                    robot,
+                    waypoints: s.path.clone(),
+                    accelerations: Some(
+                        (0..model.dof())
+                            .map(|v| model.acceleration_limit(v))
+                            .collect(),
+                    ),
+                }
             })
             .collect()
     }
@@ -1024,7 +1034,16 @@ impl MultiRobotPlan {
     /// kind `multi_robot`): every robot's trajectory and grasps, the score, the schedule on one
     /// clock (`sample_period`: also samples every that many seconds), grasp events and the
     /// statistics.
-    pub fn to_json(&self, p: &MultiRobotProblem, sample_period: Option<f64>) -> serde_json::Value {
+    ///
+    /// `trajectories` maps each robot to its [`manyhands_api::JointTrajectory`] on the common
+    /// clock ([`Schedule::trajectories`], every `trajectory_period` s), with its grasp events
+    /// at the end of the schedule (all hands close together on the one object).
+    pub fn to_json(
+        &self,
+        p: &MultiRobotProblem,
+        sample_period: Option<f64>,
+        trajectory_period: f64,
+    ) -> Result<serde_json::Value, super::timing::TimingError> {
         use serde_json::json;
         let names: Vec<String> = self
             .solutions
@@ -1055,8 +1074,17 @@ impl MultiRobotPlan {
             })
             .collect();
         let mut events = Vec::new();
+        let mut robot_events = Vec::new();
+        let mut variables = Vec::new();
         for s in &self.solutions {
             let m = &p.members[s.member];
+            let placed = &p.world.robots[m.robot];
+            variables.push(
+                (0..placed.robot.dof())
+                    .map(|v| placed.robot.var_name(v).to_string())
+                    .collect::<Vec<_>>(),
+            );
+            let mut mine = Vec::new();
             for (ee, g) in [
                 (
                     &m.problem.left.end_effector,
@@ -1075,9 +1103,29 @@ impl MultiRobotPlan {
                     "object": p.object,
                     "grasp": g,
                 }));
+                mine.push(manyhands_api::TrajectoryEvent {
+                    kind: "grasp".into(),
+                    time_from_start: self.schedule.duration,
+                    waypoint: None,
+                    robot: m.name.clone(),
+                    end_effector: ee.clone(),
+                    object: p.object.clone(),
+                    grasp: g.clone(),
+                });
             }
+            robot_events.push(mine);
         }
-        json!({
+        let trajectories: serde_json::Map<String, serde_json::Value> = names
+            .iter()
+            .cloned()
+            .zip(
+                self.schedule
+                    .trajectories(&variables, trajectory_period, robot_events)?
+                    .into_iter()
+                    .map(|t| json!(t)),
+            )
+            .collect();
+        Ok(json!({
             "object": p.object,
             "robots": robots,
             "score": {
@@ -1091,8 +1139,9 @@ impl MultiRobotPlan {
             },
             "schedule": self.schedule.to_json(&names, sample_period),
             "events": events,
+            "trajectories": trajectories,
             "stats": self.stats.to_json(),
-        })
+        }))
     }
 }
 

@@ -48,7 +48,10 @@
 //! check (eq. 2); it is tried (and certified like every other path) when the search fails.
 //!
 //! **Timing.** A phase path becomes a schedule on one clock: each piece (straight for every
-//! robot) lasts as long as its slowest joint needs at its velocity limit; with acceleration limits
+//! robot) lasts as long as its slowest joint needs at its velocity limit (the robot's
+//! [`crate::Robot::velocity_limit`], scaled by `PhaseSpaceSettings::velocity_scaling`); with
+//! acceleration limits (the server and Multi-Robot-RRT always give them: the robot's joint-limits
+//! file or the default)
 //! each piece is run rest to rest with a trapezoidal profile (stopping at every piece: simple and
 //! always within both limits; a time-optimal parameterisation is the job of the trajectory
 //! timing module).
@@ -86,6 +89,10 @@ pub struct PhaseSpaceSettings {
     pub sequential_fallback: bool,
     /// Most RRT iterations (besides the caller's termination).
     pub max_iterations: u64,
+    /// Factors (0, 1] on every joint's velocity and acceleration limits when the phase path
+    /// is timed (MoveIt's scaling factors); the phases themselves do not depend on them.
+    pub velocity_scaling: f64,
+    pub acceleration_scaling: f64,
 }
 
 impl Default for PhaseSpaceSettings {
@@ -95,6 +102,8 @@ impl Default for PhaseSpaceSettings {
             shortcut: true,
             sequential_fallback: true,
             max_iterations: 20_000,
+            velocity_scaling: 1.0,
+            acceleration_scaling: 1.0,
         }
     }
 }
@@ -260,16 +269,7 @@ impl PhaseSpace {
                     )));
                 }
             }
-            let vel: Vec<f64> = (0..dof)
-                .map(|v| {
-                    let x = p.robot.var_limits(v).velocity;
-                    if x.is_finite() && x > 0.0 {
-                        x
-                    } else {
-                        DEFAULT_VELOCITY
-                    }
-                })
-                .collect();
+            let vel: Vec<f64> = (0..dof).map(|v| p.robot.velocity_limit(v)).collect();
             if let Some(a) = &t.accelerations {
                 if a.len() != dof || a.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
                     return Err(invalid(format!(
@@ -515,7 +515,7 @@ impl PhaseSpace {
                 }),
             });
         }
-        let (knots, profiles) = self.time(&path);
+        let (knots, profiles) = self.time(&path, settings);
         stats.time = t0.elapsed();
         stats.collision_checks = self.checks - c0;
         stats.segments_checked = self.segments - s0;
@@ -841,7 +841,8 @@ impl PhaseSpace {
     }
 
     /// Knots and profiles of a phase path (module documentation: Timing).
-    fn time(&self, path: &[Vec<f64>]) -> (Vec<Knot>, Vec<Profile>) {
+    fn time(&self, path: &[Vec<f64>], settings: &PhaseSpaceSettings) -> (Vec<Knot>, Vec<Profile>) {
+        let (vs, acs) = (settings.velocity_scaling, settings.acceleration_scaling);
         let n = self.dim();
         let mut knots = Vec::new();
         let mut profiles = Vec::new();
@@ -870,10 +871,10 @@ impl PhaseSpace {
                     for (j, (&x0, &x1)) in prev.configs[r].iter().zip(&qb[r]).enumerate() {
                         let dq = (x1 - x0).abs();
                         if dq > 0.0 {
-                            v = v.min(tr.vel[j] / dq);
+                            v = v.min(tr.vel[j] * vs / dq);
                             if let Some(acc) = &tr.acc {
                                 any_acc = true;
-                                a = a.min(acc[j] / dq);
+                                a = a.min(acc[j] * acs / dq);
                             }
                         }
                     }
@@ -906,26 +907,27 @@ impl PhaseSpace {
 pub type Sample = (f64, Vec<Vec<f64>>, Vec<Vec<f64>>);
 
 impl Schedule {
-    /// The path parameter s ∈ [0, 1] of a piece of duration `dt` at time `tau` into it, and ṡ.
-    fn piece(profile: Profile, dt: f64, tau: f64) -> (f64, f64) {
+    /// The path parameter s ∈ [0, 1] of a piece of duration `dt` at time `tau` into it, ṡ and
+    /// s̈ (0 for a constant-velocity piece, whose velocity jumps at its ends).
+    fn piece(profile: Profile, dt: f64, tau: f64) -> (f64, f64, f64) {
         match profile {
             Profile::Constant => {
                 if dt <= 0.0 {
-                    (1.0, 0.0)
+                    (1.0, 0.0, 0.0)
                 } else {
-                    ((tau / dt).clamp(0.0, 1.0), 1.0 / dt)
+                    ((tau / dt).clamp(0.0, 1.0), 1.0 / dt, 0.0)
                 }
             }
             Profile::Trapezoid { v, a } => {
                 let ta = v / a;
                 let tau = tau.clamp(0.0, dt);
                 if tau < ta {
-                    (0.5 * a * tau * tau, a * tau)
+                    (0.5 * a * tau * tau, a * tau, a)
                 } else if tau > dt - ta {
                     let r = dt - tau;
-                    (1.0 - 0.5 * a * r * r, a * r)
+                    (1.0 - 0.5 * a * r * r, a * r, -a)
                 } else {
-                    (0.5 * a * ta * ta + v * (tau - ta), v)
+                    (0.5 * a * ta * ta + v * (tau - ta), v, 0.0)
                 }
             }
         }
@@ -933,6 +935,12 @@ impl Schedule {
 
     /// Every robot's configuration and velocity at time `t` of the common clock.
     pub fn state_at(&self, t: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        let (p, v, _) = self.full_state_at(t);
+        (p, v)
+    }
+
+    /// Every robot's configuration, velocity and acceleration at time `t` of the common clock.
+    pub fn full_state_at(&self, t: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
         let k = self
             .knots
             .partition_point(|k| k.time <= t)
@@ -940,18 +948,82 @@ impl Schedule {
             - 1;
         let a = &self.knots[k];
         if k + 1 >= self.knots.len() {
-            let zeros = a.configs.iter().map(|c| vec![0.0; c.len()]).collect();
-            return (a.configs.clone(), zeros);
+            let zeros: Vec<Vec<f64>> = a.configs.iter().map(|c| vec![0.0; c.len()]).collect();
+            return (a.configs.clone(), zeros.clone(), zeros);
         }
         let b = &self.knots[k + 1];
-        let (s, sd) = Self::piece(self.profiles[k], b.time - a.time, t - a.time);
+        let (s, sd, sdd) = Self::piece(self.profiles[k], b.time - a.time, t - a.time);
         let mut pos = Vec::with_capacity(a.configs.len());
         let mut vel = Vec::with_capacity(a.configs.len());
+        let mut acc = Vec::with_capacity(a.configs.len());
         for (ca, cb) in a.configs.iter().zip(&b.configs) {
             pos.push(ca.iter().zip(cb).map(|(x, y)| x + (y - x) * s).collect());
             vel.push(ca.iter().zip(cb).map(|(x, y)| (y - x) * sd).collect());
+            acc.push(ca.iter().zip(cb).map(|(x, y)| (y - x) * sdd).collect());
         }
-        (pos, vel)
+        (pos, vel, acc)
+    }
+
+    /// Each robot's trajectory on the common clock (`variables[r]`: the joint names of robot
+    /// r's configuration): points every `period` s from 0 to the schedule's duration (or every
+    /// [`crate::planning::timing::MAX_POINTS`]-th of it when that would be more points), the
+    /// knots as its waypoints (a robot that waits keeps its configuration between two of
+    /// them), and `events[r]`. Within the joint limits when the schedule was timed with
+    /// acceleration limits (trapezoidal pieces); with velocity limits only, the velocity
+    /// jumps at the knots.
+    pub fn trajectories(
+        &self,
+        variables: &[Vec<String>],
+        period: f64,
+        mut events: Vec<Vec<manyhands_api::TrajectoryEvent>>,
+    ) -> Result<Vec<manyhands_api::JointTrajectory>, super::timing::TimingError> {
+        use super::timing::{check_sample_period, MAX_POINTS};
+        check_sample_period("sample_period", period)?;
+        let period = if self.duration / period + 2.0 > MAX_POINTS as f64 {
+            self.duration / (MAX_POINTS - 2) as f64
+        } else {
+            period
+        };
+        let samples: Vec<_> = {
+            let steps = (self.duration / period).floor() as usize;
+            let mut times: Vec<f64> = (0..=steps).map(|i| i as f64 * period).collect();
+            if (steps as f64) * period < self.duration {
+                times.push(self.duration);
+            }
+            times
+                .into_iter()
+                .map(|t| (t, self.full_state_at(t)))
+                .collect()
+        };
+        events.resize(variables.len(), Vec::new());
+        Ok(variables
+            .iter()
+            .zip(events)
+            .enumerate()
+            .map(|(r, (names, events))| manyhands_api::JointTrajectory {
+                joint_names: names.clone(),
+                points: samples
+                    .iter()
+                    .map(|(t, (p, v, a))| manyhands_api::TrajectoryPoint {
+                        positions: p[r].clone(),
+                        velocities: v[r].clone(),
+                        accelerations: a[r].clone(),
+                        time_from_start: *t,
+                    })
+                    .collect(),
+                sample_period: period,
+                duration: self.duration,
+                waypoints: self
+                    .knots
+                    .iter()
+                    .map(|k| manyhands_api::TimedWaypoint {
+                        positions: k.configs[r].clone(),
+                        time_from_start: k.time,
+                    })
+                    .collect(),
+                events,
+            })
+            .collect())
     }
 
     /// Samples at `period` seconds (and the end): `(time, positions per robot, velocities)`.

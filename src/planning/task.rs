@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use super::grasping::{attach_by_grasp, Hand, HandOffProblem, ReachProblem};
+use super::timing::{time_polyline, world_limits, TimingError, TimingOptions};
 use super::{
     DualArmJPlusRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError, PlanResult,
     PlanStats, RrtConnect, RrtConnectSettings, Termination,
@@ -656,10 +657,47 @@ pub fn world_variables(world: &CollisionWorld) -> Vec<String> {
 }
 
 impl TaskPlan {
-    /// JSON of the plan: variable names, waypoints (world configurations), phases with their
-    /// statistics (ms), events and the total time.
-    pub fn to_json(&self, variables: &[String]) -> serde_json::Value {
-        serde_json::json!({
+    /// The plan's time-optimal trajectory ([`super::timing`]) in `world` (the plan's world:
+    /// every robot of the scene), at rest at every grasp and release.
+    pub fn trajectory(
+        &self,
+        world: &CollisionWorld,
+        opts: &TimingOptions,
+    ) -> Result<manyhands_api::JointTrajectory, TimingError> {
+        let limits =
+            world_limits(world).scaled(opts.velocity_scaling, opts.acceleration_scaling)?;
+        let rest: Vec<usize> = self.events.iter().map(|e| e.waypoint).collect();
+        let timed = time_polyline(&self.waypoints, &limits, &rest)?;
+        let events = self
+            .events
+            .iter()
+            .map(|e| manyhands_api::TrajectoryEvent {
+                kind: match e.kind {
+                    EventKind::Grasp => "grasp".into(),
+                    EventKind::Release => "release".into(),
+                },
+                time_from_start: timed.waypoint_times[e.waypoint],
+                waypoint: Some(e.waypoint),
+                robot: e.robot.clone(),
+                end_effector: e.end_effector.clone(),
+                object: e.object.clone(),
+                grasp: e.grasp.clone(),
+            })
+            .collect();
+        timed.to_trajectory(&world_variables(world), opts.sample_period, events)
+    }
+
+    /// JSON of the plan in `world` (its scene's world): variable names, waypoints (world
+    /// configurations), phases with their statistics (ms), events, the total time and the
+    /// timed `trajectory` ([`Self::trajectory`]).
+    pub fn to_json(
+        &self,
+        world: &CollisionWorld,
+        opts: &TimingOptions,
+    ) -> Result<serde_json::Value, TimingError> {
+        let variables = world_variables(world);
+        let trajectory = self.trajectory(world, opts)?;
+        Ok(serde_json::json!({
             "variables": variables,
             "waypoints": self.waypoints,
             "phases": self.phases.iter().map(|p| serde_json::json!({
@@ -671,7 +709,8 @@ impl TaskPlan {
             })).collect::<Vec<_>>(),
             "events": self.events,
             "time_ms": self.time.as_secs_f64() * 1e3,
-        })
+            "trajectory": trajectory,
+        }))
     }
 
     /// Sum of the phases' statistics' times (search + simplification), IK time included.

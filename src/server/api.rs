@@ -16,6 +16,9 @@ pub use manyhands_api::{
     RegraspPlan, RobotDetail, RobotSummary, RobotUpload, SceneRobotConfig, SceneRobotInfo,
     SceneSummary, ScheduleRequest, ScheduleTrajectory, Source, TwoHandIkResponse,
 };
+pub use manyhands_api::{
+    JointTrajectory, TimedWaypoint, TrajectoryEvent, TrajectoryPoint, TrajectoryRequest,
+};
 
 use crate::geometry::PoseJson;
 use crate::model::GraspType;
@@ -29,6 +32,9 @@ pub struct GraspPlanSettings {
     pub p_ik: Option<f64>,
     pub ik_tries: Option<u64>,
     pub simplify: Option<bool>,
+    pub sample_period: Option<f64>,
+    pub velocity_scaling: Option<f64>,
+    pub acceleration_scaling: Option<f64>,
 }
 
 /// The request of a grasp-planner job kind (`reach`, `regrasp`, `kitchen_task`, `bimanual`):
@@ -48,6 +54,9 @@ macro_rules! grasp_settings {
                     p_ik: self.p_ik,
                     ik_tries: self.ik_tries,
                     simplify: self.simplify,
+                    sample_period: self.sample_period,
+                    velocity_scaling: self.velocity_scaling,
+                    acceleration_scaling: self.acceleration_scaling,
                 }
             }
         }

@@ -152,6 +152,9 @@ pub const MAX_UPLOAD_JOINTS: usize = 512;
 /// Most `<link>` elements of an uploaded URDF.
 pub const MAX_UPLOAD_LINKS: usize = 512;
 
+/// Largest joint-limits text of an upload (a few hundred bytes a joint).
+const MAX_JOINT_LIMITS_BYTES: usize = 1 << 20;
+
 /// Bounds an upload's size in joints and links before the model is built (422 naming `urdf`
 /// and the limit). Malformed XML is left to the URDF parser, which names the error.
 fn check_urdf_size(urdf: &str) -> ApiResult<()> {
@@ -333,7 +336,16 @@ impl Catalog {
 
     /// Validates and stores an uploaded robot (CPU work: call it off the async runtime).
     /// Returns true when it was created (false: replaced).
-    pub fn put_robot(&self, name: &str, urdf: &str, srdf: Option<&str>) -> ApiResult<bool> {
+    /// Adds or replaces an uploaded robot: URDF, optional SRDF and optional joint limits
+    /// (MoveIt's `joint_limits.yaml` text), kept under the data folder as
+    /// `NAME.urdf`, `NAME.srdf` and `NAME.joint_limits.yaml`.
+    pub fn put_robot(
+        &self,
+        name: &str,
+        urdf: &str,
+        srdf: Option<&str>,
+        joint_limits: Option<&str>,
+    ) -> ApiResult<bool> {
         check_name(name, "robot")?;
         check_urdf_size(urdf)?;
         check_urdf_meshes(urdf)?;
@@ -350,6 +362,17 @@ impl Catalog {
             };
             ApiError::from_model(&e, prefix)
         })?;
+        if let Some(text) = joint_limits {
+            if text.len() > MAX_JOINT_LIMITS_BYTES {
+                return Err(ApiError::invalid(
+                    "joint_limits",
+                    format!("more than {MAX_JOINT_LIMITS_BYTES} bytes"),
+                ));
+            }
+            robot
+                .apply_joint_limits(text, "joint_limits.yaml")
+                .map_err(|e| ApiError::from_model(&e, "joint_limits"))?;
+        }
         // Errors and answers name the robot as uploaded, not by the URDF's <robot name>.
         robot.name = name.to_string();
         let _w = self.write.lock().unwrap_or_else(lock_err);
@@ -383,6 +406,11 @@ impl Catalog {
             Some(s) => write_atomic(&srdf_path, s)?,
             None => remove_file(&srdf_path)?,
         }
+        let limits_path = self.robots_dir.join(format!("{name}.joint_limits.yaml"));
+        match joint_limits {
+            Some(s) => write_atomic(&limits_path, s)?,
+            None => remove_file(&limits_path)?,
+        }
         self.robots.write().unwrap_or_else(lock_err).insert(
             name.to_string(),
             Arc::new(RobotEntry::new(robot, Source::Uploaded)),
@@ -413,6 +441,7 @@ impl Catalog {
         }
         remove_file(&self.robots_dir.join(format!("{name}.urdf")))?;
         remove_file(&self.robots_dir.join(format!("{name}.srdf")))?;
+        remove_file(&self.robots_dir.join(format!("{name}.joint_limits.yaml")))?;
         self.robots.write().unwrap_or_else(lock_err).remove(name);
         Ok(())
     }

@@ -29,9 +29,9 @@ use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
 use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
 use crate::planning::task::{
-    bimanual_task, kitchen_task, reach_task, regrasp_task, world_variables, GraspAlgorithm,
-    KitchenTask, RegraspTask,
+    bimanual_task, kitchen_task, reach_task, regrasp_task, GraspAlgorithm, KitchenTask, RegraspTask,
 };
+use crate::planning::timing::{time_polyline, world_limits, TimingError, TimingOptions};
 use crate::planning::IkRrtSettings;
 use crate::reachability::{GridCache, GridRecipe, ReachError};
 
@@ -139,6 +139,7 @@ struct JointSpaceWork {
     goal: Vec<f64>,
     settings: RrtConnectSettings,
     seed: u64,
+    timing: TimingOptions,
 }
 
 fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
@@ -164,6 +165,7 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
     if r.robots.is_empty() {
         return Err(ApiError::invalid("robots", "at least one robot is planned"));
     }
+    let timing = timing_options(r.sample_period, r.velocity_scaling, r.acceleration_scaling)?;
     let entry = catalog.scene(&r.scene, "scene")?;
     let scene = &entry.scene;
     let world = entry.world();
@@ -232,6 +234,7 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
             goal,
             settings,
             seed: r.seed.unwrap_or(1),
+            timing,
         }),
         time_limit,
     })
@@ -256,6 +259,27 @@ pub(super) fn plan_failure(e: PlanError) -> JobFailure {
     }
 }
 
+/// A request's timing fields (`sample_period`, `velocity_scaling`, `acceleration_scaling`),
+/// checked (422 naming the field).
+pub(super) fn timing_options(
+    sample_period: Option<f64>,
+    velocity_scaling: Option<f64>,
+    acceleration_scaling: Option<f64>,
+) -> ApiResult<TimingOptions> {
+    TimingOptions::from_request(sample_period, velocity_scaling, acceleration_scaling)
+        .map_err(timing_invalid)
+}
+
+/// A timing error about the request, as its 422.
+pub(super) fn timing_invalid(e: TimingError) -> ApiError {
+    ApiError::invalid(e.field, e.reason)
+}
+
+/// A timing error after planning (the request's fields were checked before, so not expected).
+pub(super) fn timing_failure(e: TimingError) -> JobFailure {
+    plan_failure(PlanError::InvalidInput(format!("trajectory: {e}")))
+}
+
 impl JobWork for JointSpaceWork {
     fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
         let w = *self;
@@ -273,6 +297,14 @@ impl JobWork for JointSpaceWork {
         let res = planner
             .plan(&w.start, &[w.goal], &mut term, w.seed)
             .map_err(plan_failure)?;
+        // The timed trajectory of the planned variables, within their robots' limits.
+        let limits = world_limits(&w.world)
+            .select(&w.vars)
+            .scaled(w.timing.velocity_scaling, w.timing.acceleration_scaling)
+            .map_err(timing_failure)?;
+        let trajectory = time_polyline(&res.path, &limits, &[])
+            .and_then(|t| t.to_trajectory(&names, w.timing.sample_period, Vec::new()))
+            .map_err(timing_failure)?;
         Ok(json!({
             "planner": "rrt_connect",
             "collision_model": checker_kind,
@@ -281,6 +313,7 @@ impl JobWork for JointSpaceWork {
             "path": res.path,
             "goal_index": res.goal_index,
             "stats": stats_json(&res.stats),
+            "trajectory": trajectory,
         }))
     }
 }
@@ -578,6 +611,7 @@ struct GraspWork {
     planner: IkRrtSettings,
     ik: RandomizedIkSettings,
     seed: u64,
+    timing: TimingOptions,
 }
 
 fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Prepared> {
@@ -589,6 +623,11 @@ fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Pr
         _ => return Err(ApiError::invalid("kind", "not a grasp planner")),
     };
     let (limit, seed, planner, ik) = grasp_settings(&settings, default_p_ik, max)?;
+    let timing = timing_options(
+        settings.sample_period,
+        settings.velocity_scaling,
+        settings.acceleration_scaling,
+    )?;
     let entry = catalog.scene(scene_name, "scene")?;
     let scene = entry.scene.clone();
     let job = match req {
@@ -652,6 +691,7 @@ fn prepare_grasp(req: &PlanRequest, catalog: &Catalog, max: f64) -> ApiResult<Pr
             planner,
             ik,
             seed,
+            timing,
         }),
         time_limit: limit,
     })
@@ -737,7 +777,7 @@ impl JobWork for GraspWork {
             }
         }
         .map_err(plan_failure)?;
-        let vars = world_variables(&CollisionWorld::from_scene(s));
-        Ok(plan.to_json(&vars))
+        plan.to_json(&CollisionWorld::from_scene(s), &w.timing)
+            .map_err(timing_failure)
     }
 }

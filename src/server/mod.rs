@@ -28,6 +28,7 @@ pub mod pool;
 pub mod queries;
 pub mod resources;
 pub mod store;
+pub mod trajectories;
 pub mod viewer;
 
 use std::net::SocketAddr;
@@ -344,6 +345,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/v1/fk", post(queries::fk))
         .route("/v1/ik", post(queries::ik))
         .route("/v1/check", post(queries::check))
+        .route("/v1/trajectories", post(trajectories::time_path))
         .route("/v1/ik/grasp", post(grasp_ik::grasp_ik))
         .route("/v1/ik/dual-arm", post(dual_arm_ik::dual_arm_ik))
         .route("/v1/ik/base-placement", post(dual_arm_ik::base_placement))

@@ -11,8 +11,8 @@ use serde_json::{json, Value};
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
 use super::kinds::{
-    check_hand, check_object, grasp_settings, plan_failure, time_limit, JobContext, JobFailure,
-    JobWork, Prepared,
+    check_hand, check_object, grasp_settings, plan_failure, time_limit, timing_failure,
+    timing_options, JobContext, JobFailure, JobWork, Prepared,
 };
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::grasp::WrenchSpaceSettings;
@@ -51,6 +51,7 @@ struct MultiRobotWork {
     settings: MultiRobotSettings,
     seed: u64,
     sample_period: Option<f64>,
+    trajectory_period: f64,
 }
 
 pub fn prepare_multi_robot(
@@ -64,8 +65,12 @@ pub fn prepare_multi_robot(
         p_ik: r.p_ik,
         ik_tries: r.ik_tries,
         simplify: r.simplify,
+        sample_period: r.sample_period,
+        velocity_scaling: r.velocity_scaling,
+        acceleration_scaling: r.acceleration_scaling,
     };
     let (limit, seed, planner, ik) = grasp_settings(&settings, 0.03, max)?;
+    let timing = timing_options(r.sample_period, r.velocity_scaling, r.acceleration_scaling)?;
     let entry = catalog.scene(&r.scene, "scene")?;
     let scene = entry.scene.clone();
     let names: Vec<String> = match &r.robots {
@@ -127,10 +132,16 @@ pub fn prepare_multi_robot(
                 ik,
                 max_solutions,
                 deterministic: r.deterministic.unwrap_or(false),
+                phase: PhaseSpaceSettings {
+                    velocity_scaling: timing.velocity_scaling,
+                    acceleration_scaling: timing.acceleration_scaling,
+                    ..MultiRobotSettings::default().phase
+                },
                 ..MultiRobotSettings::default()
             },
             seed,
             sample_period,
+            trajectory_period: timing.sample_period,
         }),
         time_limit: limit,
     })
@@ -198,7 +209,8 @@ impl JobWork for MultiRobotWork {
             multi_robot_rrt(&p, &w.settings, &mut term, w.seed, &mut progress)
         }
         .map_err(plan_failure)?;
-        Ok(plan.to_json(&p, w.sample_period))
+        plan.to_json(&p, w.sample_period, w.trajectory_period)
+            .map_err(timing_failure)
     }
 }
 
@@ -213,6 +225,7 @@ struct ScheduleWork {
     settings: PhaseSpaceSettings,
     seed: u64,
     sample_period: Option<f64>,
+    trajectory_period: f64,
 }
 
 /// The trajectories of a `schedule` request resolved against its scene, each checked free in
@@ -333,48 +346,41 @@ fn resolve_trajectories(
                 ));
             }
         }
-        let accelerations = if t.accelerations.is_some() || t.max_acceleration.is_some() {
-            if let Some(a) = t.max_acceleration {
-                if !(a.is_finite() && a > 0.0) {
-                    return Err(ApiError::invalid(f("max_acceleration"), "must be > 0"));
-                }
+        // Acceleration limits: the request's by joint, else its max_acceleration, else the
+        // robot's (joint-limits file or default), so the schedule runs rest to rest.
+        if let Some(a) = t.max_acceleration {
+            if !(a.is_finite() && a > 0.0) {
+                return Err(ApiError::invalid(f("max_acceleration"), "must be > 0"));
             }
-            let map = t.accelerations.clone().unwrap_or_default();
-            for (name, &a) in &map {
-                let bare = name.strip_prefix(&format!("{}/", t.robot)).unwrap_or(name);
-                if !(0..dof).any(|v| model.var_name(v) == bare) {
-                    return Err(ApiError::invalid(
-                        f(&format!("accelerations.{name}")),
-                        format!("robot '{}' has no variable '{name}'", t.robot),
-                    ));
-                }
-                if !(a.is_finite() && a > 0.0) {
-                    return Err(ApiError::invalid(
-                        f(&format!("accelerations.{name}")),
-                        "must be > 0",
-                    ));
-                }
+        }
+        let map = t.accelerations.clone().unwrap_or_default();
+        for (name, &a) in &map {
+            let bare = name.strip_prefix(&format!("{}/", t.robot)).unwrap_or(name);
+            if !(0..dof).any(|v| model.var_name(v) == bare) {
+                return Err(ApiError::invalid(
+                    f(&format!("accelerations.{name}")),
+                    format!("robot '{}' has no variable '{name}'", t.robot),
+                ));
             }
-            let mut acc = Vec::with_capacity(dof);
-            for v in 0..dof {
-                let name = model.var_name(v);
-                let a = map
-                    .get(name)
-                    .or_else(|| map.get(&format!("{}/{name}", t.robot)))
-                    .copied()
-                    .or(t.max_acceleration)
-                    .ok_or_else(|| {
-                        ApiError::invalid(
-                            f("accelerations"),
-                            format!("no limit for '{name}' (give it or max_acceleration)"),
-                        )
-                    })?;
-                acc.push(a);
+            if !(a.is_finite() && a > 0.0) {
+                return Err(ApiError::invalid(
+                    f(&format!("accelerations.{name}")),
+                    "must be > 0",
+                ));
             }
-            Some(acc)
-        } else {
-            None
-        };
+        }
+        let accelerations = Some(
+            (0..dof)
+                .map(|v| {
+                    let name = model.var_name(v);
+                    map.get(name)
+                        .or_else(|| map.get(&format!("{}/{name}", t.robot)))
+                        .copied()
+                        .or(t.max_acceleration)
+                        .unwrap_or_else(|| model.acceleration_limit(v))
+                })
+                .collect(),
+        );
         names.push(t.robot.clone());
         out.push(RobotTrajectory {
             robot: r,
@@ -401,6 +407,7 @@ fn schedule_work(r: &ScheduleRequest, scene: Arc<Scene>, max: f64) -> ApiResult<
         ));
     }
     let sample_period = check_sample_period(r.sample_period)?;
+    let timing = timing_options(r.sample_period, r.velocity_scaling, r.acceleration_scaling)?;
     let world = CollisionWorld::from_scene(&scene);
     let world_q = CollisionWorld::start_config(&scene);
     let (trajectories, names) = resolve_trajectories(&scene, &world, &world_q, &r.trajectories)?;
@@ -421,10 +428,13 @@ fn schedule_work(r: &ScheduleRequest, scene: Arc<Scene>, max: f64) -> ApiResult<
             settings: PhaseSpaceSettings {
                 extend,
                 sequential_fallback: r.sequential_fallback.unwrap_or(true),
+                velocity_scaling: timing.velocity_scaling,
+                acceleration_scaling: timing.acceleration_scaling,
                 ..PhaseSpaceSettings::default()
             },
             seed: r.seed.unwrap_or(1),
             sample_period,
+            trajectory_period: timing.sample_period,
         }),
         time_limit: limit,
     })
@@ -440,6 +450,19 @@ fn run_schedule(
     let s = ps.plan(&w.settings, term, w.seed).map_err(plan_failure)?;
     let mut v = s.to_json(&w.names, w.sample_period);
     v["variables"] = json!(w.variables);
+    // Every robot's trajectory on the common clock (no grasps in a bare schedule).
+    let trajectories: serde_json::Map<String, Value> = w
+        .names
+        .iter()
+        .cloned()
+        .zip(
+            s.trajectories(&w.variables, w.trajectory_period, Vec::new())
+                .map_err(timing_failure)?
+                .into_iter()
+                .map(|t| json!(t)),
+        )
+        .collect();
+    v["trajectories"] = Value::Object(trajectories);
     Ok(v)
 }
 

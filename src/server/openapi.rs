@@ -36,7 +36,7 @@ impl Modify for BearerAuth {
         super::resources::list_robots, super::resources::get_robot, super::resources::get_robot_urdf, super::resources::put_robot,
         super::resources::delete_robot, super::resources::list_scenes, super::resources::get_scene,
         super::resources::put_scene, super::resources::delete_scene,
-        super::queries::fk, super::queries::ik, super::queries::check,
+        super::queries::fk, super::queries::ik, super::queries::check, super::trajectories::time_path,
         super::grasp_ik::grasp_ik, super::dual_arm_ik::dual_arm_ik, super::dual_arm_ik::base_placement,
         super::grasp_quality::grasp_quality,
         super::plans::submit, super::plans::list, super::plans::get, super::plans::cancel, super::plans::events,
@@ -49,12 +49,13 @@ impl Modify for BearerAuth {
         JobSummary, Health,
         GraspIkRequest, GraspIkResponse, DualArmIkRequest, BasePlacementRequest, RegionJson, TwoHandIkResponse,
         GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,
+        JointTrajectory, TrajectoryPoint, TimedWaypoint, TrajectoryEvent, TrajectoryRequest,
     )),
     modifiers(&BearerAuth),
     security(("bearer" = [])),
     tags(
         (name = "resources", description = "robots (URDF + SRDF) and scenes"),
-        (name = "queries", description = "synchronous FK, IK and collision checks"),
+        (name = "queries", description = "synchronous FK, IK, collision checks and trajectory timing"),
         (name = "plans", description = "asynchronous planning jobs"),
         (name = "operations", description = "health, readiness, metrics"),
     )

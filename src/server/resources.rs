@@ -148,7 +148,14 @@ pub async fn put_robot(
     let n = name.clone();
     let created = st
         .pool
-        .run_heavy(move || st2.catalog.put_robot(&n, &body.urdf, body.srdf.as_deref()))
+        .run_heavy(move || {
+            st2.catalog.put_robot(
+                &n,
+                &body.urdf,
+                body.srdf.as_deref(),
+                body.joint_limits.as_deref(),
+            )
+        })
         .await?;
     let e = st.catalog.robot(&name, "name")?;
     tracing::info!(robot = %name, created, "robot uploaded");

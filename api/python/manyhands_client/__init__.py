@@ -115,8 +115,14 @@ class Client:
     def robot(self, name: str) -> Json:
         return self._get(f"/v1/robots/{_segment(name)}")
 
-    def put_robot(self, name: str, urdf: str, srdf: Optional[str] = None) -> Json:
-        return self._request("PUT", f"/v1/robots/{_segment(name)}", {"urdf": urdf, "srdf": srdf})[2]
+    def put_robot(self, name: str, urdf: str, srdf: Optional[str] = None,
+                  joint_limits: Optional[str] = None) -> Json:
+        """PUT /v1/robots/NAME: URDF, optional SRDF and optional joint limits (MoveIt's
+        ``joint_limits.yaml`` text: velocity and acceleration limits for the trajectories)."""
+        body: Json = {"urdf": urdf, "srdf": srdf}
+        if joint_limits is not None:
+            body["joint_limits"] = joint_limits
+        return self._request("PUT", f"/v1/robots/{_segment(name)}", body)[2]
 
     def delete_robot(self, name: str) -> None:
         self._request("DELETE", f"/v1/robots/{_segment(name)}")
@@ -170,6 +176,15 @@ class Client:
         and/or of a scene object's grasps (``scene=..., object=..., grasps=[names]``); also
         ``mu``, ``cone_edges``, ``lambda``, ``soft_finger``."""
         return self._post("/v1/grasp-quality", {"contacts": contacts or [], **kw})
+
+    def time(self, robot: str, waypoints: List[List[float]], **kw: Any) -> Json:
+        """POST /v1/trajectories: the time-optimal trajectory of a path of ``robot`` (the shape of
+        ROS's JointTrajectory: ``joint_names``, ``points`` with ``positions``, ``velocities``,
+        ``accelerations``, ``time_from_start``; ``waypoints`` with their times); also
+        ``joint_names`` or ``group``, ``max_velocity`` / ``max_acceleration`` (by joint),
+        ``velocity_scaling``, ``acceleration_scaling``, ``sample_period``. Every plan answer has
+        the same ``trajectory`` (multi-robot ones: ``trajectories`` by robot)."""
+        return self._post("/v1/trajectories", {"robot": robot, "waypoints": waypoints, **kw})
 
     # -- jobs -------------------------------------------------------------------------------
     def submit(self, request: Json, wait: Optional[float] = None) -> Json:

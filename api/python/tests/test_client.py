@@ -123,6 +123,24 @@ class ClientTest(unittest.TestCase):
         self.assertEqual(e.exception.status, 422)
         self.assertEqual(e.exception.field, "region")
 
+    def test_trajectories(self) -> None:
+        t = self.c.time("armar", [[0.0] * 7, [0.3, 0.0, 0.0, -0.8, 0.0, 0.0, 0.2]],
+                        group="right_arm", sample_period=0.05)
+        self.assertEqual(len(t["joint_names"]), 7)
+        self.assertEqual(t["points"][0]["time_from_start"], 0.0)
+        self.assertAlmostEqual(t["points"][-1]["time_from_start"], t["duration"])
+        self.assertEqual(t["waypoints"][1]["time_from_start"], t["duration"])
+        with self.assertRaises(ApiError) as e:
+            self.c.time("armar", [[0.0] * 7], group="right_arm", velocity_scaling=0)
+        self.assertEqual((e.exception.status, e.exception.field), (422, "velocity_scaling"))
+        job = self.c.submit({"kind": "joint_space", "scene": "empty", "seed": 1,
+                             "robots": [{"name": "armar", "group": "right_arm",
+                                         "goal": {"right_elbow": -1.0}}]}, wait=30)
+        self.assertEqual(job["state"], "succeeded", job)
+        traj = job["result"]["trajectory"]
+        self.assertEqual(traj["joint_names"], job["result"]["joints"])
+        self.assertGreater(len(traj["points"]), 1)
+
     def test_errors_name_the_field(self) -> None:
         with self.assertRaises(ApiError) as e:
             self.c.fk("armar", {"right_elbow": 4.2})
@@ -166,6 +184,11 @@ class ClientTest(unittest.TestCase):
         self.assertEqual(self.c.put_robot("mini", MINI_URDF, MINI_SRDF)["name"], "mini")
         self.assertEqual(self.c.robot("mini")["dof"], 1)
         self.c.put_robot("mini", MINI_URDF)  # replaced, without SRDF
+        limits = ("joint_limits:\n  j1:\n    has_velocity_limits: true\n    max_velocity: 0.5\n"
+                  "    has_acceleration_limits: true\n    max_acceleration: 2\n")
+        self.c.put_robot("mini", MINI_URDF, joint_limits=limits)
+        # 1 rad at 0.5 rad/s, 2 rad/s²: 0.25 s up, 1.75 s cruise, 0.25 s down.
+        self.assertAlmostEqual(self.c.time("mini", [[0.0], [1.0]])["duration"], 2.25)
         self.c.delete_robot("mini")
         with self.assertRaises(ApiError) as e:
             self.c.robot("mini")

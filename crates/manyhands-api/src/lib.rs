@@ -9,7 +9,8 @@
 //! errors can name `robots[1].start.right_elbow`. Every 4xx/5xx answer is an [`ErrorBody`].
 //!
 //! Modules: [`resources`] robots, scenes and health; [`queries`] FK, IK and checks; [`grasp`]
-//! the grasp queries; [`plans`] the job kinds and jobs; [`error`] the error body. Everything is
+//! the grasp queries; [`plans`] the job kinds and jobs; [`trajectory`] timed trajectories;
+//! [`error`] the error body. Everything is
 //! also re-exported at the crate root.
 
 pub mod error;
@@ -17,6 +18,7 @@ pub mod grasp;
 pub mod plans;
 pub mod queries;
 pub mod resources;
+pub mod trajectory;
 
 pub use error::{ErrorBody, ErrorDetail};
 pub use grasp::{
@@ -36,4 +38,7 @@ pub use queries::{
 pub use resources::{
     EndEffectorInfo, GroupInfo, Health, JointInfo, RobotDetail, RobotSummary, RobotUpload,
     SceneRobotInfo, SceneSummary, Source,
+};
+pub use trajectory::{
+    JointTrajectory, TimedWaypoint, TrajectoryEvent, TrajectoryPoint, TrajectoryRequest,
 };

@@ -38,6 +38,15 @@ pub struct JointSpacePlan {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
     /// Shortcut the path (default true).
     #[serde(default)]
     pub simplify: Option<bool>,
@@ -98,6 +107,15 @@ pub struct ReachPlan {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
@@ -156,6 +174,15 @@ pub struct RegraspPlan {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
@@ -182,6 +209,15 @@ pub struct KitchenTaskPlan {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
@@ -215,6 +251,15 @@ pub struct BimanualPlan {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
@@ -281,9 +326,16 @@ pub struct MultiRobotRequest {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
-    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
+    /// Seconds between the points of every robot's `trajectories` entry (0.001..=10, default
+    /// 0.01); when given, the schedule is also sampled (`schedule.samples`).
     #[serde(default)]
     pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
 }
 
 /// One robot's trajectory for `kind: schedule`.
@@ -301,7 +353,7 @@ pub struct ScheduleTrajectory {
     /// Waypoints (at least one), each with one value per joint of `joints`.
     pub path: Vec<Vec<f64>>,
     /// Acceleration limits by joint name (rad/s² or m/s²); joints not named use
-    /// `max_acceleration`. Without either, only velocity limits (URDF) are respected.
+    /// `max_acceleration`, else the robot's (its `joint_limits.yaml`, default 1).
     #[serde(default)]
     pub accelerations: Option<HashMap<String, f64>>,
     #[serde(default)]
@@ -330,9 +382,16 @@ pub struct ScheduleRequest {
     pub time_limit: Option<f64>,
     #[serde(default)]
     pub seed: Option<u64>,
-    /// Also sample the schedule every that many seconds (0.001..=10; default: knots only).
+    /// Seconds between the points of every robot's `trajectories` entry (0.001..=10, default
+    /// 0.01); when given, the schedule is also sampled (`schedule.samples`).
     #[serde(default)]
     pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
 }
 
 /// `POST /v1/plans`: a problem, selected by `kind`.

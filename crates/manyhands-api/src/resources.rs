@@ -77,6 +77,11 @@ pub struct RobotUpload {
     /// SRDF text (groups, end effectors, disabled pairs, group states).
     #[serde(default)]
     pub srdf: Option<String>,
+    /// Velocity and acceleration limits in MoveIt's `joint_limits.yaml` format (YAML text:
+    /// `joint_limits: NAME: {has_velocity_limits, max_velocity, has_acceleration_limits,
+    /// max_acceleration}`), used to time the robot's plans.
+    #[serde(default)]
+    pub joint_limits: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -1,0 +1,154 @@
+//! A robot's velocity and acceleration limits in MoveIt's `joint_limits.yaml` format
+//! (`moveit_core/robot_model`, `joint_limits_interface`): `robots/NAME.joint_limits.yaml` next to
+//! `NAME.urdf`, read with the robot.
+//!
+//! ```yaml
+//! joint_limits:
+//!   right_elbow:
+//!     has_velocity_limits: true
+//!     max_velocity: 2.0
+//!     has_acceleration_limits: true
+//!     max_acceleration: 4.0
+//! ```
+//!
+//! As in MoveIt, a `max_velocity` with `has_velocity_limits: true` overrides the URDF's
+//! `<limit velocity>`. The other keys of MoveIt's format (`has_position_limits`, `min_position`,
+//! `max_position`, `has_jerk_limits`, `max_jerk`, `has_effort_limits`, `max_effort` and the
+//! top-level `default_velocity_scaling_factor` / `default_acceleration_scaling_factor`) are
+//! accepted and not used: positions come from the URDF, jerk is not limited (time-optimal
+//! parameterisation of the path under velocity and acceleration limits, see
+//! [`crate::planning::timing`]), and scaling is given per request. Unknown keys, unknown joints,
+//! mimic or fixed joints and limits that are not finite and > 0 are errors naming the element.
+//! Parsed with `yaml-rust2` (already the project's YAML reader for the MotionBenchMaker files).
+
+use yaml_rust2::{Yaml, YamlLoader};
+
+use super::{ModelError, Robot};
+
+/// Limits of one configuration variable from a joint-limits file (`None`: not given).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct VarDynamics {
+    pub velocity: Option<f64>,
+    pub acceleration: Option<f64>,
+}
+
+const KNOWN_KEYS: [&str; 12] = [
+    "has_velocity_limits",
+    "max_velocity",
+    "has_acceleration_limits",
+    "max_acceleration",
+    "has_position_limits",
+    "min_position",
+    "max_position",
+    "has_jerk_limits",
+    "max_jerk",
+    "has_effort_limits",
+    "max_effort",
+    "angle_wraps",
+];
+
+fn key_str(y: &Yaml) -> Option<&str> {
+    y.as_str()
+}
+
+fn number(y: &Yaml) -> Option<f64> {
+    match y {
+        Yaml::Real(_) => y.as_f64(),
+        Yaml::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+/// Parses `text` (a joint-limits file, `file` naming it in errors) into per-variable limits of
+/// `robot` (one entry per configuration variable).
+pub fn parse_joint_limits(
+    robot: &Robot,
+    text: &str,
+    file: &str,
+) -> Result<Vec<VarDynamics>, ModelError> {
+    let docs = YamlLoader::load_from_str(text).map_err(|e| ModelError::Syntax {
+        file: file.into(),
+        reason: e.to_string(),
+    })?;
+    let mut out = vec![VarDynamics::default(); robot.dof()];
+    let Some(doc) = docs.first() else {
+        return Ok(out);
+    };
+    let Some(top) = doc.as_hash() else {
+        return Err(ModelError::invalid(file, "(document)", "not a mapping"));
+    };
+    for (k, v) in top {
+        match key_str(k) {
+            Some("joint_limits") => {}
+            Some("default_velocity_scaling_factor" | "default_acceleration_scaling_factor") => {
+                continue
+            }
+            other => {
+                return Err(ModelError::invalid(
+                    file,
+                    other.unwrap_or("(key)"),
+                    "unknown key (expected joint_limits)",
+                ))
+            }
+        }
+        if v.is_null() {
+            continue;
+        }
+        let Some(joints) = v.as_hash() else {
+            return Err(ModelError::invalid(file, "joint_limits", "not a mapping"));
+        };
+        for (jk, jv) in joints {
+            let name = key_str(jk).unwrap_or("");
+            let el = format!("joint_limits.{name}");
+            let var = robot
+                .var(name)
+                .ok_or_else(|| ModelError::invalid(file, &el, "no such movable joint"))?;
+            let Some(entries) = jv.as_hash() else {
+                return Err(ModelError::invalid(file, &el, "not a mapping"));
+            };
+            let get = |key: &str| entries.get(&Yaml::String(key.into()));
+            for ek in entries.keys() {
+                let k = key_str(ek).unwrap_or("");
+                if !KNOWN_KEYS.contains(&k) {
+                    return Err(ModelError::invalid(
+                        file,
+                        format!("{el}.{k}"),
+                        "unknown key",
+                    ));
+                }
+            }
+            let limit = |has: &str, max: &str| -> Result<Option<f64>, ModelError> {
+                let on = match get(has) {
+                    None => false,
+                    Some(Yaml::Boolean(b)) => *b,
+                    Some(_) => {
+                        return Err(ModelError::invalid(
+                            file,
+                            format!("{el}.{has}"),
+                            "not true or false",
+                        ))
+                    }
+                };
+                if !on {
+                    return Ok(None);
+                }
+                let x = get(max).and_then(number).ok_or_else(|| {
+                    ModelError::invalid(file, format!("{el}.{max}"), "missing or not a number")
+                })?;
+                if !(x.is_finite() && x > 0.0) {
+                    return Err(ModelError::invalid(
+                        file,
+                        format!("{el}.{max}"),
+                        format!("{x} is not > 0"),
+                    ));
+                }
+                Ok(Some(x))
+            };
+            out[var] = VarDynamics {
+                velocity: limit("has_velocity_limits", "max_velocity")?,
+                acceleration: limit("has_acceleration_limits", "max_acceleration")?,
+            };
+        }
+    }
+    Ok(out)
+}
