@@ -210,5 +210,42 @@ async fn kitchen_plan_in_a_headless_browser() {
         changed * 500 > canvas,
         "the picture late in the plan barely differs from the start ({changed} of {canvas} pixels)"
     );
+
+    // A multi-robot plan: both robots on one clock and the phase-space panel shown.
+    let (status, job) = h
+        .post(
+            "/v1/plans?wait=120",
+            &json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table",
+                    "seed": 2, "s_min": 0.1, "deterministic": true}),
+        )
+        .await;
+    assert!(status.is_success(), "{status}: {job}");
+    assert_eq!(job["state"], "succeeded", "{job}");
+    let id = job["id"].as_str().expect("job id").to_string();
+    let bin = chromium().expect("chromium");
+    let base = h.base.clone();
+    let dom = tokio::task::spawn_blocking(move || {
+        let profile =
+            std::env::temp_dir().join(format!("manyhands-viewer-mr-{}", std::process::id()));
+        browse(
+            &bin,
+            &profile,
+            &format!("{base}/viewer?plan={id}&t=1"),
+            &["--dump-dom".into()],
+        )
+    })
+    .await
+    .expect("browser task");
+    assert!(
+        dom.contains("<title>manyhands viewer: ready</title>"),
+        "multi-robot page: status {:?}, errors {:?}",
+        element_text(&dom, "status"),
+        element_text(&dom, "errors")
+    );
+    assert_eq!(element_text(&dom, "errors").map(str::trim), Some(""));
+    assert!(
+        !dom.contains("<canvas id=\"phase\" hidden"),
+        "the phase-space panel is hidden for a multi-robot plan"
+    );
     h.server.shutdown().await.expect("shutdown");
 }
