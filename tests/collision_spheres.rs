@@ -138,6 +138,7 @@ fn twin_problems() -> (Arc<Robot>, MbmFile) {
             robot: "twin_arms".into(),
             joints,
             sets,
+            generated: false,
         },
     )
 }

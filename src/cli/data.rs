@@ -20,6 +20,33 @@ pub enum DataCmd {
     /// to problems.json. Into $MANYHANDS_CACHE_DIR/mbm, else $XDG_CACHE_HOME/manyhands/mbm, else
     /// ~/.cache/manyhands/mbm.
     Mbm(MbmDataArgs),
+    /// MotionBenchMaker-like problems for any robot (`planning::mbm_gen`): table, shelf and cage
+    /// scenes scaled to its reach, start and goal with the end effector inside them, written as
+    /// problems.json for `manyhands bench mbm --robot URDF --problems FILE`.
+    Problems(ProblemsArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ProblemsArgs {
+    /// The robot's URDF (its SRDF beside it, or --srdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    #[arg(long)]
+    pub srdf: Option<PathBuf>,
+    /// Joints to plan (comma-separated; default all the robot's variables).
+    #[arg(long, value_delimiter = ',')]
+    pub joints: Vec<String>,
+    /// Problems per set (table, shelf, cage), 1–1000.
+    #[arg(long, default_value_t = 20)]
+    pub per_set: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// RRT-Connect's iterations to solve a problem for it to be marked valid (1–10⁷).
+    #[arg(long, default_value_t = 20_000)]
+    pub solve_iterations: u64,
+    /// Output file (problems.json format).
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -120,7 +147,56 @@ fn folder_bytes(dir: &Path) -> u64 {
 pub fn run(ctx: &Ctx, cmd: &DataCmd) -> Result<()> {
     match cmd {
         DataCmd::Mbm(a) => mbm(ctx, a),
+        DataCmd::Problems(a) => problems(ctx, a),
     }
+}
+
+fn problems(ctx: &Ctx, a: &ProblemsArgs) -> Result<()> {
+    use manyhands::planning::mbm_gen;
+    if !(1..=1000).contains(&a.per_set) {
+        bail!("--per-set must be within 1..=1000, got {}", a.per_set);
+    }
+    if !(1..=10_000_000).contains(&a.solve_iterations) {
+        bail!("--solve-iterations must be within 1..=10000000");
+    }
+    let srdf = a.srdf.clone().or_else(|| {
+        let p = a.robot.with_extension("srdf");
+        p.is_file().then_some(p)
+    });
+    let robot = manyhands::Robot::from_files(&a.robot, srdf.as_deref())
+        .with_context(|| format!("loading {}", a.robot.display()))?;
+    let t0 = Instant::now();
+    let (file, stats) = mbm_gen::generate(
+        std::sync::Arc::new(robot),
+        &a.joints,
+        &mbm_gen::GenSettings {
+            per_set: a.per_set,
+            seed: a.seed,
+            solve_iterations: a.solve_iterations,
+        },
+    )?;
+    std::fs::write(&a.out, serde_json::to_string_pretty(&file)?)
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    if ctx.json {
+        println!(
+            "{}",
+            serde_json::json!({"out": a.out, "stats": stats, "generator": file["generator"]})
+        );
+    } else {
+        println!(
+            "{}: {} problems ({} valid: solved by RRT-Connect within {} iterations) in {} scenes, {} configurations drawn, {:.1} s; reach {:.3} m, tip {}",
+            a.out.display(),
+            stats.problems,
+            stats.valid,
+            a.solve_iterations,
+            stats.scenes_drawn,
+            stats.configurations_drawn,
+            t0.elapsed().as_secs_f64(),
+            file["generator"]["reach_m"].as_f64().unwrap_or(f64::NAN),
+            file["generator"]["tip_link"].as_str().unwrap_or("?"),
+        );
+    }
+    Ok(())
 }
 
 fn mbm(ctx: &Ctx, a: &MbmDataArgs) -> Result<()> {

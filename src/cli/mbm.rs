@@ -519,17 +519,22 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
                 runs.push(run_problem(&robot, &vars, p, &settings, a, trial, seed)?);
             }
         }
-        let vamp = vamp_median(&file.robot, &set.name);
+        let vamp = vamp_median(&file.robot, &set.name).filter(|_| !file.generated);
         let refs: Vec<&Run> = runs[first..].iter().collect();
         let s = summarize(&set.name, &refs, vamp);
         print_summary(ctx, &s);
         summaries.push(s);
     }
     let all: Vec<&Run> = runs.iter().collect();
-    let overall = summarize("overall", &all, vamp_median(&file.robot, "overall"));
+    let overall = summarize(
+        "overall",
+        &all,
+        vamp_median(&file.robot, "overall").filter(|_| !file.generated),
+    );
     print_summary(ctx, &overall);
     if !ctx.json {
         match file.robot.as_str() {
+            _ if file.generated => println!("problems made by `manyhands data problems` (MotionBenchMaker-like, planning::mbm_gen): no published reference figures apply."),
             "panda" => println!("VAMP 0.6.4 (../shared/benchmarks/mbm/README.md, 699 problems, one core, alternated with manyhands 7f3f3ea): median 72.9 µs, all solved. OMPL RRTConnect: median 5.2 ms."),
             "baxter" => println!("VAMP 0.6.4 (../shared/benchmarks/mbm/README.md, 1 470 problems, one core): 1 398 solved, median 8.09 ms."),
             _ => {}

@@ -111,6 +111,9 @@ struct FileJson {
     robot: String,
     joints: Vec<String>,
     problems: OrderedSets,
+    /// Written by [`super::mbm_gen`] (not MotionBenchMaker's own problems).
+    #[serde(default)]
+    generator: Option<serde_json::Value>,
 }
 
 /// One obstacle shape of a problem, in the robot's base frame.
@@ -148,6 +151,9 @@ pub struct MbmFile {
     /// Joint names in configuration order.
     pub joints: Vec<String>,
     pub sets: Vec<MbmSet>,
+    /// True for problems made by [`super::mbm_gen`] (MotionBenchMaker-like, not the
+    /// benchmark's own: no published reference figures apply).
+    pub generated: bool,
 }
 
 fn quat_pose(p: [f64; 3], xyzw: [f64; 4]) -> Result<Pose, String> {
@@ -258,6 +264,7 @@ impl MbmFile {
             robot: raw.robot,
             joints: raw.joints,
             sets,
+            generated: raw.generator.is_some(),
         })
     }
 

@@ -19,6 +19,7 @@ mod ik_rrt;
 pub mod j_plus_rrt;
 pub mod mbm;
 pub mod mbm_data;
+pub mod mbm_gen;
 pub mod multi_robot_rrt;
 pub mod phase_space;
 pub mod range;
