@@ -130,6 +130,79 @@ fn pose_json(p: &Pose) -> Value {
 
 /// `robot check`: the always-colliding pairs found at load ([`manyhands::collision::always`]),
 /// the revolute joints whose limits are ±π within the tolerance, and the load warnings.
+#[derive(clap::Args, Debug)]
+pub struct SpherizeArgs {
+    /// Model name (from the robots folder) or a path to a .urdf file.
+    pub robot: String,
+    /// Largest protrusion wanted beyond a box face or capsule surface, metres (0.001–0.5).
+    #[arg(long, default_value_t = 0.01)]
+    pub tolerance: f64,
+    /// Most spheres per collision primitive (2–4096).
+    #[arg(long, default_value_t = 64)]
+    pub max_per_shape: usize,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn robot_spherize(ctx: &Ctx, a: &SpherizeArgs) -> Result<()> {
+    use manyhands::model::spherize::{spherize, SpherizeSettings};
+    if !(0.001..=0.5).contains(&a.tolerance) {
+        bail!(
+            "--tolerance must be within [0.001, 0.5] m, got {}",
+            a.tolerance
+        );
+    }
+    if !(2..=4096).contains(&a.max_per_shape) {
+        bail!(
+            "--max-per-shape must be within 2..=4096, got {}",
+            a.max_per_shape
+        );
+    }
+    let r = ctx.robot(&a.robot)?;
+    let (s, report) = spherize(
+        &r,
+        &SpherizeSettings {
+            tolerance: a.tolerance,
+            max_per_shape: a.max_per_shape,
+        },
+    );
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let urdf = a.out.join(format!("{}.urdf", s.name));
+    let srdf = a.out.join(format!("{}.srdf", s.name));
+    std::fs::write(&urdf, manyhands::model::to_urdf(&s))?;
+    std::fs::write(&srdf, manyhands::model::to_srdf(&s))?;
+    // Read back as any user's robot would be: load-time checks (always-colliding pairs) apply.
+    let back = Robot::from_files(&urdf, Some(&srdf))
+        .with_context(|| format!("reading back {}", urdf.display()))?;
+    let spheres: usize = report.iter().map(|l| l.spheres).sum();
+    let worst = report.iter().map(|l| l.max_protrusion).fold(0.0, f64::max);
+    if ctx.json {
+        println!(
+            "{}",
+            json!({"urdf": urdf, "srdf": srdf, "spheres": spheres, "max_protrusion_m": worst,
+                   "links": report, "always_colliding_added": back.always_colliding.len()})
+        );
+    } else {
+        println!(
+            "{} → {}: {} spheres on {} links, largest protrusion {:.4} m; {} always-colliding pairs disabled at load",
+            r.name,
+            urdf.display(),
+            spheres,
+            report.len(),
+            worst,
+            back.always_colliding.len()
+        );
+        for l in &report {
+            println!(
+                "  {:<28} {:>3} primitives → {:>4} spheres, protrusion ≤ {:.4} m",
+                l.link, l.primitives, l.spheres, l.max_protrusion
+            );
+        }
+    }
+    Ok(())
+}
+
 pub fn robot_check(ctx: &Ctx, name: &str, srdf: Option<&Path>) -> Result<()> {
     use manyhands::collision::always;
     let r = match srdf {

@@ -119,6 +119,10 @@ pub enum RobotCmd {
         #[arg(long)]
         srdf: Option<std::path::PathBuf>,
     },
+    /// A conservative sphere model of the robot (`model::spherize`: spheres containing every
+    /// collision primitive), written as DIR/NAME_spherized.urdf and .srdf, for the SIMD sphere
+    /// checker; prints spheres and protrusion per link.
+    Spherize(commands::SpherizeArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -146,6 +150,9 @@ pub fn run() -> Result<()> {
         Command::Robot {
             cmd: RobotCmd::Check { robot, srdf },
         } => commands::robot_check(&ctx, robot, srdf.as_deref()),
+        Command::Robot {
+            cmd: RobotCmd::Spherize(a),
+        } => commands::robot_spherize(&ctx, a),
         Command::Fk(a) => commands::fk(&ctx, a),
         Command::Ik(a) => commands::ik(&ctx, a),
         Command::Check(a) => commands::check(&ctx, a),

@@ -11,6 +11,7 @@ mod joint_limits;
 mod library;
 mod robot;
 mod scene;
+pub mod spherize;
 mod srdf;
 mod urdf;
 mod write;
