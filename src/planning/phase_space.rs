@@ -906,5 +906,5 @@ impl PhaseSpace {
 mod schedule;
 mod svg;
 
-pub use schedule::Sample;
+pub use schedule::{FullState, Sample};
 pub use svg::phase_space_svg;

@@ -391,16 +391,13 @@ impl TimedPath {
             // The segment holding s (the last one starting at or before it).
             let k = (self.arc.partition_point(|&a| a <= s).max(1) - 1).min(n - 2);
             let d = s - self.arc[k];
-            for j in 0..dof {
-                let u = self.dirs[k][j];
-                positions[j] = self.waypoints[k][j] + d * u;
+            let (from, to) = (&self.waypoints[k], &self.waypoints[k + 1]);
+            for (j, &u) in self.dirs[k].iter().enumerate() {
+                // On the segment, between its two ends (rounding can step past its far end).
+                let (a, b) = (from[j], to[j]);
+                positions[j] = (a + d * u).clamp(a.min(b), a.max(b));
                 velocities[j] = u * sd;
                 accelerations[j] = u * sdd;
-            }
-            // On the segment, between its two ends (rounding can step past its far end).
-            for j in 0..dof {
-                let (a, b) = (self.waypoints[k][j], self.waypoints[k + 1][j]);
-                positions[j] = positions[j].clamp(a.min(b), a.max(b));
             }
         }
         TimedPoint {

@@ -22,6 +22,12 @@ fn err(field: impl Into<String>, reason: impl Into<String>) -> TimingError {
     }
 }
 
+/// Per-joint-name overrides of velocity (`.0`) and acceleration (`.1`) limits.
+pub type LimitOverrides<'a> = (
+    Option<&'a HashMap<String, f64>>,
+    Option<&'a HashMap<String, f64>>,
+);
+
 /// One path coordinate: the robot model it belongs to and its variable there.
 #[derive(Clone)]
 pub struct PathJoint {
@@ -34,7 +40,7 @@ pub struct PathJoint {
 pub fn path_limits(
     names: &[String],
     joints: &[PathJoint],
-    overrides: (Option<&HashMap<String, f64>>, Option<&HashMap<String, f64>>),
+    overrides: LimitOverrides<'_>,
     opts: &TimingOptions,
 ) -> Result<TimingLimits, TimingError> {
     let mut l = TimingLimits {

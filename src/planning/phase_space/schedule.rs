@@ -3,6 +3,9 @@
 
 use super::{Profile, Schedule};
 
+/// Every robot's positions, velocities and accelerations at one time.
+pub type FullState = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// A sample of a schedule: time, every robot's positions and velocities.
 pub type Sample = (f64, Vec<Vec<f64>>, Vec<Vec<f64>>);
 
@@ -40,7 +43,7 @@ impl Schedule {
     }
 
     /// Every robot's configuration, velocity and acceleration at time `t` of the common clock.
-    pub fn full_state_at(&self, t: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    pub fn full_state_at(&self, t: f64) -> FullState {
         let k = self
             .knots
             .partition_point(|k| k.time <= t)
