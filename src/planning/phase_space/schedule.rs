@@ -68,8 +68,9 @@ impl Schedule {
     }
 
     /// Each robot's trajectory on the common clock (`variables[r]`: the joint names of robot
-    /// r's configuration): points every `period` s from 0 to the schedule's duration (or every
-    /// [`crate::planning::timing::MAX_POINTS`]-th of it when that would be more points), the
+    /// r's configuration): points every `period` s from 0 to the schedule's duration (coarser
+    /// when that would exceed [`crate::planning::timing::MAX_POINTS`] points or
+    /// [`crate::planning::timing::MAX_VALUES`] values over all robots), the
     /// knots as its waypoints (a robot that waits keeps its configuration between two of
     /// them), and `events[r]`. Within the joint limits when the schedule was timed with
     /// acceleration limits (trapezoidal pieces); with velocity limits only, the velocity
@@ -80,10 +81,12 @@ impl Schedule {
         period: f64,
         mut events: Vec<Vec<manyhands_api::TrajectoryEvent>>,
     ) -> Result<Vec<manyhands_api::JointTrajectory>, crate::planning::timing::TimingError> {
-        use crate::planning::timing::{check_sample_period, MAX_POINTS};
+        use crate::planning::timing::{check_sample_period, MAX_POINTS, MAX_VALUES};
         check_sample_period("sample_period", period)?;
-        let period = if self.duration / period + 2.0 > MAX_POINTS as f64 {
-            self.duration / (MAX_POINTS - 2) as f64
+        let joints: usize = variables.iter().map(Vec::len).sum();
+        let max = MAX_POINTS.min(MAX_VALUES / joints.max(1)).max(3);
+        let period = if self.duration / period + 2.0 > max as f64 {
+            self.duration / (max - 2) as f64
         } else {
             period
         };
