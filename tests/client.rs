@@ -58,6 +58,9 @@ fn typed_requests_as_serialised_validate_against_the_spec() {
     assert_valid_body("/v1/ik/base-placement", &b);
     let q: GraspQualityRequest = req(json!({"scene": "kitchen", "object": "wok"}));
     assert_valid_body("/v1/grasp-quality", &q);
+    let t: TrajectoryRequest = req(json!({"robot": "armar", "group": "right_arm",
+        "waypoints": [[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]], "max_acceleration": {"right_elbow": 2.0}, "sample_period": 0.02}));
+    assert_valid_body("/v1/trajectories", &t);
     for plan in [
         json!({"kind": "joint_space", "scene": "empty",
             "robots": [{"name": "armar", "group": "right_arm", "goal": {"right_elbow": -1.0}}]}),
@@ -159,6 +162,14 @@ async fn client_covers_every_endpoint_kind() {
         .await
         .expect("grasp quality");
     assert_eq!(q.grasps.len(), 25);
+    let t = c
+        .time_path(&req(json!({"robot": "armar", "group": "right_arm",
+            "waypoints": [[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0]]})))
+        .await
+        .expect("trajectory");
+    // 1 rad of the elbow at 2 rad/s, 4 rad/s² (robots/armar.joint_limits.yaml): 1 s.
+    assert!((t.duration - 1.0).abs() < 1e-9, "{}", t.duration);
+    assert_eq!(t.points.len(), 101);
 
     // An API error carries status and field.
     let e = c

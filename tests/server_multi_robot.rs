@@ -9,6 +9,60 @@ use std::time::Duration;
 use reqwest::StatusCode;
 use serde_json::{json, Value};
 
+/// `result.trajectories`: one JointTrajectory per robot (`variables[k]` its joint names),
+/// sampled every `period` s on one clock (the schedule's duration), at rest at both ends, every
+/// point within the robot's velocity and acceleration limits, with `grasps` events each.
+fn assert_common_clock(
+    result: &Value,
+    names: &[&str],
+    variables: &[Value],
+    period: f64,
+    grasps: usize,
+) {
+    let armar = common::scene("kitchen_two").robots[0].robot.clone();
+    let duration = result["schedule"]["duration"]
+        .as_f64()
+        .or(result["duration"].as_f64())
+        .expect("duration");
+    let mut times: Option<Vec<Value>> = None;
+    for (name, vars) in names.iter().zip(variables) {
+        let t = &result["trajectories"][name];
+        assert_eq!(&t["joint_names"], vars, "{name}");
+        assert_eq!(t["sample_period"].as_f64(), Some(period), "{name}");
+        assert_eq!(t["duration"].as_f64(), Some(duration), "{name}");
+        assert_eq!(
+            t["events"].as_array().map(|e| e.len()),
+            Some(grasps),
+            "{name}"
+        );
+        let pts = t["points"].as_array().expect("points");
+        let these: Vec<Value> = pts.iter().map(|p| p["time_from_start"].clone()).collect();
+        if let Some(first) = &times {
+            assert_eq!(first, &these, "one clock");
+        }
+        times = Some(these);
+        assert!(pts.len() as f64 >= duration / period);
+        for (i, p) in pts.iter().enumerate() {
+            for (k, joint) in vars.as_array().expect("vars").iter().enumerate() {
+                let var = armar.var(joint.as_str().unwrap_or("")).expect("joint");
+                let v = p["velocities"][k].as_f64().expect("v").abs();
+                let a = p["accelerations"][k].as_f64().expect("a").abs();
+                assert!(
+                    v <= armar.velocity_limit(var) * (1.0 + 1e-6),
+                    "{name} {i} {joint}: v {v}"
+                );
+                assert!(
+                    a <= armar.acceleration_limit(var) * (1.0 + 1e-6),
+                    "{name} {i} {joint}: a {a}"
+                );
+                if i == 0 || i + 1 == pts.len() {
+                    assert!(v < 1e-12, "{name}: not at rest");
+                }
+            }
+        }
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn multi_robot_job_runs_end_to_end_with_events() {
     let h = start("multi-robot").await;
@@ -84,6 +138,17 @@ async fn multi_robot_job_runs_end_to_end_with_events() {
     assert_eq!(s, StatusCode::OK, "{v}");
     assert_eq!(v["state"], "succeeded", "{v}");
     assert!(v["result"]["duration"].as_f64().unwrap_or(0.0) > 0.0, "{v}");
+
+    // Every robot's JointTrajectory on the common clock, within armar's limits, in both.
+    let names = ["armar_a", "armar_b"];
+    let variables: Vec<Value> = r["robots"]
+        .as_array()
+        .expect("robots")
+        .iter()
+        .map(|rb| rb["variables"].clone())
+        .collect();
+    assert_common_clock(r, &names, &variables, 0.05, 2);
+    assert_common_clock(&v["result"], &names, &variables, 0.01, 0);
 
     // A trajectory through the table: refused, naming the robot and the waypoint.
     let bad = json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [

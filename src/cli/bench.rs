@@ -48,6 +48,9 @@ pub enum BenchCmd {
     /// Multi-Robot-RRT (002 Tables I and II): two robots in `kitchen_two`, three robots in
     /// `boxes_three` with 30 random boxes per seed; N seeded runs each, the paper's row beside.
     MultiRobot(super::multi_robot::BenchArgs),
+    /// Trajectory timing (TOPP-RA on the polyline): the kitchen task's path and 100-waypoint
+    /// Panda-like paths, median µs per parameterisation.
+    Timing(super::bench_timing::TimingBenchArgs),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -65,6 +68,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         BenchCmd::MultiRobot(a) => super::multi_robot::bench(ctx, a)?,
         BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
         BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
+        BenchCmd::Timing(a) => super::bench_timing::run(ctx, a)?,
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 mod bench;
 mod bench_ik;
 mod bench_planners;
+mod bench_timing;
 mod commands;
 mod data;
 mod grasp;

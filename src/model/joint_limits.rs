@@ -152,3 +152,63 @@ pub fn parse_joint_limits(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn armar() -> Robot {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        Robot::from_files(
+            &root.join("robots/armar.urdf"),
+            Some(&root.join("robots/armar.srdf")),
+        )
+        .expect("armar")
+    }
+
+    #[test]
+    fn moveit_files_parse_and_errors_name_the_element() {
+        let r = armar();
+        let elbow = r.var("right_elbow").expect("joint");
+        // Integers and reals, a limit switched off, MoveIt's other keys accepted.
+        let text = "default_velocity_scaling_factor: 0.1\njoint_limits:\n  right_elbow:\n    \
+            has_velocity_limits: true\n    max_velocity: 3\n    has_acceleration_limits: false\n    \
+            max_acceleration: 0\n    has_jerk_limits: false\n    max_jerk: 0\n";
+        let d = parse_joint_limits(&r, text, "f").expect("parse");
+        assert_eq!(d[elbow].velocity, Some(3.0));
+        assert_eq!(d[elbow].acceleration, None);
+        assert_eq!(d.iter().filter(|x| x.velocity.is_some()).count(), 1);
+        let mut r2 = r.clone();
+        r2.apply_joint_limits(text, "f").expect("apply");
+        assert_eq!(r2.velocity_limit(elbow), 3.0);
+        assert_eq!(
+            r2.acceleration_limit(elbow),
+            crate::planning::timing::DEFAULT_ACCELERATION
+        );
+        for (bad, element) in [
+            ("joint_limits:\n  nope: {}\n", "joint_limits.nope"),
+            (
+                "joint_limits:\n  right_elbow:\n    has_velocity_limits: true\n",
+                "joint_limits.right_elbow.max_velocity",
+            ),
+            (
+                "joint_limits:\n  right_elbow:\n    has_velocity_limits: yes please\n",
+                "joint_limits.right_elbow.has_velocity_limits",
+            ),
+            (
+                "joint_limits:\n  right_elbow:\n    max_speed: 1\n",
+                "joint_limits.right_elbow.max_speed",
+            ),
+            ("limits: {}\n", "limits"),
+        ] {
+            match parse_joint_limits(&r, bad, "f") {
+                Err(ModelError::Invalid { element: e, .. }) => assert_eq!(e, element, "{bad}"),
+                other => panic!("{bad}: {other:?}"),
+            }
+        }
+        assert!(matches!(
+            parse_joint_limits(&r, "joint_limits: [", "f"),
+            Err(ModelError::Syntax { .. })
+        ));
+    }
+}

@@ -60,6 +60,10 @@ pub const MAX_SAMPLE_PERIOD: f64 = 10.0;
 /// Most sampled points of one trajectory.
 pub const MAX_POINTS: usize = 100_000;
 
+/// Most sampled values (points × joints) of one trajectory, so that the answer (three numbers
+/// a value) stays bounded whatever the path's length and number of joints.
+pub const MAX_VALUES: usize = 500_000;
+
 /// Why a path could not be timed: the offending input (`field`, e.g. `waypoints[3][2]`) and the
 /// reason.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -391,16 +395,13 @@ impl TimedPath {
             // The segment holding s (the last one starting at or before it).
             let k = (self.arc.partition_point(|&a| a <= s).max(1) - 1).min(n - 2);
             let d = s - self.arc[k];
-            for j in 0..dof {
-                let u = self.dirs[k][j];
-                positions[j] = self.waypoints[k][j] + d * u;
+            let (from, to) = (&self.waypoints[k], &self.waypoints[k + 1]);
+            for (j, &u) in self.dirs[k].iter().enumerate() {
+                // On the segment, between its two ends (rounding can step past its far end).
+                let (a, b) = (from[j], to[j]);
+                positions[j] = (a + d * u).clamp(a.min(b), a.max(b));
                 velocities[j] = u * sd;
                 accelerations[j] = u * sdd;
-            }
-            // On the segment, between its two ends (rounding can step past its far end).
-            for j in 0..dof {
-                let (a, b) = (self.waypoints[k][j], self.waypoints[k + 1][j]);
-                positions[j] = positions[j].clamp(a.min(b), a.max(b));
             }
         }
         TimedPoint {
@@ -409,6 +410,11 @@ impl TimedPath {
             velocities,
             accelerations,
         }
+    }
+
+    /// Most points of a sampling of this path: [`MAX_POINTS`], and [`MAX_VALUES`] / joints.
+    pub fn max_points(&self) -> usize {
+        MAX_POINTS.min(MAX_VALUES / self.dof().max(1))
     }
 
     /// Number of points [`Self::sample`] gives at `period`.
@@ -423,16 +429,19 @@ impl TimedPath {
 
     /// States every `period` seconds from 0, and the final state at the duration. Fails
     /// (naming `field`) when the period is outside [`MIN_SAMPLE_PERIOD`, `MAX_SAMPLE_PERIOD`]
-    /// or gives more than [`MAX_POINTS`] points.
+    /// or gives more than [`Self::max_points`] points.
     pub fn sample(&self, period: f64, field: &str) -> Result<Vec<TimedPoint>, TimingError> {
         check_sample_period(field, period)?;
         let count = self.sample_count(period);
-        if count > MAX_POINTS {
+        if count > self.max_points() {
             return Err(err(
                 field,
                 format!(
-                    "a {:.3} s trajectory sampled every {period} s has more than {MAX_POINTS} points",
-                    self.duration
+                    "a {:.3} s trajectory of {} joints sampled every {period} s has more than {} \
+                     points ({MAX_POINTS} points, {MAX_VALUES} values at most)",
+                    self.duration,
+                    self.dof(),
+                    self.max_points()
                 ),
             ));
         }
@@ -447,12 +456,13 @@ impl TimedPath {
         Ok(out)
     }
 
-    /// The smallest period ≥ `period` whose sampling has at most [`MAX_POINTS`] points.
+    /// The smallest period ≥ `period` whose sampling has at most [`Self::max_points`] points.
     pub fn feasible_period(&self, period: f64) -> f64 {
-        if self.sample_count(period) <= MAX_POINTS {
+        let max = self.max_points();
+        if self.sample_count(period) <= max {
             period
         } else {
-            (self.duration / (MAX_POINTS - 2) as f64).max(period)
+            (self.duration / max.saturating_sub(2).max(1) as f64).max(period)
         }
     }
 }
@@ -523,7 +533,7 @@ impl TimingLimits {
 
 impl TimedPath {
     /// The trajectory as answered (`trajectory_msgs/JointTrajectory`'s shape): `joint_names`,
-    /// points every `period` s — or, when that would exceed [`MAX_POINTS`], every
+    /// points every `period` s — or, when that would exceed [`Self::max_points`], every
     /// [`Self::feasible_period`] s, as `sample_period` then says — the waypoints with their
     /// times, and `events`.
     pub fn to_trajectory(
@@ -615,5 +625,19 @@ mod tests {
         assert_eq!(p.duration, 0.0);
         assert_eq!(p.sample(0.01, "sample_period").expect("s").len(), 1);
         assert!(p.sample(0.0, "sample_period").is_err());
+        // A long 20-joint path: at most MAX_VALUES / 20 points; coarser when asked for more.
+        let long = time_polyline(
+            &[vec![0.0; 20], vec![1000.0; 20]],
+            &limits(1.0, 1.0, 20),
+            &[],
+        )
+        .expect("t");
+        assert_eq!(long.max_points(), MAX_VALUES / 20);
+        let e = long.sample(0.01, "sample_period").expect_err("too many");
+        assert_eq!(e.field, "sample_period");
+        let period = long.feasible_period(0.01);
+        assert!(period > 0.01);
+        let n = long.sample(period, "sample_period").expect("sampled").len();
+        assert!(n <= long.max_points() && n > long.max_points() / 2, "{n}");
     }
 }

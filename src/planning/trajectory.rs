@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use manyhands_api::{JointTrajectory, TrajectoryRequest};
 
-use super::timing::{time_polyline, TimingError, TimingLimits, TimingOptions, MAX_POINTS};
+use super::timing::{time_polyline, TimingError, TimingLimits, TimingOptions};
 use crate::Robot;
 
 /// Most waypoints of a path to time.
@@ -21,6 +21,12 @@ fn err(field: impl Into<String>, reason: impl Into<String>) -> TimingError {
         reason: reason.into(),
     }
 }
+
+/// Per-joint-name overrides of velocity (`.0`) and acceleration (`.1`) limits.
+pub type LimitOverrides<'a> = (
+    Option<&'a HashMap<String, f64>>,
+    Option<&'a HashMap<String, f64>>,
+);
 
 /// One path coordinate: the robot model it belongs to and its variable there.
 #[derive(Clone)]
@@ -34,7 +40,7 @@ pub struct PathJoint {
 pub fn path_limits(
     names: &[String],
     joints: &[PathJoint],
-    overrides: (Option<&HashMap<String, f64>>, Option<&HashMap<String, f64>>),
+    overrides: LimitOverrides<'_>,
     opts: &TimingOptions,
 ) -> Result<TimingLimits, TimingError> {
     let mut l = TimingLimits {
@@ -73,7 +79,8 @@ pub fn path_limits(
 
 /// Times `waypoints` of `joints` (named `names`; at rest at the waypoints `rest_at`) into a
 /// trajectory, refusing paths of more than [`MAX_WAYPOINTS`] waypoints and samplings of more
-/// than [`MAX_POINTS`] points (naming the field).
+/// than [`super::timing::MAX_POINTS`] points or [`super::timing::MAX_VALUES`] values (naming the
+/// field).
 pub fn time_named_path(
     names: &[String],
     waypoints: &[Vec<f64>],
@@ -99,15 +106,8 @@ pub fn time_named_path(
         }
     }
     let timed = time_polyline(waypoints, limits, rest_at)?;
-    if timed.sample_count(opts.sample_period) > MAX_POINTS {
-        return Err(err(
-            "sample_period",
-            format!(
-                "a {:.3} s trajectory sampled every {} s has more than {MAX_POINTS} points",
-                timed.duration, opts.sample_period
-            ),
-        ));
-    }
+    // Refused rather than sampled more coarsely than asked (sample() names the field).
+    timed.sample(opts.sample_period, "sample_period")?;
     timed.to_trajectory(names, opts.sample_period, Vec::new())
 }
 

@@ -499,7 +499,8 @@ pub struct Job {
     /// Latest progress (kind-specific counters: iterations, tree sizes, samples, …).
     #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
     pub progress: Option<Value>,
-    /// Result of a succeeded job (kind-specific; `joint_space`: `joints`, `path`, `stats`).
+    /// Result of a succeeded job (kind-specific; `joint_space`: `joints`, `path`, `stats`,
+    /// `trajectory`, a `JointTrajectory`; `multi_robot` and `schedule`: `trajectories` by robot).
     #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
     pub result: Option<Value>,
     pub error: Option<ErrorDetail>,

@@ -15,7 +15,8 @@ pub struct JointTrajectory {
     pub joint_names: Vec<String>,
     /// States every `sample_period` seconds from 0, and the last one at `duration`.
     pub points: Vec<TrajectoryPoint>,
-    /// Seconds between two points.
+    /// Seconds between two points: as requested, or coarser in a plan answer whose sampling
+    /// would exceed 100000 points or 500000 values (points × joints).
     pub sample_period: f64,
     /// Seconds from the first point to the last.
     pub duration: f64,
@@ -91,7 +92,8 @@ pub struct TrajectoryRequest {
     /// Factor (0, 1] on every acceleration limit (default 1), as MoveIt's.
     #[serde(default)]
     pub acceleration_scaling: Option<f64>,
-    /// Seconds between points (0.001..=10, default 0.01; at most 100000 points).
+    /// Seconds between points (0.001..=10, default 0.01; at most 100000 points and 500000
+    /// values, points × joints).
     #[serde(default)]
     pub sample_period: Option<f64>,
 }

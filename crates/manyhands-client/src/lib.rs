@@ -28,8 +28,9 @@ pub use manyhands_api as api;
 use manyhands_api::{
     BasePlacementRequest, CheckRequest, CheckResponse, DualArmIkRequest, ErrorBody, ErrorDetail,
     FkRequest, FkResponse, GraspIkRequest, GraspIkResponse, GraspQualityRequest,
-    GraspQualityResponse, Health, IkRequest, IkResponse, Job, JobList, PlanRequest, RobotDetail,
-    RobotSummary, RobotUpload, SceneSummary, TwoHandIkResponse,
+    GraspQualityResponse, Health, IkRequest, IkResponse, Job, JobList, JointTrajectory,
+    PlanRequest, RobotDetail, RobotSummary, RobotUpload, SceneSummary, TrajectoryRequest,
+    TwoHandIkResponse,
 };
 
 /// What a call can fail with.
@@ -249,7 +250,8 @@ impl Client {
         self.get(&format!("/v1/robots/{}", segment(name))).await
     }
 
-    /// `PUT /v1/robots/{name}`: URDF (+ SRDF) text, validated by the server.
+    /// `PUT /v1/robots/{name}`: URDF (+ SRDF, + MoveIt joint limits) text, validated by the
+    /// server.
     pub async fn put_robot(&self, name: &str, upload: &RobotUpload) -> ClientResult<Value> {
         self.put(&format!("/v1/robots/{}", segment(name)), upload)
             .await
@@ -322,6 +324,12 @@ impl Client {
         req: &GraspQualityRequest,
     ) -> ClientResult<GraspQualityResponse> {
         self.post("/v1/grasp-quality", req).await
+    }
+
+    /// `POST /v1/trajectories`: the time-optimal trajectory of a path of one robot (the
+    /// `trajectory` every plan answer carries has the same shape).
+    pub async fn time_path(&self, req: &TrajectoryRequest) -> ClientResult<JointTrajectory> {
+        self.post("/v1/trajectories", req).await
     }
 
     // --- planning jobs --------------------------------------------------------------------------
