@@ -48,7 +48,8 @@ use super::{IkRrtSettings, PlanError, PlanStats, StopReason, Termination};
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::grasp::{grasp_contacts, grasp_quality, object_centre, object_radius, Contact};
 use crate::grasp::{
-    primitive_wrenches_into, quality_of_wrenches, GraspError, GraspQuality, WrenchSpaceSettings,
+    primitive_wrenches_into, quality_of_wrenches_nearest, score_exceeds_nearest, GraspQuality,
+    Point6, WrenchSpaceSettings,
 };
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
@@ -303,53 +304,34 @@ impl MultiRobotProblem {
             .collect()
     }
 
-    /// Whether the score of a combination exceeds `s_min`, decided cheaply first: the cone
-    /// edges of m' = 2, 4, … dividing m are an exact subset of the m edges (every (m/m')-th
-    /// primitive wrench of each contact, taken from the same list), so their wrench hull lies
-    /// inside the full one and their ε is a lower bound of the full ε. The first level whose
-    /// ε exceeds `s_min` decides (`true`, its quality and m'); otherwise the full m decides.
-    /// Exact as a decision; the reported ε is the full one only when m' = m.
+    /// The primitive wrenches of all contacts of a combination (002 §IV-B) and λ.
+    pub fn combination_wrenches(
+        &self,
+        grasps: &[(usize, usize)],
+        wrench: &WrenchSpaceSettings,
+    ) -> Result<(Vec<Point6>, f64), PlanError> {
+        let (contacts, settings) = self.score_input(grasps, wrench);
+        let mut all = Vec::new();
+        let lambda = primitive_wrenches_into(&contacts, &self.centre, &settings, &mut all)
+            .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))?;
+        Ok((all, lambda))
+    }
+
+    /// Whether the score of a combination exceeds `s_min`, and the score: the exact ε of
+    /// [`MultiRobotProblem::score`] (the same verdict and value to round-off), computed by
+    /// [`quality_of_wrenches_nearest`], which grows the wrench hull only toward the origin
+    /// (`crate::grasp::hull` module `nearest`) instead of building all of it. Returns (pass,
+    /// quality, cone edges used = `wrench.cone_edges`).
     pub fn score_exceeds(
         &self,
         grasps: &[(usize, usize)],
         wrench: &WrenchSpaceSettings,
         s_min: f64,
     ) -> Result<(bool, GraspQuality, usize), PlanError> {
-        let (contacts, settings) = self.score_input(grasps, wrench);
-        let err = |e: GraspError| PlanError::InvalidInput(format!("grasp score: {e}"));
-        let mut all = Vec::new();
-        let lambda =
-            primitive_wrenches_into(&contacts, &self.centre, &settings, &mut all).map_err(err)?;
-        let m = settings.cone_edges;
-        // Soft-finger wrenches (none here) would break the per-contact stride.
-        let per = if contacts.is_empty() {
-            0
-        } else {
-            all.len() / contacts.len()
-        };
-        let mut levels: Vec<usize> = [2, 4, 8, 16]
-            .into_iter()
-            .filter(|&k| k < m && m % k == 0 && per == m)
-            .collect();
-        levels.push(m);
-        let mut sub = Vec::with_capacity(all.len());
-        for &k in &levels {
-            let q = if k == m {
-                quality_of_wrenches(&all, lambda).map_err(err)?
-            } else {
-                let stride = m / k;
-                sub.clear();
-                for c in 0..contacts.len() {
-                    sub.extend((0..k).map(|j| all[c * m + j * stride]));
-                }
-                quality_of_wrenches(&sub, lambda).map_err(err)?
-            };
-            let pass = q.force_closure && q.epsilon > s_min;
-            if pass || k == m {
-                return Ok((pass, q, k));
-            }
-        }
-        Err(PlanError::InvalidInput("grasp score: no level".into()))
+        let (all, lambda) = self.combination_wrenches(grasps, wrench)?;
+        let q = quality_of_wrenches_nearest(&all, lambda)
+            .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))?;
+        Ok((q.force_closure && q.epsilon > s_min, q, wrench.cone_edges))
     }
 }
 
@@ -409,9 +391,11 @@ pub struct MultiRobotStats {
     pub rejected_deadlock: u64,
     /// Collector collision checks (final poses and deadlock, certified segments count one each).
     pub collector_checks: u64,
-    /// Scoring: calls and total time.
+    /// Scoring: combinations scored, total time, and how many of them needed the exact ε
+    /// (a rejection's reported score, the accepted combination) beyond the cheap proof.
     pub scores: u64,
     pub score_time: Duration,
+    pub exact_scores: u64,
     pub best_score: f64,
 }
 
@@ -451,8 +435,9 @@ pub enum MultiRobotEvent<'a> {
 pub struct MultiRobotPlan {
     /// Per member: its solution.
     pub solutions: Vec<Solution>,
-    /// The score that passed, at `score_edges` cone edges (a lower bound of the score at the
-    /// requested edges when fewer, [`MultiRobotProblem::score_exceeds`]).
+    /// The score that passed: the exact ε at `score_edges` cone edges, which are the requested
+    /// ones ([`MultiRobotProblem::score_exceeds`]; the result JSON keeps `cone_edges` and
+    /// `lower_bound: false` for clients of the earlier cone-subset levels).
     pub score: GraspQuality,
     pub score_edges: usize,
     /// The cone edges the request asked for.
@@ -670,17 +655,34 @@ impl<'p> Collector<'p> {
         }
         let grasps: Vec<(usize, usize)> =
             (0..n).map(|k| self.solutions[k][idx[k]].grasps).collect();
+        // The score: a cheap proof that ε > s_min first; the exact ε only where it is reported
+        // (a rejection's score, the accepted combination).
         let t = Instant::now();
-        let q = self.p.score_exceeds(&grasps, &self.wrench, self.s_min);
+        let wrenches = self.p.combination_wrenches(&grasps, &self.wrench);
+        let passes = match &wrenches {
+            Ok((w, _)) => score_exceeds_nearest(w, self.s_min),
+            Err(_) => false,
+        };
         self.stats.scores += 1;
-        self.stats.score_time += t.elapsed();
-        let q = match q {
-            Ok((true, q, edges)) => {
-                self.score_edges = edges;
-                q
+        let mut exact = None;
+        if !passes {
+            let q = self.exact_score(&wrenches);
+            self.stats.score_time += t.elapsed();
+            match q {
+                Some(q) if q.force_closure && q.epsilon > self.s_min => exact = Some(q),
+                Some(q) => return Err((Rejection::Score, Some(q.epsilon))),
+                None => return Err((Rejection::Score, None)),
             }
-            Ok((false, q, _)) => return Err((Rejection::Score, Some(q.epsilon))),
-            Err(_) => return Err((Rejection::Score, None)),
+        } else {
+            self.stats.score_time += t.elapsed();
+        }
+        let mut exact = |c: &mut Collector<'_>| -> Option<GraspQuality> {
+            if exact.is_none() {
+                let t = Instant::now();
+                exact = c.exact_score(&wrenches);
+                c.stats.score_time += t.elapsed();
+            }
+            exact
         };
         for a in 0..n {
             for b in a + 1..n {
@@ -694,11 +696,26 @@ impl<'p> Collector<'p> {
                     }
                 };
                 if dead {
-                    return Err((Rejection::Deadlock, Some(q.epsilon)));
+                    let e = exact(self).map(|q| q.epsilon);
+                    return Err((Rejection::Deadlock, e));
                 }
             }
         }
-        Ok(q)
+        // Proven above s_min, so the exact computation agrees; a failure there (numerically
+        // degenerate hull) rejects the combination as the exact path alone would.
+        match exact(self) {
+            Some(q) if q.force_closure && q.epsilon > self.s_min => Ok(q),
+            Some(q) => Err((Rejection::Score, Some(q.epsilon))),
+            None => Err((Rejection::Score, None)),
+        }
+    }
+
+    /// The exact score of a combination's wrenches ([`quality_of_wrenches_nearest`]); `None`
+    /// when they cannot be scored.
+    fn exact_score(&mut self, w: &Result<(Vec<Point6>, f64), PlanError>) -> Option<GraspQuality> {
+        let (w, lambda) = w.as_ref().ok()?;
+        self.stats.exact_scores += 1;
+        quality_of_wrenches_nearest(w, *lambda).ok()
     }
 
     /// 002 eq. 2 for the pair (a, b): a's start and goal against b's trajectory, and b's
@@ -1005,6 +1022,7 @@ impl MultiRobotStats {
             },
             "best_score": self.best_score,
             "scores": self.scores,
+            "exact_scores": self.exact_scores,
             "score_time_ms_mean": if self.scores > 0 { ms(self.score_time) / self.scores as f64 } else { 0.0 },
             "workers": self.workers.iter().map(|w| json!({
                 "robot": w.name,
