@@ -15,7 +15,13 @@
 //! 1. the final configurations of all robots do not collide with each other;
 //! 2. the **grasp score** — the Ferrari–Canny ε of the L1 wrench space of all contacts of all
 //!    hands ([`crate::grasp`], centre of mass and λ = 1 / radius of the object, 002 §IV-B) —
-//!    exceeds s_min;
+//!    exceeds s_min. Decided without the whole wrench hull: first a proof that ε > s_min
+//!    ([`crate::grasp::score_exceeds_nearest`]: the hull grown toward the origin until all its
+//!    facets are farther than s_min plus the joggle bound), and the exact ε, where it is
+//!    reported (a rejection's score, the accepted combination), from the nearest facets alone
+//!    ([`crate::grasp::quality_of_wrenches_nearest`], the full hull's value and verdict, falling
+//!    back to the full hull where it cannot decide); `tests/grasp_nearest.rs` compares both
+//!    with the full hull;
 //! 3. the **deadlock check** (002 eq. 2): for every robot k, its start and its goal configuration
 //!    collide with no configuration on any other robot's trajectory, checked as continuous motion
 //!    ([`crate::collision::FastChecker::motion_certified`] on the robots alone, links and what

@@ -323,12 +323,9 @@ pub fn bimanual(left: &InverseMap, right: &InverseMap) -> Option<(InverseMap, Ve
     Some((bi, rights))
 }
 
-/// The right arm's answer for one right grasp in one [`ik_dual_arm`] try.
-#[derive(Clone, Copy)]
-enum RightSlot {
-    Unsolved,
-    Solved(usize, [[f64; 7]; 8]),
-}
+/// The right arm's answer for one right grasp in one [`ik_dual_arm`] try: `None` until solved,
+/// then the number of solutions and the solutions.
+type RightSlot = Option<(usize, [[f64; 7]; 8])>;
 
 /// A base-placement dual-arm answer: full configuration (base + hip + both arms).
 #[derive(Debug, Clone, PartialEq)]
@@ -450,11 +447,11 @@ pub fn ik_dual_arm_filtered<R: Rng + ?Sized>(
         let (linv, rinv) = ik.base_inverses(robot_base, &q);
         let rlist = &rights[k];
         right.clear();
-        right.resize(rlist.len(), RightSlot::Unsolved);
+        right.resize(rlist.len(), None);
         let solve_right =
             |j: usize, right: &mut Vec<RightSlot>, c: &mut IkCounters, rng: &mut R| {
-                if let RightSlot::Unsolved = right[j] {
-                    right[j] = match targets_right.get(rlist[j] as usize) {
+                if right[j].is_none() {
+                    right[j] = Some(match targets_right.get(rlist[j] as usize) {
                         Some(tr) => {
                             let mut sols = [[0.0; 7]; 8];
                             let n = solve_psi(
@@ -465,10 +462,10 @@ pub fn ik_dual_arm_filtered<R: Rng + ?Sized>(
                                 c,
                                 rng,
                             );
-                            RightSlot::Solved(n, sols)
+                            (n, sols)
                         }
-                        None => RightSlot::Solved(0, [[0.0; 7]; 8]),
-                    };
+                        None => (0, [[0.0; 7]; 8]),
+                    });
                 }
             };
         // A try whose right arm reaches none of the cell's right grasps cannot succeed: find the
@@ -476,7 +473,7 @@ pub fn ik_dual_arm_filtered<R: Rng + ?Sized>(
         let mut any_right = false;
         for j in 0..rlist.len() {
             solve_right(j, &mut right, &mut c, rng);
-            if matches!(right[j], RightSlot::Solved(n, _) if n > 0) {
+            if matches!(right[j], Some((n, _)) if n > 0) {
                 any_right = true;
                 break;
             }
@@ -504,7 +501,7 @@ pub fn ik_dual_arm_filtered<R: Rng + ?Sized>(
                 .to_config(&sols_l[rng.random_range(0..nl)], &mut q);
             for j in 0..rlist.len() {
                 solve_right(j, &mut right, &mut c, rng);
-                let RightSlot::Solved(nr, sols_r) = &right[j] else {
+                let Some((nr, sols_r)) = &right[j] else {
                     continue;
                 };
                 for s in &sols_r[..*nr] {
