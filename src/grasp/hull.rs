@@ -42,6 +42,11 @@
 //!    to round-off for well-conditioned faces and never below the true depth when the origin is
 //!    inside.
 //!
+//! 7. **Only the nearest facets** (submodule `nearest`, [`nearest_facet_depth`],
+//!    [`depth_exceeds`]): the same joggled points and steps 2 and 4, but only the facet nearest
+//!    to the origin is ever expanded (an expanding-polytope search), which gives the polished
+//!    depth of step 6 from a fraction of the facets, or proves a lower bound early.
+//!
 //! Hyperplanes: the normal of 6 points is the null vector of the 5×6 matrix of differences
 //! `v_k − v_0`, computed by modified Gram–Schmidt with re-orthogonalisation (each difference
 //! orthonormalised twice against the previous ones), then the unit coordinate axis with the largest

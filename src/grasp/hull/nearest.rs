@@ -30,12 +30,16 @@
 //! origin on or near the boundary, where the full hull's verdict depends on its polish), a
 //! numerical failure (the full hull would retry with a larger joggle), more than `max_facets`
 //! facets, or a grown hull that fails the local convexity check. When the nearest true facet has
-//! the origin clearly outside — even its polished support value below −slack — the origin is
-//! outside the hull ([`NearestDepth::Outside`]).
+//! the origin clearly outside — the support value h(n) = max_i n · p_i of the *unjoggled*
+//! points for its normal n below −slack, a separating direction — the origin is outside the
+//! hull ([`NearestDepth::Outside`]).
 //!
-//! Cost: O(N) per popped facet (the scan) plus quickhull's cost for the facets of hull(S); for
-//! the 160 wrenches of a 20-contact, 8-edge grasp the grown hull stays a fraction of the full
-//! one (`manyhands bench grasp-score` prints both).
+//! Cost: O(N) per popped facet (the scan) plus quickhull's cost for the facets of hull(S). On
+//! the kitchen_two table grasps with 8 cone edges (`manyhands bench multi-robot --only score`,
+//! one core of the loaded 2-core machine): 20 contacts (160 wrenches) grow a median 735 facets
+//! in 1.2 ms where the full hull has 14 400 facets in 57 ms; the collector's 8-contact
+//! combinations 1155 facets in 1.7 ms against 4800 in 12 ms. [`depth_exceeds`] stops far
+//! earlier (a median 40–60 µs there).
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashSet};
