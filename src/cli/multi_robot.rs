@@ -169,7 +169,7 @@ pub struct BenchArgs {
     /// Seconds per run (a run over it counts as a failure).
     #[arg(long, default_value_t = 5.0)]
     pub time_limit: f64,
-    /// Only the table whose name contains this (`two`, `three`, `panda`).
+    /// Only the table whose name contains this (`two`, `three`, `score`, `panda`).
     #[arg(long)]
     pub only: Option<String>,
     #[arg(long, default_value = "data/reach")]
@@ -452,8 +452,197 @@ pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
             "Table II: 8.9 s, 20.2 IK, 13.0 traj, 19434 checks, 37.1 combos, phase space 7.0 s",
         )?;
     }
+    if want("score") {
+        bench_score(ctx, a)?;
+    }
     if want("panda") {
         bench_panda_four(a)?;
     }
+    Ok(())
+}
+
+/// The collector's score of one combination (002 §IV-B) on real contact sets of the kitchen_two
+/// table grasps (two contacts each): `runs × 10` combinations of the two robots — per robot a
+/// random (cell, yaw) of its bimanual map R_bi and a left and a right grasp that cell reaches,
+/// i.e. pairs IkDualArm can return (8 contacts) — and as many sets of ten grasps at random
+/// (20 contacts, the size of 002 Fig. 7), scored by the collector's proof and nearest-facet ε and
+/// by the full wrench hull, alternated per set; medians in µs, and whether they agree.
+fn bench_score(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
+    use rand::{Rng, SeedableRng};
+    let scene = ctx.scene("kitchen_two")?;
+    let names = robot_names(&scene, &[]);
+    let cache = GridCache::new(Some(a.grid_dir.clone()));
+    let p = MultiRobotProblem::with_grids(
+        &scene,
+        &names,
+        "torso_left_arm",
+        "torso_right_arm",
+        "table",
+        &cache,
+        GridRecipe::default(),
+        Default::default(),
+    )?;
+    let wrench = MultiRobotSettings::default().wrench;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
+    let cells: Vec<Vec<usize>> = p
+        .members
+        .iter()
+        .map(|m| {
+            let (bi, rights) = &*m.problem.map;
+            (0..bi.value.len())
+                .filter(|&k| !bi.grasps[k].is_empty() && !rights[k].is_empty())
+                .collect()
+        })
+        .collect();
+    if cells.iter().any(|c| c.is_empty()) {
+        return Err(anyhow!("kitchen_two: a robot's bimanual map is empty"));
+    }
+    let combos = (a.runs * 10).max(1);
+    // The collector's combinations: two robots, two hands each.
+    let mut pairs = Vec::new();
+    for _ in 0..combos {
+        let grasps: Vec<(usize, usize)> = p
+            .members
+            .iter()
+            .zip(&cells)
+            .map(|(m, cells)| {
+                let (bi, rights) = &*m.problem.map;
+                let k = cells[rng.random_range(0..cells.len())];
+                let l = bi.grasps[k][rng.random_range(0..bi.grasps[k].len())] as usize;
+                let r = rights[k][rng.random_range(0..rights[k].len())] as usize;
+                (l, r)
+            })
+            .collect();
+        pairs.push(p.combination_wrenches(&grasps, &wrench)?);
+    }
+    // 20 contacts as in 002 Fig. 7: ten of the table's grasps (two contacts each) at random.
+    let table = scene
+        .object("table")
+        .ok_or_else(|| anyhow!("kitchen_two has no table"))?;
+    let (centre, _) = manyhands::grasp::object_centre(&table.body.shapes);
+    let radius = manyhands::grasp::object_radius(&table.body.shapes, &centre);
+    let ws = WrenchSpaceSettings {
+        lambda: Some(1.0 / radius),
+        ..wrench
+    };
+    let mut twenty = Vec::new();
+    for _ in 0..combos {
+        let mut contacts = Vec::new();
+        for _ in 0..10 {
+            let g = &table.grasps[rng.random_range(0..table.grasps.len())];
+            contacts.extend(manyhands::grasp::grasp_contacts(g));
+        }
+        let w = manyhands::grasp::primitive_wrenches(&contacts, &centre, &ws)?;
+        twenty.push((w, 1.0 / radius));
+    }
+    for (label, sets) in [
+        ("the collector's combinations (2 robots × 2 hands)", pairs),
+        (
+            "ten table grasps at random (002 Fig. 7's 20 contacts)",
+            twenty,
+        ),
+    ] {
+        score_rows(label, &sets, &wrench)?;
+    }
+    Ok(())
+}
+
+/// One block of `bench multi-robot --only score`: the proof, the exact nearest-facet ε and the
+/// full hull on `sets`, alternated per set; medians and p95 in µs.
+fn score_rows(
+    label: &str,
+    sets: &[(Vec<manyhands::grasp::Point6>, f64)],
+    wrench: &WrenchSpaceSettings,
+) -> Result<()> {
+    use manyhands::grasp::{
+        quality_of_wrenches, quality_of_wrenches_nearest, score_exceeds_nearest,
+    };
+    let combos = sets.len();
+    let (mut fast, mut full) = (Vec::new(), Vec::new());
+    let (mut grown, mut whole) = (Vec::new(), Vec::new());
+    let (mut agree, mut fc, mut contacts, mut max_rel) = (0u64, 0u64, 0usize, 0.0f64);
+    let s_min = MultiRobotSettings::default().s_min;
+    let (mut decide, mut proofs, mut wrong, mut fallbacks) = (Vec::new(), 0u64, 0u64, 0u64);
+    for (c, (w, lambda)) in sets.iter().enumerate() {
+        let lambda = *lambda;
+        contacts = contacts.max(w.len() / wrench.cone_edges);
+        let time = |f: &dyn Fn() -> Result<manyhands::grasp::GraspQuality, _>| {
+            let t = std::time::Instant::now();
+            let q = f();
+            (t.elapsed().as_secs_f64() * 1e6, q)
+        };
+        let run_fast = || quality_of_wrenches_nearest(w, lambda);
+        let run_full = || quality_of_wrenches(w, lambda);
+        let ((tf, qf), (tw, qw)) = if c % 2 == 0 {
+            let f = time(&run_fast);
+            (f, time(&run_full))
+        } else {
+            let w = time(&run_full);
+            (time(&run_fast), w)
+        };
+        let (qf, qw) = (qf?, qw?);
+        let t = std::time::Instant::now();
+        let proven = score_exceeds_nearest(w, s_min);
+        decide.push(t.elapsed().as_secs_f64() * 1e6);
+        if proven && !(qw.force_closure && qw.epsilon > s_min) {
+            wrong += 1;
+        }
+        proofs += u64::from(proven);
+        fallbacks += u64::from(qf.facets == qw.facets);
+        fast.push(tf);
+        full.push(tw);
+        grown.push(qf.facets as f64);
+        whole.push(qw.facets as f64);
+        let rel = (qf.epsilon - qw.epsilon).abs() / qw.epsilon.abs().max(1e-300);
+        if qf.force_closure == qw.force_closure && (qw.epsilon == 0.0 || rel <= 1e-9) {
+            agree += 1;
+        }
+        if qw.epsilon > 0.0 {
+            max_rel = max_rel.max(rel);
+        }
+        fc += u64::from(qw.force_closure);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let p95 = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(((v.len() as f64 * 0.95).ceil() as usize).clamp(1, v.len()) - 1)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    println!(
+        "kitchen_two grasp score, {label}: {combos} sets of {contacts} contacts (μ {}, {} cone edges), {fc} force closure",
+        wrench.mu, wrench.cone_edges
+    );
+    println!(
+        "  {:<36} {:>12} {:>12} {:>14}",
+        "", "median µs", "p95 µs", "median facets"
+    );
+    println!(
+        "  {:<36} {:>12.1} {:>12.1} {:>14}",
+        format!("proof ε > s_min = {s_min} (collector)"),
+        median(&mut decide),
+        p95(&mut decide),
+        "",
+    );
+    println!(
+        "  {:<36} {:>12.1} {:>12.1} {:>14.0}",
+        "exact nearest-facet ε (collector)",
+        median(&mut fast),
+        p95(&mut fast),
+        median(&mut grown)
+    );
+    println!(
+        "  {:<36} {:>12.1} {:>12.1} {:>14.0}",
+        "full wrench hull",
+        median(&mut full),
+        p95(&mut full),
+        median(&mut whole)
+    );
+    println!(
+        "  exact: agree with the full hull (verdict, ε within 1e-9 relative) {agree}/{combos}, largest relative ε difference {max_rel:.1e}, {fallbacks} decided by the full hull; proof: {proofs}/{combos} proven, {wrong} wrong"
+    );
     Ok(())
 }

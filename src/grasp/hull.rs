@@ -42,6 +42,11 @@
 //!    to round-off for well-conditioned faces and never below the true depth when the origin is
 //!    inside.
 //!
+//! 7. **Only the nearest facets** (submodule `nearest`, [`nearest_facet_depth`],
+//!    [`depth_exceeds`]): the same joggled points and steps 2 and 4, but only the facet nearest
+//!    to the origin is ever expanded (an expanding-polytope search), which gives the polished
+//!    depth of step 6 from a fraction of the facets, or proves a lower bound early.
+//!
 //! Hyperplanes: the normal of 6 points is the null vector of the 5×6 matrix of differences
 //! `v_k − v_0`, computed by modified Gram–Schmidt with re-orthogonalisation (each difference
 //! orthonormalised twice against the previous ones), then the unit coordinate axis with the largest
@@ -56,6 +61,10 @@
 //! facets in 1.5 ms, 4 contacts ≈ 1300 facets in 3.6 ms, 10 random contacts ≈ 5800 facets in
 //! about 40 ms, 20 about 14 000 facets in 0.1 s, 64 about 60 000 facets in 0.55 s; with 32 cone
 //! edges 64 contacts give 6.1e5 facets in 9 s.
+
+mod nearest;
+
+pub use nearest::{depth_exceeds, nearest_facet_depth, NearestDepth};
 
 use std::collections::hash_map::Entry;
 use std::collections::{HashMap, HashSet};
@@ -245,37 +254,48 @@ impl ConvexHull {
             .map(|(i, f)| (f.offset, i))
             .collect();
         cand.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let support = |n: &Point6| {
-            points
-                .iter()
-                .map(|p| dot(n, p))
-                .fold(f64::NEG_INFINITY, f64::max)
-        };
-        let well = 1e-6 * self.scale;
         let mut best = f64::INFINITY;
         for (off, i) in cand {
             if off - slack > best {
                 break;
             }
             let f = &self.facets[i];
-            best = best.min(support(&f.normal));
-            let o = points[f.vertices[0] as usize];
-            let mut q = [[0.0; DIM]; DIM];
-            let conditioned = (1..DIM).all(|k| {
-                let d = sub(&points[f.vertices[k] as usize], &o);
-                orthonormalise(&mut q, k - 1, d) >= well
-            });
-            if conditioned {
-                if let Some((mut n, _)) = complement(points, &f.vertices, &mut q) {
-                    if dot(&n, &f.normal) < 0.0 {
-                        n = n.map(|x| -x);
-                    }
-                    best = best.min(support(&n));
-                }
-            }
+            best = best.min(polished_support(points, &f.vertices, &f.normal, self.scale));
         }
         best
     }
+}
+
+/// The support value h(n) = max_i n · p_i of `points`.
+fn support(points: &[Point6], n: &Point6) -> f64 {
+    points
+        .iter()
+        .map(|p| dot(n, p))
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// One candidate facet of [`ConvexHull::support_depth`]: the smaller support value of `points`
+/// (unjoggled) over the facet's own unit normal and the normal of the hyperplane through its
+/// vertices taken unjoggled, when they are well conditioned (each Gram–Schmidt residual ≥
+/// 1e-6 × `scale`), oriented like `normal`.
+fn polished_support(points: &[Point6], vertices: &[u32; DIM], normal: &Point6, scale: f64) -> f64 {
+    let well = 1e-6 * scale;
+    let mut best = support(points, normal);
+    let o = points[vertices[0] as usize];
+    let mut q = [[0.0; DIM]; DIM];
+    let conditioned = (1..DIM).all(|k| {
+        let d = sub(&points[vertices[k] as usize], &o);
+        orthonormalise(&mut q, k - 1, d) >= well
+    });
+    if conditioned {
+        if let Some((mut n, _)) = complement(points, vertices, &mut q) {
+            if dot(&n, normal) < 0.0 {
+                n = n.map(|x| -x);
+            }
+            best = best.min(support(points, &n));
+        }
+    }
+    best
 }
 
 enum Fail {
@@ -294,6 +314,8 @@ struct F {
     /// Round in which the facet was found visible / examined.
     vis: u32,
     seen: u32,
+    /// Allocation stamp (slots are reused): tells a stale heap entry of [`nearest`] apart.
+    birth: u32,
 }
 
 /// The working state, reused across joggle attempts.
@@ -305,8 +327,49 @@ struct Builder {
     visible: Vec<u32>,
     new_ids: Vec<u32>,
     pending: Vec<u32>,
-    ridges: HashMap<[u32; DIM - 1], (u32, u8)>,
+    ridges: HashMap<[u32; DIM - 1], (u32, u8), RidgeHash>,
     orphans: Vec<u32>,
+    /// The initial simplex's vertices.
+    simplex: [u32; DIM + 1],
+    /// Facets allocated so far (the next [`F::birth`]).
+    births: u32,
+}
+
+/// A multiply-xor hasher for the ridge map (keys are 5 small vertex ids; SipHash's DoS
+/// resistance buys nothing here and costs most of a ridge lookup). The pairing of ridges does
+/// not depend on the hash, so the hull does not either.
+#[derive(Default, Clone, Copy)]
+struct RidgeHash;
+
+impl std::hash::BuildHasher for RidgeHash {
+    type Hasher = RidgeHasher;
+    fn build_hasher(&self) -> RidgeHasher {
+        RidgeHasher(0)
+    }
+}
+
+struct RidgeHasher(u64);
+
+impl std::hash::Hasher for RidgeHasher {
+    fn finish(&self) -> u64 {
+        self.0 ^ (self.0 >> 29)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for c in bytes.chunks(4) {
+            let mut w = [0u8; 4];
+            w[..c.len()].copy_from_slice(c);
+            self.write_u64(u64::from(u32::from_le_bytes(w)));
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(u64::from(x));
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7C_C1_B7_27_22_0A_95);
+    }
+    fn write_usize(&mut self, x: usize) {
+        self.write_u64(x as u64);
+    }
 }
 
 fn dot(a: &Point6, b: &Point6) -> f64 {
@@ -392,7 +455,9 @@ fn complement(pts: &[Point6], v: &[u32; DIM], q: &mut [Point6; DIM]) -> Option<(
 impl Builder {
     fn alloc(&mut self, v: [u32; DIM], normal: Point6, off: f64) -> u32 {
         self.live += 1;
+        self.births = self.births.wrapping_add(1);
         let f = F {
+            birth: self.births,
             v,
             n: [NONE; DIM],
             normal,
@@ -457,6 +522,82 @@ impl Builder {
         delta: f64,
         max_facets: usize,
     ) -> Result<(), Fail> {
+        let tau = 1e-10 * scale;
+        let interior = self.init(pts, scale, delta)?;
+        let n = pts.len();
+        let simplex = self.simplex;
+        for i in 0..n as u32 {
+            if simplex.contains(&i) {
+                continue;
+            }
+            let p = &pts[i as usize];
+            if let Some(f) = (0..=DIM as u32).find(|&f| self.dist(f, p) > tau) {
+                self.facets[f as usize].outside.push(i);
+            }
+        }
+        self.pending.extend(0..=DIM as u32);
+
+        let mut round = 0u32;
+        while let Some(f0) = self.pending.pop() {
+            let f0u = f0 as usize;
+            if !self.facets[f0u].alive || self.facets[f0u].outside.is_empty() {
+                continue;
+            }
+            round += 1;
+            // The apex: the farthest outside point.
+            let (apex, _) = self.facets[f0u]
+                .outside
+                .iter()
+                .fold((NONE, f64::MIN), |b, &i| {
+                    let d = self.dist(f0, &pts[i as usize]);
+                    if d > b.1 {
+                        (i, d)
+                    } else {
+                        b
+                    }
+                });
+            self.expand(pts, apex, f0, round, &interior, scale)?;
+            // Orphaned outside points go to the new facets (or are inside now).
+            self.orphans.clear();
+            for vi in 0..self.visible.len() {
+                let f = self.visible[vi] as usize;
+                self.orphans.extend_from_slice(&self.facets[f].outside);
+            }
+            for oi in 0..self.orphans.len() {
+                let i = self.orphans[oi];
+                if i == apex {
+                    continue;
+                }
+                let q = &pts[i as usize];
+                let hit = self
+                    .new_ids
+                    .iter()
+                    .copied()
+                    .find(|&nf| self.dist(nf, q) > tau);
+                if let Some(nf) = hit {
+                    self.facets[nf as usize].outside.push(i);
+                }
+            }
+            for vi in 0..self.visible.len() {
+                let f = self.visible[vi];
+                self.kill(f);
+            }
+            for ni in 0..self.new_ids.len() {
+                let nf = self.new_ids[ni];
+                if !self.facets[nf as usize].outside.is_empty() {
+                    self.pending.push(nf);
+                }
+            }
+            if self.live > max_facets {
+                return Err(Fail::Hard(HullError::TooManyFacets { limit: max_facets }));
+            }
+        }
+        self.check_convex(pts, delta)
+    }
+
+    /// Step 2 of the module docs: clears the state and builds the initial simplex's 7 facets
+    /// (ids 0..=6, facet k opposite simplex vertex k); returns the interior point.
+    fn init(&mut self, pts: &[Point6], scale: f64, delta: f64) -> Result<Point6, Fail> {
         self.facets.clear();
         self.free.clear();
         self.live = 0;
@@ -513,162 +654,119 @@ impl Builder {
             debug_assert_eq!(id as usize, k);
             self.facets[id as usize].n = nb;
         }
-        let in_simplex: HashSet<u32> = simplex.iter().copied().collect();
-        for i in 0..n as u32 {
-            if in_simplex.contains(&i) {
-                continue;
-            }
-            let p = &pts[i as usize];
-            if let Some(f) = (0..=DIM as u32).find(|&f| self.dist(f, p) > tau) {
-                self.facets[f as usize].outside.push(i);
-            }
-        }
-        self.pending.extend(0..=DIM as u32);
+        self.simplex = simplex;
+        Ok(interior)
+    }
 
-        let mut round = 0u32;
-        while let Some(f0) = self.pending.pop() {
-            let f0u = f0 as usize;
-            if !self.facets[f0u].alive || self.facets[f0u].outside.is_empty() {
-                continue;
-            }
-            round += 1;
-            // The apex: the farthest outside point.
-            let (apex, _) = self.facets[f0u]
-                .outside
-                .iter()
-                .fold((NONE, f64::MIN), |b, &i| {
-                    let d = self.dist(f0, &pts[i as usize]);
-                    if d > b.1 {
-                        (i, d)
-                    } else {
-                        b
-                    }
-                });
-            let p = &pts[apex as usize];
-            // Visible facets: breadth-first over adjacency from f0.
-            self.visible.clear();
-            self.visible.push(f0);
-            self.facets[f0u].vis = round;
-            self.facets[f0u].seen = round;
-            let mut head = 0;
-            while head < self.visible.len() {
-                let f = self.visible[head];
-                head += 1;
-                for k in 0..DIM {
-                    let g = self.facets[f as usize].n[k];
-                    if g == NONE {
-                        return Err(Fail::Numeric);
-                    }
-                    let gu = g as usize;
-                    if self.facets[gu].seen == round {
-                        continue;
-                    }
-                    self.facets[gu].seen = round;
-                    if self.dist(g, p) > tau {
-                        self.facets[gu].vis = round;
-                        self.visible.push(g);
-                    }
+    /// Step 4 of the module docs for apex `apex` above facet `f0`: finds the visible facets
+    /// (into `self.visible`, marked with `round`, not yet killed) by a breadth-first walk from
+    /// `f0`, builds a new facet on each horizon ridge (into `self.new_ids`) and links the new
+    /// facets to their non-visible neighbours and to each other.
+    fn expand(
+        &mut self,
+        pts: &[Point6],
+        apex: u32,
+        f0: u32,
+        round: u32,
+        interior: &Point6,
+        scale: f64,
+    ) -> Result<(), Fail> {
+        let tau = 1e-10 * scale;
+        let tiny = 1e-13 * scale;
+        let f0u = f0 as usize;
+        let p = &pts[apex as usize];
+        // Visible facets: breadth-first over adjacency from f0.
+        self.visible.clear();
+        self.visible.push(f0);
+        self.facets[f0u].vis = round;
+        self.facets[f0u].seen = round;
+        let mut head = 0;
+        while head < self.visible.len() {
+            let f = self.visible[head];
+            head += 1;
+            for k in 0..DIM {
+                let g = self.facets[f as usize].n[k];
+                if g == NONE {
+                    return Err(Fail::Numeric);
                 }
-            }
-            // Horizon → new facets.
-            self.new_ids.clear();
-            self.ridges.clear();
-            for vi in 0..self.visible.len() {
-                let f = self.visible[vi];
-                for k in 0..DIM {
-                    let g = self.facets[f as usize].n[k];
-                    if self.facets[g as usize].vis == round {
-                        continue;
-                    }
-                    let mut v = self.facets[f as usize].v;
-                    v[k] = apex;
-                    let (normal, off) = Self::oriented(pts, &v, &interior, tiny, tau)?;
-                    let nf = self.alloc(v, normal, off);
-                    self.facets[nf as usize].n[k] = g;
-                    let gn = &mut self.facets[g as usize].n;
-                    match gn.iter().position(|&x| x == f) {
-                        Some(j) => gn[j] = nf,
-                        None => return Err(Fail::Numeric),
-                    }
-                    self.new_ids.push(nf);
-                }
-            }
-            for ni in 0..self.new_ids.len() {
-                let nf = self.new_ids[ni];
-                let v = self.facets[nf as usize].v;
-                for i in 0..DIM {
-                    if v[i] == apex {
-                        continue;
-                    }
-                    let mut key = [0u32; DIM - 1];
-                    let mut s = 0;
-                    for (j, &x) in v.iter().enumerate() {
-                        if j != i {
-                            key[s] = x;
-                            s += 1;
-                        }
-                    }
-                    key.sort_unstable();
-                    match self.ridges.entry(key) {
-                        Entry::Vacant(e) => {
-                            e.insert((nf, i as u8));
-                        }
-                        Entry::Occupied(e) => {
-                            let (of, oi) = e.remove();
-                            if self.facets[nf as usize].n[i] != NONE
-                                || self.facets[of as usize].n[oi as usize] != NONE
-                            {
-                                return Err(Fail::Numeric);
-                            }
-                            self.facets[nf as usize].n[i] = of;
-                            self.facets[of as usize].n[oi as usize] = nf;
-                        }
-                    }
-                }
-            }
-            if !self.ridges.is_empty() {
-                return Err(Fail::Numeric);
-            }
-            // Orphaned outside points go to the new facets (or are inside now).
-            self.orphans.clear();
-            for vi in 0..self.visible.len() {
-                let f = self.visible[vi] as usize;
-                self.orphans.extend_from_slice(&self.facets[f].outside);
-            }
-            for oi in 0..self.orphans.len() {
-                let i = self.orphans[oi];
-                if i == apex {
+                let gu = g as usize;
+                if self.facets[gu].seen == round {
                     continue;
                 }
-                let q = &pts[i as usize];
-                let hit = self
-                    .new_ids
-                    .iter()
-                    .copied()
-                    .find(|&nf| self.dist(nf, q) > tau);
-                if let Some(nf) = hit {
-                    self.facets[nf as usize].outside.push(i);
+                self.facets[gu].seen = round;
+                if self.dist(g, p) > tau {
+                    self.facets[gu].vis = round;
+                    self.visible.push(g);
                 }
-            }
-            for vi in 0..self.visible.len() {
-                let f = self.visible[vi];
-                self.kill(f);
-            }
-            for ni in 0..self.new_ids.len() {
-                let nf = self.new_ids[ni];
-                if !self.facets[nf as usize].outside.is_empty() {
-                    self.pending.push(nf);
-                }
-            }
-            if self.live > max_facets {
-                return Err(Fail::Hard(HullError::TooManyFacets { limit: max_facets }));
             }
         }
+        // Horizon → new facets.
+        self.new_ids.clear();
+        self.ridges.clear();
+        for vi in 0..self.visible.len() {
+            let f = self.visible[vi];
+            for k in 0..DIM {
+                let g = self.facets[f as usize].n[k];
+                if self.facets[g as usize].vis == round {
+                    continue;
+                }
+                let mut v = self.facets[f as usize].v;
+                v[k] = apex;
+                let (normal, off) = Self::oriented(pts, &v, interior, tiny, tau)?;
+                let nf = self.alloc(v, normal, off);
+                self.facets[nf as usize].n[k] = g;
+                let gn = &mut self.facets[g as usize].n;
+                match gn.iter().position(|&x| x == f) {
+                    Some(j) => gn[j] = nf,
+                    None => return Err(Fail::Numeric),
+                }
+                self.new_ids.push(nf);
+            }
+        }
+        for ni in 0..self.new_ids.len() {
+            let nf = self.new_ids[ni];
+            let v = self.facets[nf as usize].v;
+            for i in 0..DIM {
+                if v[i] == apex {
+                    continue;
+                }
+                let mut key = [0u32; DIM - 1];
+                let mut s = 0;
+                for (j, &x) in v.iter().enumerate() {
+                    if j != i {
+                        key[s] = x;
+                        s += 1;
+                    }
+                }
+                key.sort_unstable();
+                match self.ridges.entry(key) {
+                    Entry::Vacant(e) => {
+                        e.insert((nf, i as u8));
+                    }
+                    Entry::Occupied(e) => {
+                        let (of, oi) = e.remove();
+                        if self.facets[nf as usize].n[i] != NONE
+                            || self.facets[of as usize].n[oi as usize] != NONE
+                        {
+                            return Err(Fail::Numeric);
+                        }
+                        self.facets[nf as usize].n[i] = of;
+                        self.facets[of as usize].n[oi as usize] = nf;
+                    }
+                }
+            }
+        }
+        if !self.ridges.is_empty() {
+            return Err(Fail::Numeric);
+        }
+        Ok(())
+    }
 
-        // Local convexity: every neighbour's opposite vertex lies below the facet, up to the
-        // joggle (sliver normals err by about round-off / joggle ≈ 1e-10 relative; a wrong
-        // visibility decision gives errors far larger than the joggle).
-        let tol = delta;
+    /// Step 5's local convexity: every live facet's neighbours are live and their opposite
+    /// vertex lies below the facet, up to `tol` (the joggle: sliver normals err by about
+    /// round-off / joggle ≈ 1e-10 relative; a wrong visibility decision gives errors far larger
+    /// than the joggle).
+    fn check_convex(&self, pts: &[Point6], tol: f64) -> Result<(), Fail> {
         for f in 0..self.facets.len() {
             if !self.facets[f].alive {
                 continue;

@@ -41,12 +41,16 @@ use nalgebra::{Point3, Vector3};
 
 use crate::geometry::{Geometry, Shape};
 
-pub use hull::{ConvexHull, Facet, HullError, HullOptions, Point6};
+pub use hull::{
+    depth_exceeds, nearest_facet_depth, ConvexHull, Facet, HullError, HullOptions, NearestDepth,
+    Point6,
+};
 pub use object::{grasp_contacts, score_object_grasps, ObjectGraspScores};
 pub use wrench_space::{
-    grasp_quality, primitive_wrenches, primitive_wrenches_into, quality_of_wrenches, tangents,
-    wrench_rank, Contact, GraspError, GraspQuality, WrenchSpaceSettings, MAX_CONE_EDGES,
-    MAX_CONTACTS, MAX_FACETS, MIN_CONE_EDGES, RANK_RTOL,
+    grasp_quality, primitive_wrenches, primitive_wrenches_into, quality_of_wrenches,
+    quality_of_wrenches_nearest, score_exceeds_nearest, tangents, wrench_rank, Contact, GraspError,
+    GraspQuality, WrenchSpaceSettings, MAX_CONE_EDGES, MAX_CONTACTS, MAX_FACETS, MIN_CONE_EDGES,
+    RANK_RTOL,
 };
 
 /// Centre of mass and radius of a body made of `shapes` (poses in the body frame), assuming

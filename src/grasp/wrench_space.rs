@@ -9,7 +9,9 @@
 use nalgebra::{DMatrix, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::hull::{ConvexHull, HullError, HullOptions, Point6};
+use super::hull::{
+    depth_exceeds, nearest_facet_depth, ConvexHull, HullError, HullOptions, NearestDepth, Point6,
+};
 
 /// At most this many contacts per grasp (a 64-contact grasp with 32 cone edges is 2048
 /// primitive wrenches).
@@ -362,4 +364,77 @@ pub fn quality_of_wrenches(wrenches: &[Point6], lambda: f64) -> Result<GraspQual
         q.epsilon = depth;
     }
     Ok(q)
+}
+
+/// [`quality_of_wrenches`] without the whole hull: the same force-closure verdict and ε (to
+/// round-off), from [`nearest_facet_depth`], which grows the hull only toward the origin and
+/// polishes the same candidate facets against the unjoggled wrenches; what it cannot decide
+/// (the origin on or within the polish slack of the boundary, numerical trouble) is decided by
+/// [`quality_of_wrenches`] itself. `facets` counts the facets of the grown hull (the whole hull's
+/// when it was needed). Used by the Multi-Robot-RRT collector (002 §IV-B), which scores every
+/// combination of 20 contacts.
+pub fn quality_of_wrenches_nearest(
+    wrenches: &[Point6],
+    lambda: f64,
+) -> Result<GraspQuality, GraspError> {
+    if let Some(i) = wrenches
+        .iter()
+        .position(|w| w.iter().any(|c| !c.is_finite()))
+    {
+        return Err(GraspError::NonFinite {
+            field: format!("wrenches[{i}]"),
+        });
+    }
+    let rank = wrench_rank(wrenches);
+    let mut q = GraspQuality {
+        force_closure: false,
+        epsilon: 0.0,
+        rank,
+        wrenches: wrenches.len(),
+        facets: 0,
+        lambda,
+    };
+    if rank < 6 {
+        return Ok(q);
+    }
+    match nearest_facet_depth(wrenches, MAX_FACETS) {
+        Ok(NearestDepth::Inside { depth, facets }) => {
+            let scale = wrenches
+                .iter()
+                .flat_map(|p| p.iter())
+                .fold(0.0f64, |m, c| m.max(c.abs()));
+            q.facets = facets;
+            if depth > 1e-9 * scale {
+                q.force_closure = true;
+                q.epsilon = depth;
+            }
+            Ok(q)
+        }
+        Ok(NearestDepth::Outside { facets }) => {
+            q.facets = facets;
+            Ok(q)
+        }
+        Err(HullError::Flat) | Err(HullError::TooFewPoints(_)) => Ok(q),
+        Ok(NearestDepth::Undecided) | Ok(NearestDepth::Above { .. }) | Err(_) => {
+            quality_of_wrenches(wrenches, lambda)
+        }
+    }
+}
+
+/// The collector's cheap acceptance (002 §IV-B, Alg. 3 line 10): `true` when ε of `wrenches`
+/// provably exceeds `s_min` ≥ 0 — rank 6 and [`depth_exceeds`], which stops growing the hull as
+/// soon as all of its facets are farther than `s_min` plus the joggle bound — so
+/// [`quality_of_wrenches`] would say force closure with ε > `s_min` too. `false` means *not
+/// decided*: the exact [`quality_of_wrenches_nearest`] decides (and gives the value).
+pub fn score_exceeds_nearest(wrenches: &[Point6], s_min: f64) -> bool {
+    if !(s_min.is_finite() && s_min >= 0.0)
+        || wrenches.iter().flatten().any(|c| !c.is_finite())
+        || wrench_rank(wrenches) < 6
+    {
+        return false;
+    }
+    matches!(
+        depth_exceeds(wrenches, MAX_FACETS, s_min),
+        Ok(NearestDepth::Above { .. })
+    )
 }

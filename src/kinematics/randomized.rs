@@ -65,6 +65,9 @@ pub struct IkCounters {
     pub collision_checks: u64,
     /// Moves of the gradient ascent in reachability space (000 §II-C).
     pub gradient_steps: u64,
+    /// Tries whose sampled base pose was rejected before any arm was solved (IkDualArm's
+    /// base test, [`crate::reachability::inverse::ik_dual_arm_filtered`]).
+    pub rejected_bases: u64,
 }
 
 impl IkCounters {
@@ -77,6 +80,7 @@ impl IkCounters {
         self.ik_solutions += o.ik_solutions;
         self.collision_checks += o.collision_checks;
         self.gradient_steps += o.gradient_steps;
+        self.rejected_bases += o.rejected_bases;
     }
 }
 

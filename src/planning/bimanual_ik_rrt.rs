@@ -1,6 +1,6 @@
 //! Bimanual IK-RRT (paper 002 = Vahrenkamp et al. 2010, §IV-A, Alg. 2): a bi-directional RRT over
 //! the whole body of a mobile two-armed robot — platform (x, y, yaw) + hip + both arms, 20 DoF for
-//! ARMAR — whose goal tree is fed by IkDualArm (002 Alg. 1, [`ik_dual_arm`]): base poses sampled
+//! ARMAR — whose goal tree is fed by IkDualArm (002 Alg. 1, [`ik_dual_arm`](crate::reachability::inverse::ik_dual_arm)): base poses sampled
 //! from the bimanual inverse reachability map R_bi = min(R_left, R_right) of the object's grasps,
 //! both arms solved analytically for the grasps the sampled cell lists. With probability p_IK
 //! (0.03 in the paper's evaluation, 002 §VI) or while the goal tree is empty an iteration asks
@@ -26,7 +26,9 @@ use crate::geometry::Pose;
 use crate::kinematics::dual_arm::DualArmIk;
 use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
 use crate::model::{Robot, Scene};
-use crate::reachability::inverse::{bimanual, ik_dual_arm, inverse_map, placement_cdf, InverseMap};
+use crate::reachability::inverse::{
+    bimanual, ik_dual_arm_filtered, inverse_map, placement_cdf, InverseMap,
+};
 use crate::reachability::queries::grasp_set;
 use crate::reachability::ReachabilityGrid;
 
@@ -88,6 +90,55 @@ pub struct BimanualProblem {
     pub map_time: Duration,
     base_vars: [usize; 3],
     ik: Arc<DualArmIk>,
+    /// IkDualArm's base test: the bodies the base variables alone place, against the scene
+    /// ([`base_checker`]); `None` when the robot holds an object.
+    base_checker: Option<FastChecker>,
+}
+
+/// A checker of what a sampled base pose alone decides (002 Alg. 1 before the arms are
+/// solved): the world with the links of robot `r` that some non-base joint moves stripped of
+/// their geometry, so only the platform (every link whose movable ancestor joints are all base
+/// joints) is checked against the obstacles, the resting objects and the other robots (at their
+/// configuration in `world_q`, as the goal check sees them). The remaining pairs are pairs the
+/// full goal check tests with the same fast model, so a base pose it rejects fails every
+/// configuration with that base. `None` when an object is attached to the robot (its pose would
+/// follow the arms).
+pub fn base_checker(
+    world: &CollisionWorld,
+    world_q: &[f64],
+    r: usize,
+    base_vars: &[usize; 3],
+) -> Option<FastChecker> {
+    if world.attached.iter().any(|a| a.robot == r) {
+        return None;
+    }
+    let placed = world.robots.get(r)?;
+    let robot = &placed.robot;
+    let rigid = |mut l: usize| -> bool {
+        while let Some(j) = robot.links[l].parent_joint {
+            let joint = &robot.joints[j];
+            if joint.is_movable() && !joint.var.is_some_and(|v| base_vars.contains(&v)) {
+                return false;
+            }
+            l = joint.parent;
+        }
+        true
+    };
+    let mut stripped = (**robot).clone();
+    for l in 0..stripped.links.len() {
+        if !rigid(l) {
+            stripped.links[l].collision.clear();
+        }
+    }
+    let mut w = world.clone();
+    w.robots[r].robot = Arc::new(stripped);
+    let active: Vec<usize> = base_vars.iter().map(|v| v + placed.offset).collect();
+    Some(FastChecker::for_active(
+        &w,
+        Default::default(),
+        &active,
+        world_q,
+    ))
 }
 
 fn invalid(e: impl std::fmt::Display) -> PlanError {
@@ -239,6 +290,7 @@ impl BimanualProblem {
                 .with_bounds(0, lo[0] - m, hi[0] + m)?
                 .with_bounds(1, lo[1] - m, hi[1] + m)?;
         let start = space.from_world(world_q);
+        let base_checker = base_checker(world, world_q, left.robot, &bv);
         Ok(BimanualProblem {
             world: world.clone(),
             space,
@@ -255,6 +307,7 @@ impl BimanualProblem {
             map_time,
             base_vars: bv,
             ik: Arc::new(ik),
+            base_checker,
         })
     }
 
@@ -299,6 +352,17 @@ impl BimanualProblem {
             offset: p.offset,
             settings,
             checker: space_checker(&self.world, &self.space),
+            base_checker: self.base_checker.clone(),
+            base_bounds: std::array::from_fn(|i| {
+                let v = self.base_vars[i] + p.offset;
+                self.space
+                    .vars()
+                    .iter()
+                    .position(|&x| x == v)
+                    .map(|k| (self.space.lower()[k], self.space.upper()[k]))
+                    .unwrap_or((f64::NEG_INFINITY, f64::INFINITY))
+            }),
+            base_q: world_q.clone(),
             space: self.space.clone(),
             world_q,
             counters: IkCounters::default(),
@@ -336,6 +400,11 @@ pub struct BimanualGoals {
     offset: usize,
     settings: RandomizedIkSettings,
     checker: FastChecker,
+    /// The base test of IkDualArm ([`base_checker`]), the space's bounds of x, y, yaw and a
+    /// world configuration for it.
+    base_checker: Option<FastChecker>,
+    base_bounds: [(f64, f64); 3],
+    base_q: Vec<f64>,
     space: JointSpace,
     world_q: Vec<f64>,
     counters: IkCounters,
@@ -356,7 +425,13 @@ impl GoalSampler for BimanualGoals {
             self.offset,
             &self.space,
         );
-        let r = ik_dual_arm(
+        let (base_checker, base_q, base_bounds, base_vars) = (
+            &mut self.base_checker,
+            &mut self.base_q,
+            &self.base_bounds,
+            &self.base_vars,
+        );
+        let r = ik_dual_arm_filtered(
             &self.ik,
             &self.robot_base,
             &self.robot_q,
@@ -368,6 +443,21 @@ impl GoalSampler for BimanualGoals {
             &self.targets_right,
             &self.settings,
             rng,
+            // A base outside the space's bounds or whose platform collides fails every
+            // configuration the goal check below would see with it.
+            |q| {
+                let inside = base_vars
+                    .iter()
+                    .zip(base_bounds)
+                    .all(|(&v, &(l, u))| q[v] >= l && q[v] <= u);
+                inside
+                    && base_checker.as_mut().is_none_or(|c| {
+                        for &v in base_vars {
+                            base_q[offset + v] = q[v];
+                        }
+                        c.is_free(base_q)
+                    })
+            },
             |q| {
                 world_q[offset..offset + q.len()].copy_from_slice(q);
                 space

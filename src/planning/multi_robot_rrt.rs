@@ -15,13 +15,20 @@
 //! 1. the final configurations of all robots do not collide with each other;
 //! 2. the **grasp score** — the Ferrari–Canny ε of the L1 wrench space of all contacts of all
 //!    hands ([`crate::grasp`], centre of mass and λ = 1 / radius of the object, 002 §IV-B) —
-//!    exceeds s_min;
+//!    exceeds s_min. Decided without the whole wrench hull: first a proof that ε > s_min
+//!    ([`crate::grasp::score_exceeds_nearest`]: the hull grown toward the origin until all its
+//!    facets are farther than s_min plus the joggle bound), and the exact ε, where it is
+//!    reported (a rejection's score, the accepted combination), from the nearest facets alone
+//!    ([`crate::grasp::quality_of_wrenches_nearest`], the full hull's value and verdict, falling
+//!    back to the full hull where it cannot decide); `tests/grasp_nearest.rs` compares both
+//!    with the full hull;
 //! 3. the **deadlock check** (002 eq. 2): for every robot k, its start and its goal configuration
 //!    collide with no configuration on any other robot's trajectory, checked as continuous motion
 //!    ([`crate::collision::FastChecker::motion_certified`] on the robots alone, links and what
 //!    they hold). Then sequential execution is always possible.
 //!
-//! Tests 1 and 3 are pairwise, so their verdicts are cached per pair of solutions. On the first
+//! Tests 1 and 3 are pairwise, so their verdicts are cached per pair of solutions (the
+//! collector is in the submodule `collector`). On the first
 //! combination that passes, every worker is stopped and the trajectories are scheduled for
 //! simultaneous execution by [`super::phase_space`] (002 §V). The time limit and the stop flag
 //! reach every worker through its [`Termination`] (one atomic load per iteration) and the
@@ -34,7 +41,6 @@
 //! calling thread, one solution per step with per-worker seeded streams, and the collector
 //! evaluates after each step, so request + seed → the same plan.
 
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::sync::Arc;
@@ -42,13 +48,17 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Vector3;
 
+mod collector;
+
+use collector::Collector;
+
 use super::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
 use super::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory, Schedule};
 use super::{IkRrtSettings, PlanError, PlanStats, StopReason, Termination};
-use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
+use crate::collision::CollisionWorld;
 use crate::grasp::{grasp_contacts, grasp_quality, object_centre, object_radius, Contact};
 use crate::grasp::{
-    primitive_wrenches_into, quality_of_wrenches, GraspError, GraspQuality, WrenchSpaceSettings,
+    primitive_wrenches_into, quality_of_wrenches_nearest, GraspQuality, Point6, WrenchSpaceSettings,
 };
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
@@ -313,53 +323,34 @@ impl MultiRobotProblem {
             .collect()
     }
 
-    /// Whether the score of a combination exceeds `s_min`, decided cheaply first: the cone
-    /// edges of m' = 2, 4, … dividing m are an exact subset of the m edges (every (m/m')-th
-    /// primitive wrench of each contact, taken from the same list), so their wrench hull lies
-    /// inside the full one and their ε is a lower bound of the full ε. The first level whose
-    /// ε exceeds `s_min` decides (`true`, its quality and m'); otherwise the full m decides.
-    /// Exact as a decision; the reported ε is the full one only when m' = m.
+    /// The primitive wrenches of all contacts of a combination (002 §IV-B) and λ.
+    pub fn combination_wrenches(
+        &self,
+        grasps: &[(usize, usize)],
+        wrench: &WrenchSpaceSettings,
+    ) -> Result<(Vec<Point6>, f64), PlanError> {
+        let (contacts, settings) = self.score_input(grasps, wrench);
+        let mut all = Vec::new();
+        let lambda = primitive_wrenches_into(&contacts, &self.centre, &settings, &mut all)
+            .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))?;
+        Ok((all, lambda))
+    }
+
+    /// Whether the score of a combination exceeds `s_min`, and the score: the exact ε of
+    /// [`MultiRobotProblem::score`] (the same verdict and value to round-off), computed by
+    /// [`quality_of_wrenches_nearest`], which grows the wrench hull only toward the origin
+    /// (`crate::grasp::hull` module `nearest`) instead of building all of it. Returns (pass,
+    /// quality, cone edges used = `wrench.cone_edges`).
     pub fn score_exceeds(
         &self,
         grasps: &[(usize, usize)],
         wrench: &WrenchSpaceSettings,
         s_min: f64,
     ) -> Result<(bool, GraspQuality, usize), PlanError> {
-        let (contacts, settings) = self.score_input(grasps, wrench);
-        let err = |e: GraspError| PlanError::InvalidInput(format!("grasp score: {e}"));
-        let mut all = Vec::new();
-        let lambda =
-            primitive_wrenches_into(&contacts, &self.centre, &settings, &mut all).map_err(err)?;
-        let m = settings.cone_edges;
-        // Soft-finger wrenches (none here) would break the per-contact stride.
-        let per = if contacts.is_empty() {
-            0
-        } else {
-            all.len() / contacts.len()
-        };
-        let mut levels: Vec<usize> = [2, 4, 8, 16]
-            .into_iter()
-            .filter(|&k| k < m && m % k == 0 && per == m)
-            .collect();
-        levels.push(m);
-        let mut sub = Vec::with_capacity(all.len());
-        for &k in &levels {
-            let q = if k == m {
-                quality_of_wrenches(&all, lambda).map_err(err)?
-            } else {
-                let stride = m / k;
-                sub.clear();
-                for c in 0..contacts.len() {
-                    sub.extend((0..k).map(|j| all[c * m + j * stride]));
-                }
-                quality_of_wrenches(&sub, lambda).map_err(err)?
-            };
-            let pass = q.force_closure && q.epsilon > s_min;
-            if pass || k == m {
-                return Ok((pass, q, k));
-            }
-        }
-        Err(PlanError::InvalidInput("grasp score: no level".into()))
+        let (all, lambda) = self.combination_wrenches(grasps, wrench)?;
+        let q = quality_of_wrenches_nearest(&all, lambda)
+            .map_err(|e| PlanError::InvalidInput(format!("grasp score: {e}")))?;
+        Ok((q.force_closure && q.epsilon > s_min, q, wrench.cone_edges))
     }
 }
 
@@ -419,9 +410,11 @@ pub struct MultiRobotStats {
     pub rejected_deadlock: u64,
     /// Collector collision checks (final poses and deadlock, certified segments count one each).
     pub collector_checks: u64,
-    /// Scoring: calls and total time.
+    /// Scoring: combinations scored, total time, and how many of them needed the exact ε
+    /// (a rejection's reported score, the accepted combination) beyond the cheap proof.
     pub scores: u64,
     pub score_time: Duration,
+    pub exact_scores: u64,
     pub best_score: f64,
 }
 
@@ -461,273 +454,15 @@ pub enum MultiRobotEvent<'a> {
 pub struct MultiRobotPlan {
     /// Per member: its solution.
     pub solutions: Vec<Solution>,
-    /// The score that passed, at `score_edges` cone edges (a lower bound of the score at the
-    /// requested edges when fewer, [`MultiRobotProblem::score_exceeds`]).
+    /// The score that passed: the exact ε at `score_edges` cone edges, which are the requested
+    /// ones ([`MultiRobotProblem::score_exceeds`]; the result JSON keeps `cone_edges` and
+    /// `lower_bound: false` for clients of the earlier cone-subset levels).
     pub score: GraspQuality,
     pub score_edges: usize,
     /// The cone edges the request asked for.
     pub requested_edges: usize,
     pub schedule: Schedule,
     pub stats: MultiRobotStats,
-}
-
-/// Pairwise verdict caches and checkers of the collector.
-struct Collector<'p> {
-    p: &'p MultiRobotProblem,
-    s_min: f64,
-    wrench: WrenchSpaceSettings,
-    solutions: Vec<Vec<Solution>>,
-    /// Per pair (a < b) of members: a checker of the two robots alone.
-    pair: HashMap<(usize, usize), (FastChecker, Vec<f64>)>,
-    /// (a, i, b, j) → final configurations collide.
-    goal_hit: HashMap<(usize, usize, usize, usize), bool>,
-    /// (a, i, b, j) → deadlock (either way).
-    dead: HashMap<(usize, usize, usize, usize), bool>,
-    /// Cone edges of the score level that passed the last accepted combination.
-    score_edges: usize,
-    stats: MultiRobotStats,
-}
-
-impl<'p> Collector<'p> {
-    fn new(p: &'p MultiRobotProblem, settings: &MultiRobotSettings) -> Collector<'p> {
-        let n = p.members.len();
-        let mut pair = HashMap::new();
-        for a in 0..n {
-            for b in a + 1..n {
-                let keep = [p.members[a].robot, p.members[b].robot];
-                if let Some(w) = p.world.subset(&keep) {
-                    let between = w.between_robots();
-                    let q = p.world.subset_config(&keep, &p.world_q);
-                    pair.insert((a, b), (FastChecker::new(&between), q));
-                }
-            }
-        }
-        Collector {
-            p,
-            s_min: settings.s_min,
-            wrench: settings.wrench,
-            solutions: vec![Vec::new(); n],
-            pair,
-            goal_hit: HashMap::new(),
-            dead: HashMap::new(),
-            score_edges: settings.wrench.cone_edges,
-            stats: MultiRobotStats {
-                workers: p
-                    .members
-                    .iter()
-                    .map(|m| WorkerStats {
-                        name: m.name.clone(),
-                        ..WorkerStats::default()
-                    })
-                    .collect(),
-                best_score: 0.0,
-                ..MultiRobotStats::default()
-            },
-        }
-    }
-
-    /// Whether `qa` of member a and `qb` of member b collide (`a < b`).
-    fn pair_state_hits(&mut self, a: usize, b: usize, qa: &[f64], qb: &[f64]) -> bool {
-        let Some((c, q)) = self.pair.get_mut(&(a, b)) else {
-            return false;
-        };
-        let na = qa.len();
-        q[..na].copy_from_slice(qa);
-        q[na..].copy_from_slice(qb);
-        self.stats.collector_checks += 1;
-        !c.is_free(q)
-    }
-
-    /// Whether member `fixed` at `c` collides with member `moving` anywhere along `path`
-    /// (continuous motion).
-    fn config_hits_path(
-        &mut self,
-        fixed: usize,
-        c: &[f64],
-        moving: usize,
-        path: &[Vec<f64>],
-    ) -> bool {
-        let (a, b) = (fixed.min(moving), fixed.max(moving));
-        let Some((checker, q)) = self.pair.get_mut(&(a, b)) else {
-            return false;
-        };
-        let split = if fixed < moving {
-            c.len()
-        } else {
-            path[0].len()
-        };
-        let mut qa = q.clone();
-        let mut qb = q.clone();
-        let load = |dst: &mut Vec<f64>, m: &[f64]| {
-            if fixed < moving {
-                dst[..split].copy_from_slice(c);
-                dst[split..].copy_from_slice(m);
-            } else {
-                dst[..split].copy_from_slice(m);
-                dst[split..].copy_from_slice(c);
-            }
-        };
-        if path.len() == 1 {
-            load(&mut qa, &path[0]);
-            self.stats.collector_checks += 1;
-            return !checker.is_free(&qa);
-        }
-        for w in path.windows(2) {
-            load(&mut qa, &w[0]);
-            load(&mut qb, &w[1]);
-            self.stats.collector_checks += 1;
-            if !checker.motion_certified(&qa, &qb) {
-                return true;
-            }
-        }
-        false
-    }
-
-    /// Stores a new solution (reported as a [`MultiRobotEvent::Solution`]) and checks the
-    /// combinations it enables; the first that passes.
-    fn add(
-        &mut self,
-        s: Solution,
-        progress: &mut dyn FnMut(MultiRobotEvent<'_>),
-    ) -> Option<(Vec<usize>, GraspQuality)> {
-        let k = s.member;
-        self.solutions[k].push(s);
-        let sk = self.solutions[k].len() - 1;
-        progress(MultiRobotEvent::Solution {
-            robot: &self.p.members[k].name,
-            count: self.solutions[k].len() as u64,
-        });
-        let n = self.solutions.len();
-        if (0..n).any(|j| j != k && self.solutions[j].is_empty()) {
-            return None;
-        }
-        // Every combination with sk at k: a mixed-radix counter over the others.
-        let others: Vec<usize> = (0..n).filter(|&j| j != k).collect();
-        let mut idx = vec![0usize; n];
-        idx[k] = sk;
-        loop {
-            let verdict = self.check(&idx);
-            self.stats.combinations += 1;
-            let (rejected, score) = match &verdict {
-                Ok(q) => (None, Some(q.epsilon)),
-                Err((r, sc)) => (Some(*r), *sc),
-            };
-            if let Some(e) = score {
-                self.stats.best_score = self.stats.best_score.max(e);
-            }
-            match rejected {
-                Some(Rejection::Collision) => self.stats.rejected_collision += 1,
-                Some(Rejection::Score) => self.stats.rejected_score += 1,
-                Some(Rejection::Deadlock) => self.stats.rejected_deadlock += 1,
-                None => {}
-            }
-            progress(MultiRobotEvent::Combination {
-                checked: self.stats.combinations,
-                rejected,
-                score,
-                best: self.stats.best_score,
-            });
-            if let Ok(q) = verdict {
-                return Some((idx, q));
-            }
-            // Next combination.
-            let mut carry = true;
-            for &j in &others {
-                if !carry {
-                    break;
-                }
-                idx[j] += 1;
-                if idx[j] < self.solutions[j].len() {
-                    carry = false;
-                } else {
-                    idx[j] = 0;
-                }
-            }
-            if carry {
-                return None;
-            }
-        }
-    }
-
-    /// One combination: final poses, score, deadlock (cheapest first).
-    fn check(&mut self, idx: &[usize]) -> Result<GraspQuality, (Rejection, Option<f64>)> {
-        let n = idx.len();
-        for a in 0..n {
-            for b in a + 1..n {
-                let key = (a, idx[a], b, idx[b]);
-                let hit = match self.goal_hit.get(&key) {
-                    Some(&h) => h,
-                    None => {
-                        let qa = self.solutions[a][idx[a]]
-                            .path
-                            .last()
-                            .cloned()
-                            .unwrap_or_default();
-                        let qb = self.solutions[b][idx[b]]
-                            .path
-                            .last()
-                            .cloned()
-                            .unwrap_or_default();
-                        let h = self.pair_state_hits(a, b, &qa, &qb);
-                        self.goal_hit.insert(key, h);
-                        h
-                    }
-                };
-                if hit {
-                    return Err((Rejection::Collision, None));
-                }
-            }
-        }
-        let grasps: Vec<(usize, usize)> =
-            (0..n).map(|k| self.solutions[k][idx[k]].grasps).collect();
-        let t = Instant::now();
-        let q = self.p.score_exceeds(&grasps, &self.wrench, self.s_min);
-        self.stats.scores += 1;
-        self.stats.score_time += t.elapsed();
-        let q = match q {
-            Ok((true, q, edges)) => {
-                self.score_edges = edges;
-                q
-            }
-            Ok((false, q, _)) => return Err((Rejection::Score, Some(q.epsilon))),
-            Err(_) => return Err((Rejection::Score, None)),
-        };
-        for a in 0..n {
-            for b in a + 1..n {
-                let key = (a, idx[a], b, idx[b]);
-                let dead = match self.dead.get(&key) {
-                    Some(&d) => d,
-                    None => {
-                        let d = self.deadlock(a, idx[a], b, idx[b]);
-                        self.dead.insert(key, d);
-                        d
-                    }
-                };
-                if dead {
-                    return Err((Rejection::Deadlock, Some(q.epsilon)));
-                }
-            }
-        }
-        Ok(q)
-    }
-
-    /// 002 eq. 2 for the pair (a, b): a's start and goal against b's trajectory, and b's
-    /// against a's.
-    fn deadlock(&mut self, a: usize, i: usize, b: usize, j: usize) -> bool {
-        let pa = self.solutions[a][i].path.clone();
-        let pb = self.solutions[b][j].path.clone();
-        for (fixed, c, moving, path) in [
-            (a, &pa[0], b, &pb),
-            (a, &pa[pa.len() - 1], b, &pb),
-            (b, &pb[0], a, &pa),
-            (b, &pb[pb.len() - 1], a, &pa),
-        ] {
-            if self.config_hits_path(fixed, c, moving, path) {
-                return true;
-            }
-        }
-        false
-    }
 }
 
 /// One worker's source of solutions: successive Bimanual IK-RRT searches with seeds

@@ -323,6 +323,10 @@ pub fn bimanual(left: &InverseMap, right: &InverseMap) -> Option<(InverseMap, Ve
     Some((bi, rights))
 }
 
+/// The right arm's answer for one right grasp in one [`ik_dual_arm`] try: `None` until solved,
+/// then the number of solutions and the solutions.
+type RightSlot = Option<(usize, [[f64; 7]; 8])>;
+
 /// A base-placement dual-arm answer: full configuration (base + hip + both arms).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BasePlacement {
@@ -363,6 +367,45 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
     targets_right: &[Pose],
     settings: &RandomizedIkSettings,
     rng: &mut R,
+    valid: impl FnMut(&[f64]) -> bool,
+) -> Result<BasePlacement, RandomizedIkError> {
+    ik_dual_arm_filtered(
+        ik,
+        robot_base,
+        start,
+        base_vars,
+        bi,
+        cdf,
+        rights,
+        targets_left,
+        targets_right,
+        settings,
+        rng,
+        |_| true,
+        valid,
+    )
+}
+
+/// [`ik_dual_arm`] with a test of the sampled base pose before any arm is solved:
+/// `base_valid(q)` sees the robot configuration with the base variables of the try set (the
+/// other variables as left by the previous try or `start`) and must return `false` only when
+/// *no* configuration with that base pose can pass `valid` — e.g. the platform alone collides
+/// with an obstacle, or the base is outside the planner's bounds. Such a try is skipped without
+/// solving either arm; the answers are those `valid` accepts, as in [`ik_dual_arm`].
+#[allow(clippy::too_many_arguments)]
+pub fn ik_dual_arm_filtered<R: Rng + ?Sized>(
+    ik: &DualArmIk,
+    robot_base: &Pose,
+    start: &[f64],
+    base_vars: &[usize; 3],
+    bi: &InverseMap,
+    cdf: &[f64],
+    rights: &[Vec<u16>],
+    targets_left: &[Pose],
+    targets_right: &[Pose],
+    settings: &RandomizedIkSettings,
+    rng: &mut R,
+    mut base_valid: impl FnMut(&[f64]) -> bool,
     mut valid: impl FnMut(&[f64]) -> bool,
 ) -> Result<BasePlacement, RandomizedIkError> {
     let robot = ik.robot().clone();
@@ -383,7 +426,9 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
     let mut q = start.to_vec();
     let wbin = 2.0 * PI / bi.yaw_bins as f64;
     let mut sols_l = [[0.0; 7]; 8];
-    let mut sols_r = [[0.0; 7]; 8];
+    // Right-arm answers of the current try, one slot per entry of the cell's right list:
+    // solved at most once per try (the right arm's IK does not depend on the left arm's joints).
+    let mut right: Vec<RightSlot> = Vec::new();
     for _ in 0..settings.max_tries {
         c.tries += 1;
         let u = rng.random_range(0.0..acc);
@@ -394,8 +439,48 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
         q[base_vars[0]] = x + rng.random_range(-0.5..0.5) * bi.cell;
         q[base_vars[1]] = y + rng.random_range(-0.5..0.5) * bi.cell;
         q[base_vars[2]] = w + rng.random_range(-0.5..0.5) * wbin;
+        if !base_valid(&q) {
+            c.rejected_bases += 1;
+            continue;
+        }
         robot.sample_vars(ik.free_vars(), &mut q, rng);
         let (linv, rinv) = ik.base_inverses(robot_base, &q);
+        let rlist = &rights[k];
+        right.clear();
+        right.resize(rlist.len(), None);
+        let solve_right =
+            |j: usize, right: &mut Vec<RightSlot>, c: &mut IkCounters, rng: &mut R| {
+                if right[j].is_none() {
+                    right[j] = Some(match targets_right.get(rlist[j] as usize) {
+                        Some(tr) => {
+                            let mut sols = [[0.0; 7]; 8];
+                            let n = solve_psi(
+                                &ik.right().arm,
+                                &(rinv * tr),
+                                settings.psi_samples,
+                                &mut sols,
+                                c,
+                                rng,
+                            );
+                            (n, sols)
+                        }
+                        None => (0, [[0.0; 7]; 8]),
+                    });
+                }
+            };
+        // A try whose right arm reaches none of the cell's right grasps cannot succeed: find the
+        // first right answer before any left solve (the others are solved when first needed).
+        let mut any_right = false;
+        for j in 0..rlist.len() {
+            solve_right(j, &mut right, &mut c, rng);
+            if matches!(right[j], Some((n, _)) if n > 0) {
+                any_right = true;
+                break;
+            }
+        }
+        if !any_right {
+            continue;
+        }
         for &gl in &bi.grasps[k] {
             let Some(tl) = targets_left.get(gl as usize) else {
                 continue;
@@ -414,26 +499,19 @@ pub fn ik_dual_arm<R: Rng + ?Sized>(
             ik.left()
                 .arm
                 .to_config(&sols_l[rng.random_range(0..nl)], &mut q);
-            for &gr in &rights[k] {
-                let Some(tr) = targets_right.get(gr as usize) else {
+            for j in 0..rlist.len() {
+                solve_right(j, &mut right, &mut c, rng);
+                let Some((nr, sols_r)) = &right[j] else {
                     continue;
                 };
-                let nr = solve_psi(
-                    &ik.right().arm,
-                    &(rinv * tr),
-                    settings.psi_samples,
-                    &mut sols_r,
-                    &mut c,
-                    rng,
-                );
-                for s in &sols_r[..nr] {
+                for s in &sols_r[..*nr] {
                     ik.right().arm.to_config(s, &mut q);
                     c.collision_checks += 1;
                     if valid(&q) {
                         return Ok(BasePlacement {
                             config: q,
                             left_grasp: gl as usize,
-                            right_grasp: gr as usize,
+                            right_grasp: rlist[j] as usize,
                             counters: c,
                         });
                     }

@@ -25,6 +25,7 @@ impl MultiRobotStats {
             },
             "best_score": self.best_score,
             "scores": self.scores,
+            "exact_scores": self.exact_scores,
             "score_time_ms_mean": if self.scores > 0 { ms(self.score_time) / self.scores as f64 } else { 0.0 },
             "workers": self.workers.iter().map(|w| json!({
                 "robot": w.name,
