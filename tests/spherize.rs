@@ -17,10 +17,13 @@ use manyhands::model::spherize::{shape_spheres, spherize, SpherizeSettings};
 use manyhands::model::{to_srdf, to_urdf};
 use manyhands::Robot;
 
+/// Whether a point (in the shape frame) is inside the shape.
+type Inside = fn(&Shape, &Vector3<f64>) -> bool;
+
 /// A point drawn uniformly in the primitive's bounding box, kept when inside the primitive.
 fn inside(shape: &Shape, rng: &mut ChaCha8Rng) -> Vector3<f64> {
     loop {
-        let (h, ok): (Vector3<f64>, fn(&Shape, &Vector3<f64>) -> bool) = match shape {
+        let (h, ok): (Vector3<f64>, Inside) = match shape {
             Shape::Box { half_extents } => (*half_extents, |_, _| true),
             Shape::Cylinder {
                 radius,
