@@ -26,7 +26,6 @@ use crate::geometry::{Pose, Shape};
 
 use crate::kinematics::{FkModel, Frame};
 
-mod distance;
 mod sweep;
 
 /// Settings of the fast model.
@@ -1239,57 +1238,6 @@ impl FastChecker {
     /// Whether the primitives of moving body `a` and fixed body `b` collide.
     fn static_prims_hit(&mut self, a: usize, b: usize) -> bool {
         self.static_prims_hit_by(a, b, 0.0)
-    }
-
-    /// A lower bound of the distance between the primitives of moving bodies `a` and `b` in
-    /// the prepared configuration (≤ 0 when they may touch; `distance.rs`): per primitive pair
-    /// the larger of the bounding-sphere gap and the closed-form bound, the smallest over the
-    /// pairs. Primitive pairs whose gap is at least `enough` are skipped and the answer is
-    /// at most `enough` (still a lower bound).
-    fn moving_distance_lb(&mut self, a: usize, b: usize, enough: f64) -> f64 {
-        self.ensure_prims(a);
-        self.ensure_prims(b);
-        let (ma, mb) = (&self.moving[a], &self.moving[b]);
-        let (ra, rb) = (
-            ma.start..ma.start + ma.local.len(),
-            mb.start..mb.start + mb.local.len(),
-        );
-        let (pa, pb) = (&self.world_prims[ra.clone()], &self.world_prims[rb.clone()]);
-        let (rad_a, rad_b) = (&self.prim_radius[ra], &self.prim_radius[rb]);
-        let mut best = enough;
-        for (x, &xr) in pa.iter().zip(rad_a) {
-            for (y, &yr) in pb.iter().zip(rad_b) {
-                let gap = (x.centre() - y.centre()).norm() - xr - yr;
-                if gap < best {
-                    best = best.min(distance::prims_distance_lb(x, y, best).max(gap));
-                }
-            }
-        }
-        best
-    }
-
-    /// A lower bound of the distance between the primitives of moving body `a` and fixed body
-    /// `b` in the prepared configuration (≤ 0 when they may touch; `distance.rs`): per
-    /// primitive pair the larger of the gap between the moving primitive's bounding sphere
-    /// and the fixed one's world-aligned box and the closed-form bound, the smallest over the
-    /// pairs. Primitive pairs whose gap is at least `enough` are skipped and the answer is
-    /// at most `enough` (still a lower bound).
-    fn static_distance_lb(&mut self, a: usize, b: usize, enough: f64) -> f64 {
-        self.ensure_prims(a);
-        let ma = &self.moving[a];
-        let range = ma.start..ma.start + ma.local.len();
-        let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
-        let s = &self.statics[b];
-        let mut best = enough;
-        for (x, &xr) in pa.iter().zip(rad) {
-            for (y, lo, hi) in &s.prims {
-                let gap = dist2_point_aabb(x.centre(), lo, hi).sqrt() - xr;
-                if gap < best {
-                    best = best.min(distance::prims_distance_lb(x, y, best).max(gap));
-                }
-            }
-        }
-        best
     }
 
     /// Whether the primitives of moving body `a`, grown by `d` ≥ 0, touch fixed body `b`.

@@ -20,16 +20,12 @@
 //! **Certified check — what is proven, under which bound.** The motion is cut into the fewest
 //! equal runs whose largest body inflation is at most the coarse inflation (6 cm by default);
 //! every run end (both ends of the motion included) is checked with the inflation of a run, each
-//! pair free with the plain primitives but not with the grown ones ("tight") logged with an
-//! inflation it is free with there: a closed-form lower bound of its primitives' distance
-//! (`distance.rs`: exact for spheres, separating-axis bounds for boxes and the boxes around
-//! cylinders and capsules) or, when larger, the largest inflation of a halving sequence that
-//! its grown primitives are free with. Either way every point within that distance of the
-//! moving primitives is outside the other body, which is all the certificate uses. A run with a
-//! tight end is halved, level by level: its ends need no new check (a pair is tight there at a
-//! level when its inflation for a run of that length exceeds what it is free with — free with
-//! the larger inflation is free with the smaller), its midpoint is checked against the pairs
-//! tight at either end (every other pair is proven free along the whole run). The answer is free only when every run is proven free; a state in
+//! pair free with the plain primitives but not with the grown ones ("tight") logged with the
+//! largest inflation of a halving sequence it is free with there. A run with a tight end is
+//! halved, level by level: its ends need no new check (a pair is tight there at a level when its
+//! inflation for a run of that length exceeds what it is free with — free with the larger
+//! inflation is free with the smaller), its midpoint is checked against the pairs tight at
+//! either end (every other pair is proven free along the whole run). The answer is free only when every run is proven free; a state in
 //! collision (plain primitives) answers collision; a run still tight when the largest body
 //! inflation would fall below [`CERTIFY_FLOOR`] (1 µm), or more than 4 096 runs to halve,
 //! answers "unproven", which planners treat as not free. What is proven: no configuration
@@ -690,38 +686,17 @@ impl FastChecker {
         Certification::Free
     }
 
-    /// An inflation pair `pi` is free with in the prepared state (every point within it of
-    /// the moving body's primitives is outside the other body's): the closed-form lower bound
-    /// of the pair's distance ([`FastChecker::pair_distance_lb`]) when it is at least `d0`,
-    /// else the largest of `d0, d0/2, d0/4, …` above that bound (and at least
-    /// [`CERTIFY_FLOOR`]) that the pair is free with grown by, else the bound (0 when not
-    /// positive). Never less than the halving search alone would give.
+    /// The largest of `d0, d0/2, d0/4, …` (at least [`CERTIFY_FLOOR`]) that pair `pi` is free
+    /// with in the prepared state, 0 when none.
     fn free_inflation(&mut self, s: &Sweep, pi: usize, d0: f64) -> f64 {
-        // `2·d0` is the inflation of the run this state ends (callers pass half of it); finer
-        // levels compare smaller inflations only, so the bound is needed up to that.
-        let lb = self.pair_distance_lb(pi, 2.0 * d0);
-        if lb >= d0 {
-            return lb;
-        }
         let mut d = d0;
-        while d >= CERTIFY_FLOOR && d > lb {
+        while d >= CERTIFY_FLOOR {
             if !self.pair_hits_by(s, pi, d) {
                 return d;
             }
             d *= 0.5;
         }
-        lb.max(0.0)
-    }
-
-    /// A lower bound of the distance of pair `pi`'s primitives in the prepared state (≤ 0 when
-    /// they may touch; `distance.rs`).
-    fn pair_distance_lb(&mut self, pi: usize, enough: f64) -> f64 {
-        let p = self.pairs[pi];
-        if p.b_static {
-            self.static_distance_lb(p.a as usize, p.b as usize, enough)
-        } else {
-            self.moving_distance_lb(p.a as usize, p.b as usize, enough)
-        }
+        0.0
     }
 
     /// Whether pair `pi` touches in the prepared state with its moving body grown by `d`
