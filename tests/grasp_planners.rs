@@ -338,3 +338,39 @@ fn regrasp_task_grasps_first_when_the_object_rests() {
     let e = regrasp_task(&s, &task, &mut Termination::new(), 1).expect_err("bad grasp name");
     assert!(e.to_string().contains("no_such_grasp"), "{e}");
 }
+
+/// Issue 28: a start value at most `Limits::TOLERANCE` (1e-5) outside a joint limit is clamped
+/// into it, as RRT-Connect does; farther out the start is refused.
+#[test]
+fn ik_rrt_start_within_the_tolerance_of_a_limit_is_clamped() {
+    let (_s, p) = reach_problem("kitchen", "torso_right_arm");
+    let mut planner =
+        IkRrt::new(p.space.clone(), &p.world, IkRrtSettings::default()).expect("planner");
+    let (lo, hi) = (p.space.lower().to_vec(), p.space.upper().to_vec());
+    let (k, limit, beyond) = (0..p.space.dim())
+        .flat_map(|k| [(k, lo[k], -1.0), (k, hi[k], 1.0)])
+        .find(|&(k, x, _)| {
+            let mut q = p.start.clone();
+            q[k] = x;
+            x.is_finite() && planner.validator().invalidity(&q).is_none()
+        })
+        .expect("a joint limit that is a valid start");
+    let mut near = p.start.clone();
+    near[k] = limit + beyond * 0.5e-5;
+    let mut goals = p.goals(None, ik_settings());
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+    let r = planner
+        .plan(&near, &mut goals, &mut term, 1)
+        .expect("plan from a start 5e-6 outside a limit");
+    let mut clamped = near.clone();
+    clamped[k] = limit;
+    assert_eq!(r.path[0], clamped, "start clamped into the limit");
+    let last = r.path.last().unwrap();
+    assert!(planner.validator().invalidity(last).is_none(), "goal valid");
+    near[k] = limit + beyond * 2e-5;
+    let mut goals = p.goals(None, ik_settings());
+    match planner.plan(&near, &mut goals, &mut Termination::new(), 1) {
+        Err(PlanError::InvalidStart { .. }) => {}
+        other => panic!("expected InvalidStart, got {other:?}"),
+    }
+}

@@ -291,3 +291,42 @@ fn dual_arm_j_plus_rrt_restarts_with_a_new_tree() {
     }
     assert!(restarted >= 2, "only {restarted} of 6 runs restarted");
 }
+
+/// Issue 28: a start value at most `Limits::TOLERANCE` (1e-5) outside a joint limit is clamped
+/// into it, as RRT-Connect does; farther out the start is refused.
+#[test]
+fn start_within_the_tolerance_of_a_limit_is_clamped() {
+    let p = reach_problem("kitchen");
+    let mut planner = JPlusRrt::for_problem(&p, JPlusRrtSettings::default()).expect("planner");
+    let (k, limit, beyond) = limit_start(&p, |q| planner.validator().invalidity(q).is_none());
+    let mut near = p.start.clone();
+    near[k] = limit + beyond * 0.5e-5;
+    let mut term = Termination::new().with_time_limit(Duration::from_secs(20));
+    let r = planner
+        .plan(&near, &mut term, 1)
+        .expect("plan from a start 5e-6 outside a limit");
+    let mut clamped = near.clone();
+    clamped[k] = limit;
+    assert_eq!(r.path[0], clamped, "start clamped into the limit");
+    let last = r.path.last().unwrap();
+    assert!(planner.validator().invalidity(last).is_none(), "goal valid");
+    near[k] = limit + beyond * 2e-5;
+    match planner.plan(&near, &mut Termination::new(), 1) {
+        Err(PlanError::InvalidStart { .. }) => {}
+        other => panic!("expected InvalidStart, got {other:?}"),
+    }
+}
+
+/// A joint `k` and one of its limits such that the problem's start with that joint at the
+/// limit is a valid start; `beyond` is the sign pointing out of the limits.
+fn limit_start(p: &ReachProblem, mut valid: impl FnMut(&[f64]) -> bool) -> (usize, f64, f64) {
+    let (lo, hi) = (p.space.lower().to_vec(), p.space.upper().to_vec());
+    (0..p.space.dim())
+        .flat_map(|k| [(k, lo[k], -1.0), (k, hi[k], 1.0)])
+        .find(|&(k, x, _)| {
+            let mut q = p.start.clone();
+            q[k] = x;
+            x.is_finite() && valid(&q)
+        })
+        .expect("a joint limit that is a valid start")
+}

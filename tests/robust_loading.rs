@@ -252,7 +252,14 @@ fn values_within_the_tolerance_of_a_limit_are_clamped_farther_are_refused() {
     let mut q = robot.named_config("ready").unwrap();
     q[v] = l.upper + 0.5e-5;
     assert!(robot.check_config(&q).is_err());
+    let mut full = q.clone();
     robot.clamp_config(&mut q);
     assert_eq!(q[v], l.upper);
     assert!(robot.check_config(&q).is_ok());
+    // A full configuration as a user writes it: accepted within the tolerance, clamped.
+    assert!(robot.accept_config(&mut full).is_ok());
+    assert_eq!(full[v], l.upper);
+    full[v] = l.upper + 2e-5;
+    let e = robot.accept_config(&mut full).unwrap_err();
+    assert!(e.contains("left_joint4"), "{e}");
 }

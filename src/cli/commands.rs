@@ -376,7 +376,7 @@ pub fn parse_config(robot: &Robot, text: &str, base: &[f64]) -> Result<Vec<f64>>
         .filter(|s| !s.is_empty())
         .collect();
     if parts.iter().all(|p| !p.contains('=')) {
-        let q: Vec<f64> = parts
+        let mut q: Vec<f64> = parts
             .iter()
             .map(|p| {
                 p.parse::<f64>()
@@ -384,7 +384,7 @@ pub fn parse_config(robot: &Robot, text: &str, base: &[f64]) -> Result<Vec<f64>>
             })
             .collect::<Result<_>>()?;
         robot
-            .check_config(&q)
+            .accept_config(&mut q)
             .map_err(|e| anyhow!("--config: {e}"))?;
         return Ok(q);
     }

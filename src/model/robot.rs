@@ -436,7 +436,16 @@ impl Robot {
         }
     }
 
-    /// Checks a configuration: length, finiteness and limits. The error names the joint.
+    /// A full configuration as a problem or a user writes it: values at most
+    /// [`Limits::TOLERANCE`] outside their limits are clamped into them
+    /// ([`Self::clamp_config`]), then [`Self::check_config`] (length, finiteness, limits).
+    pub fn accept_config(&self, q: &mut [f64]) -> Result<(), String> {
+        self.clamp_config(q);
+        self.check_config(q)
+    }
+
+    /// Checks a configuration: length, finiteness and limits (strictly: see
+    /// [`Self::accept_config`] for the tolerance). The error names the joint.
     pub fn check_config(&self, q: &[f64]) -> Result<(), String> {
         if q.len() != self.dof() {
             return Err(format!(

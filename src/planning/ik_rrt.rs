@@ -147,6 +147,10 @@ impl<C: SegmentChecker> IkRrt<C> {
         let ik0 = goals.ik_calls();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut stats = PlanStats::default();
+        // A start value at most `Limits::TOLERANCE` outside the bounds is clamped into them,
+        // as RRT-Connect does (the returned path starts at the clamped start).
+        let start = self.validator.space().snap_to_bounds(start).into_owned();
+        let start = start.as_slice();
         if let Some(why) = self.validator.invalidity(start) {
             return Err(PlanError::InvalidStart { reason: why });
         }

@@ -614,6 +614,10 @@ impl<C: SegmentChecker> Core<C> {
         goals: usize,
         pose: impl Fn(&[f64]) -> Pose,
     ) -> Result<(), PlanError> {
+        // A start value at most `Limits::TOLERANCE` outside the bounds is clamped into them,
+        // as RRT-Connect does (the tree's root, and so the returned path, starts there).
+        let start = self.validator.space().snap_to_bounds(start).into_owned();
+        let start = start.as_slice();
         if let Some(why) = self.validator.invalidity(start) {
             return Err(PlanError::InvalidStart { reason: why });
         }

@@ -50,16 +50,17 @@ pub fn apply_config(
             return Err(ApiError::invalid(&f, "value must be finite"));
         }
         let l = robot.var_limits(v);
-        if !l.contains(x) {
+        // Within `Limits::TOLERANCE` of a limit: accepted, clamped.
+        let Some(x) = l.clamp_near(x) else {
             return Err(ApiError::invalid(
                 &f,
                 format!("value {x} outside limit [{}, {}]", l.lower, l.upper),
             ));
-        }
+        };
         q[v] = x;
     }
     robot
-        .check_config(&q)
+        .accept_config(&mut q)
         .map_err(|e| ApiError::invalid(field, e))?;
     Ok(q)
 }
