@@ -11,11 +11,8 @@ use std::time::Duration;
 
 use manyhands::collision::{AutoChecker, ExactChecker};
 use manyhands::planning::mbm::MbmFile;
-use manyhands::planning::mbm_gen::{generate, GenSettings, SETS};
-use manyhands::planning::range::DerivedSettings;
-use manyhands::planning::{
-    RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
-};
+use manyhands::planning::mbm_gen::{generate, solve_settings, GenSettings, SETS};
+use manyhands::planning::{RrtConnect, SpaceValidator, Termination};
 use manyhands::Robot;
 
 fn arm6() -> Arc<Robot> {
@@ -84,22 +81,11 @@ fn generated_problems_are_well_posed_deterministic_and_solvable() {
         if !p.valid {
             continue;
         }
-        let derived = DerivedSettings::of(&world, &space).expect("derived settings");
         let mut planner = RrtConnect::with_checker(
             space.clone(),
             &world,
             AutoChecker::new(&world, 0.0),
-            RrtConnectSettings {
-                range: Some(derived.range),
-                angular_resolution: 0.25f64.to_radians(),
-                linear_resolution: 0.005,
-                direct_connect: true,
-                shortcut: Some(ShortcutSettings::default()),
-                revalidate: true,
-                certify: Some(0.04),
-                dynamic_domain: Some(derived.dynamic_domain),
-                balance: true,
-            },
+            solve_settings(&world, &space),
         )
         .expect("planner");
         let mut term = Termination::new().with_time_limit(Duration::from_secs(20));

@@ -133,6 +133,28 @@ pub struct ConvexHull {
     joggle: f64,
 }
 
+/// The points' checks shared by the full hull and the nearest-facet search: every coordinate
+/// finite, the largest absolute coordinate (the scale of tolerances), and the indices kept after
+/// dropping exact duplicates (each kept index is the first occurrence, so indices stay stable);
+/// more than `DIM` of them, or there is no full-dimensional hull.
+pub(crate) fn prepare(points: &[Point6]) -> Result<(f64, Vec<u32>), HullError> {
+    if let Some(index) = points.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+        return Err(HullError::NonFinite { index });
+    }
+    let scale = points
+        .iter()
+        .flat_map(|p| p.iter())
+        .fold(0.0f64, |m, c| m.max(c.abs()));
+    let mut seen = HashSet::with_capacity(points.len());
+    let keep: Vec<u32> = (0..points.len() as u32)
+        .filter(|&i| seen.insert(points[i as usize].map(f64::to_bits)))
+        .collect();
+    if keep.len() <= DIM {
+        return Err(HullError::TooFewPoints(keep.len()));
+    }
+    Ok((scale, keep))
+}
+
 impl ConvexHull {
     /// The hull with [`HullOptions::default`].
     pub fn new(points: &[Point6]) -> Result<ConvexHull, HullError> {
@@ -140,22 +162,7 @@ impl ConvexHull {
     }
 
     pub fn with_options(points: &[Point6], opts: &HullOptions) -> Result<ConvexHull, HullError> {
-        if let Some(index) = points.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-            return Err(HullError::NonFinite { index });
-        }
-        let scale = points
-            .iter()
-            .flat_map(|p| p.iter())
-            .fold(0.0f64, |m, c| m.max(c.abs()));
-        // Exact duplicates say nothing new; dropping them up front keeps indices stable
-        // (the kept index is the first occurrence).
-        let mut seen = HashSet::with_capacity(points.len());
-        let keep: Vec<u32> = (0..points.len() as u32)
-            .filter(|&i| seen.insert(points[i as usize].map(f64::to_bits)))
-            .collect();
-        if keep.len() <= DIM {
-            return Err(HullError::TooFewPoints(keep.len()));
-        }
+        let (scale, keep) = prepare(points)?;
         let mut rel = opts.joggle.max(1e-14);
         let mut b = Builder::default();
         const ATTEMPTS: u32 = 3;

@@ -324,9 +324,9 @@ pub fn grasp_quality(
     quality_of_wrenches(&w, lambda)
 }
 
-/// [`grasp_quality`] on given primitive wrenches (`lambda` is only reported). A non-finite
-/// coordinate is [`GraspError::NonFinite`] with the field `wrenches[i]`.
-pub fn quality_of_wrenches(wrenches: &[Point6], lambda: f64) -> Result<GraspQuality, GraspError> {
+/// The quality before any hull: finite wrenches checked (else [`GraspError::NonFinite`] naming
+/// `wrenches[i]`), their rank, no force closure yet.
+fn unscored(wrenches: &[Point6], lambda: f64) -> Result<GraspQuality, GraspError> {
     if let Some(i) = wrenches
         .iter()
         .position(|w| w.iter().any(|c| !c.is_finite()))
@@ -335,16 +335,21 @@ pub fn quality_of_wrenches(wrenches: &[Point6], lambda: f64) -> Result<GraspQual
             field: format!("wrenches[{i}]"),
         });
     }
-    let rank = wrench_rank(wrenches);
-    let mut q = GraspQuality {
+    Ok(GraspQuality {
         force_closure: false,
         epsilon: 0.0,
-        rank,
+        rank: wrench_rank(wrenches),
         wrenches: wrenches.len(),
         facets: 0,
         lambda,
-    };
-    if rank < 6 {
+    })
+}
+
+/// [`grasp_quality`] on given primitive wrenches (`lambda` is only reported). A non-finite
+/// coordinate is [`GraspError::NonFinite`] with the field `wrenches[i]`.
+pub fn quality_of_wrenches(wrenches: &[Point6], lambda: f64) -> Result<GraspQuality, GraspError> {
+    let mut q = unscored(wrenches, lambda)?;
+    if q.rank < 6 {
         return Ok(q);
     }
     let opts = HullOptions {
@@ -377,24 +382,8 @@ pub fn quality_of_wrenches_nearest(
     wrenches: &[Point6],
     lambda: f64,
 ) -> Result<GraspQuality, GraspError> {
-    if let Some(i) = wrenches
-        .iter()
-        .position(|w| w.iter().any(|c| !c.is_finite()))
-    {
-        return Err(GraspError::NonFinite {
-            field: format!("wrenches[{i}]"),
-        });
-    }
-    let rank = wrench_rank(wrenches);
-    let mut q = GraspQuality {
-        force_closure: false,
-        epsilon: 0.0,
-        rank,
-        wrenches: wrenches.len(),
-        facets: 0,
-        lambda,
-    };
-    if rank < 6 {
+    let mut q = unscored(wrenches, lambda)?;
+    if q.rank < 6 {
         return Ok(q);
     }
     match nearest_facet_depth(wrenches, MAX_FACETS) {

@@ -37,8 +37,10 @@ use serde_json::{json, Value};
 
 use super::mbm::{MbmError, MbmObstacle, MbmProblem};
 use super::range::DerivedSettings;
-use super::{RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination};
-use crate::collision::{AutoChecker, ExactChecker};
+use super::{
+    JointSpace, RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
+};
+use crate::collision::{AutoChecker, CollisionWorld, ExactChecker};
 use crate::geometry::{Pose, Shape};
 use crate::kinematics::forward as fk_forward;
 use crate::Robot;
@@ -314,6 +316,24 @@ fn obstacle_json(o: &MbmObstacle) -> (String, Value) {
     }
 }
 
+/// RRT-Connect's settings that decide a problem's `valid` flag: `bench mbm`'s defaults (0.25°
+/// states, certified continuous checks with inflation ≤ 0.04 m, shortcutting and re-validation,
+/// balanced trees, range and dynamic domain derived from the robot).
+pub fn solve_settings(world: &CollisionWorld, space: &JointSpace) -> RrtConnectSettings {
+    let derived = DerivedSettings::of(world, space);
+    RrtConnectSettings {
+        range: derived.as_ref().map(|d| d.range),
+        angular_resolution: 0.25f64.to_radians(),
+        linear_resolution: 0.005,
+        direct_connect: true,
+        shortcut: Some(ShortcutSettings::default()),
+        revalidate: true,
+        certify: Some(0.04),
+        dynamic_domain: derived.as_ref().map(|d| d.dynamic_domain),
+        balance: true,
+    }
+}
+
 /// Counters of a generation run (what was tried, what was kept).
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct GenStats {
@@ -442,23 +462,11 @@ pub fn generate(
             p.start = start;
             p.goals = vec![goal];
             // Valid: RRT-Connect (the benchmark's settings) solves it in the time given.
-            let derived = DerivedSettings::of(&world, &space);
-            let settings = RrtConnectSettings {
-                range: derived.as_ref().map(|d| d.range),
-                angular_resolution: 0.25f64.to_radians(),
-                linear_resolution: 0.005,
-                direct_connect: true,
-                shortcut: Some(ShortcutSettings::default()),
-                revalidate: true,
-                certify: Some(0.04),
-                dynamic_domain: derived.as_ref().map(|d| d.dynamic_domain),
-                balance: true,
-            };
             let mut planner = RrtConnect::with_checker(
                 space.clone(),
                 &world,
                 AutoChecker::new(&world, 0.0),
-                settings,
+                solve_settings(&world, &space),
             )?;
             // The iteration bound decides; the time limit only guards against a pathological
             // robot (it is far above what the bound takes).

@@ -42,7 +42,7 @@
 //! earlier (a median 40–60 µs there).
 
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashSet};
+use std::collections::BinaryHeap;
 
 use super::{dot, joggle, polished_support, support, Builder, Fail, HullError, HullOptions};
 use super::{Point6, DIM, NONE};
@@ -118,20 +118,7 @@ fn search(
     max_facets: usize,
     accept: Option<f64>,
 ) -> Result<NearestDepth, HullError> {
-    if let Some(index) = points.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-        return Err(HullError::NonFinite { index });
-    }
-    let scale = points
-        .iter()
-        .flat_map(|p| p.iter())
-        .fold(0.0f64, |m, c| m.max(c.abs()));
-    let mut seen = HashSet::with_capacity(points.len());
-    let keep: Vec<u32> = (0..points.len() as u32)
-        .filter(|&i| seen.insert(points[i as usize].map(f64::to_bits)))
-        .collect();
-    if keep.len() <= DIM {
-        return Err(HullError::TooFewPoints(keep.len()));
-    }
+    let (scale, keep) = super::prepare(points)?;
     // The first attempt of ConvexHull::with_options: the same joggled points.
     let delta = HullOptions::default().joggle.max(1e-14) * scale;
     let pts: Vec<Point6> = keep
