@@ -117,7 +117,13 @@ fn shape_json(s: &Shape) -> Value {
             half_length,
         } => json!({"type": "capsule", "radius": radius, "length": 2.0 * half_length}),
         Shape::Mesh(m) => {
-            json!({"type": "mesh", "source": m.source, "vertices": m.vertices.len(), "triangles": m.triangles.len()})
+            let solid = match &m.solid {
+                Ok(s) => json!({"components": s.components, "cover_boxes": s.cover.len(),
+                                "cover_protrusion": s.cover_protrusion()}),
+                Err(why) => json!({"not_solid": why}),
+            };
+            json!({"type": "mesh", "source": m.source, "vertices": m.vertices.len(),
+                   "triangles": m.triangles.len(), "solid": solid})
         }
     }
 }

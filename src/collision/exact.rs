@@ -8,11 +8,15 @@
 //! It is slow compared with `FastChecker` (dynamic dispatch, GJK on convex shapes, f64): it must
 //! not be used in planner hot loops.
 //!
-//! Meshes are replaced by the convex hull of their vertices, a conservative superset of the mesh
-//! (a body inside a closed mesh, or in one of its concavities, is reported as colliding). If the
-//! hull cannot be built (degenerate or flat vertex set) the box of the mesh's bounding box is
-//! used instead, which is conservative too. Any shape pair parry cannot answer is treated as
-//! colliding.
+//! A closed, consistently oriented mesh ([`crate::geometry::Solid`]) is checked as the true
+//! solid: its surface as parry's `TriMesh` (triangle against shape) and its inside by winding
+//! number, so a shape with no surface contact is tested at one of its points for lying inside
+//! the mesh and the mesh at one of its vertices for lying inside the shape; a finger between
+//! two legs of a statuette is free. Any other mesh is replaced by the convex hull of its
+//! vertices, a conservative superset (a body inside a closed mesh, or in one of its
+//! concavities, is reported as colliding); if the hull cannot be built (degenerate or flat
+//! vertex set) the box of the mesh's bounding box is used instead, which is conservative too.
+//! Any shape pair parry cannot answer is treated as colliding.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -23,7 +27,7 @@ use parry3d_f64::query;
 use parry3d_f64::shape::{ConvexPolyhedron, SharedShape};
 
 use super::{BodyId, CollisionChecker, CollisionWorld, Contact};
-use crate::geometry::{Geometry, Pose, Shape};
+use crate::geometry::{Geometry, Pose, Shape, Solid};
 use crate::kinematics::forward;
 use crate::model::Robot;
 
@@ -53,10 +57,29 @@ struct ShapeRec {
     local: Pose,
     /// Radius of a sphere centred on the parry shape's origin holding the shape.
     radius: f64,
+    /// A solid mesh (its parry shape is the surface only, a `TriMesh`): the inside test.
+    solid: Option<Arc<Solid>>,
+    /// A point of the shape, in the parry shape's frame (containment tests).
+    witness: PVector,
 }
 
-/// Converts one geometry. Returns the parry shape, the extra pose between the geometry frame and
-/// the parry shape frame, and the bounding radius about the parry shape's origin.
+/// [`convert`], except that a solid mesh gives its surface (parry's `TriMesh`) and its solid.
+fn convert_solid(shape: &Shape) -> (SharedShape, Pose, f64, Option<Arc<Solid>>) {
+    if let Shape::Mesh(m) = shape {
+        if let Ok(solid) = &m.solid {
+            let pts: Vec<PVector> = solid.vertices.iter().map(|v| to_pvec(&v.coords)).collect();
+            if let Ok(tm) = SharedShape::trimesh(pts, solid.triangles.clone()) {
+                return (tm, Pose::identity(), m.max_radius(), Some(solid.clone()));
+            }
+        }
+    }
+    let (s, fix, r) = convert(shape);
+    (s, fix, r, None)
+}
+
+/// Converts one geometry, a mesh as its convex hull (or box). Returns the parry shape, the extra
+/// pose between the geometry frame and the parry shape frame, and the bounding radius about the
+/// parry shape's origin.
 fn convert(shape: &Shape) -> (SharedShape, Pose, f64) {
     match shape {
         Shape::Box { half_extents } => (
@@ -119,7 +142,8 @@ fn convert(shape: &Shape) -> (SharedShape, Pose, f64) {
 }
 
 /// The parry shape of a geometry and its pose in the body frame (cylinder axis fix and mesh
-/// hull/box placement included): the one conversion every parry-based check uses.
+/// hull/box placement included): the convex conversion of the parry-based checks outside the
+/// exact checker (a mesh as its hull, conservative).
 pub(crate) fn parry_shape(g: &Geometry) -> (SharedShape, Pose) {
     let (shape, fix, _) = convert(&g.shape);
     (shape, g.origin * fix)
@@ -127,11 +151,22 @@ pub(crate) fn parry_shape(g: &Geometry) -> (SharedShape, Pose) {
 
 fn convert_all(geoms: &[Geometry], out: &mut Vec<ShapeRec>) {
     for g in geoms {
-        let (shape, fix, radius) = convert(&g.shape);
+        let (shape, fix, radius, solid) = convert_solid(&g.shape);
+        let witness = match (&solid, shape.as_convex_polyhedron()) {
+            (Some(s), _) => s
+                .vertices
+                .first()
+                .map_or(PVector::ZERO, |v| to_pvec(&v.coords)),
+            (None, Some(p)) => p.points().first().copied().unwrap_or(PVector::ZERO),
+            // Primitives are centred on their frame's origin.
+            (None, None) => PVector::ZERO,
+        };
         out.push(ShapeRec {
             shape,
             local: g.origin * fix,
             radius,
+            solid,
+            witness,
         });
     }
 }
@@ -331,7 +366,8 @@ impl ExactChecker {
         (self.centres[i] - self.centres[j]).norm() - self.shapes[i].radius - self.shapes[j].radius
     }
 
-    /// True when shapes `i` and `j` intersect (unsupported pairs count as intersecting).
+    /// True when shapes `i` and `j` intersect (unsupported pairs count as intersecting). A solid
+    /// mesh is its surface and inside: a shape wholly inside it (or holding it) intersects.
     #[inline]
     fn shapes_intersect(&self, i: usize, j: usize) -> bool {
         if self.sphere_gap(i, j) > 0.0 {
@@ -345,11 +381,36 @@ impl ExactChecker {
         )
         .map(|r| r.intersecting)
         .unwrap_or(true)
+            || self.nested(i, j)
+    }
+
+    /// With a solid mesh among shapes `i` and `j` whose surfaces do not meet: whether one lies
+    /// inside the other (tested at one point of it, its witness).
+    fn nested(&self, i: usize, j: usize) -> bool {
+        let (si, sj) = (&self.shapes[i], &self.shapes[j]);
+        if si.solid.is_none() && sj.solid.is_none() {
+            return false;
+        }
+        let inside = |outer: usize, inner: usize| {
+            let (o, n) = (&self.shapes[outer], &self.shapes[inner]);
+            let p = self.world[inner] * n.witness;
+            match &o.solid {
+                Some(solid) => {
+                    let l = self.world[outer].inverse_transform_point(p);
+                    solid.contains(&Vector3::new(l.x, l.y, l.z))
+                }
+                None => o.shape.contains_point(&self.world[outer], p),
+            }
+        };
+        inside(i, j) || inside(j, i)
     }
 
     /// Distance between shapes `i` and `j` (0 when intersecting or unsupported).
     #[inline]
     fn shape_distance(&self, i: usize, j: usize) -> f64 {
+        if self.nested(i, j) {
+            return 0.0;
+        }
         query::distance(
             &self.world[i],
             self.shapes[i].shape.as_ref(),

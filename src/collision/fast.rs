@@ -75,10 +75,11 @@ enum Prim {
 }
 
 impl Prim {
-    fn from_shape(origin: &Pose, shape: &Shape, pad: f64) -> Prim {
+    /// The primitives of one shape (one, but a solid mesh gives its cover's boxes), padded.
+    fn from_shape(origin: &Pose, shape: &Shape, pad: f64, out: &mut Vec<Prim>) {
         let c = origin.translation.vector;
         let rot = *origin.rotation.to_rotation_matrix().matrix();
-        match shape {
+        let p = match shape {
             Shape::Sphere { radius } => Prim::Sphere {
                 c,
                 r: radius + pad + EPS,
@@ -107,15 +108,15 @@ impl Prim {
                 h: *half_length,
             },
             Shape::Mesh(m) => {
-                let (lo, hi) = m.aabb();
-                let mid = (lo + hi) * 0.5;
-                Prim::Obb {
+                out.extend(m.cover().into_iter().map(|(mid, half)| Prim::Obb {
                     c: c + rot * mid,
                     rot,
-                    half: ((hi - lo) * 0.5).add_scalar(pad + EPS),
-                }
+                    half: half.add_scalar(pad + EPS),
+                }));
+                return;
             }
-        }
+        };
+        out.push(p);
     }
 
     /// The primitive moved by a body pose `(rot, t)`.
@@ -642,16 +643,15 @@ impl FastChecker {
                              moving: &mut Vec<MovingBody>| {
             // Primitives in the mount link's frame (the body's offset folded in), so a check
             // needs only the link frames.
-            let local: Vec<Prim> = shapes
-                .iter()
-                .map(|g| {
-                    let p = Prim::from_shape(&g.origin, &g.shape, settings.padding);
-                    match &rel {
-                        Some(f) => p.transformed(&f.rot, &f.t),
-                        None => p,
-                    }
-                })
-                .collect();
+            let mut local: Vec<Prim> = Vec::with_capacity(shapes.len());
+            for g in shapes {
+                Prim::from_shape(&g.origin, &g.shape, settings.padding, &mut local);
+            }
+            if let Some(f) = &rel {
+                for p in &mut local {
+                    *p = p.transformed(&f.rot, &f.t);
+                }
+            }
             let (bc, br) = bounding_of(&local);
             match id {
                 BodyId::Link { robot, link } => link_index[robot][link] = Some(moving.len()),
@@ -695,11 +695,13 @@ impl FastChecker {
             if st.shapes.is_empty() {
                 continue;
             }
-            let prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = st
-                .shapes
-                .iter()
-                .map(|g| {
-                    let p = Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0);
+            let mut plain = Vec::with_capacity(st.shapes.len());
+            for g in &st.shapes {
+                Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0, &mut plain);
+            }
+            let prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = plain
+                .into_iter()
+                .map(|p| {
                     let (lo, hi) = aabb(&p);
                     (p, lo, hi)
                 })
@@ -718,7 +720,9 @@ impl FastChecker {
                 hi,
             });
         }
-        // Only meshes (replaced by the box around their vertices) are over-approximated.
+        // Meshes are over-approximated by their cover (a solid's boxes: at most a cell diagonal,
+        // on both bodies of a pair) or the box around their vertices (unbounded against the
+        // exact checker's hull).
         let shapes = world
             .robots
             .iter()
@@ -726,8 +730,8 @@ impl FastChecker {
             .chain(world.attached.iter().flat_map(|a| a.shapes.iter()))
             .chain(world.statics.iter().flat_map(|s| s.shapes.iter()));
         for g in shapes {
-            let o = match g.shape {
-                Shape::Mesh(_) => f64::INFINITY,
+            let o = match &g.shape {
+                Shape::Mesh(m) => 2.0 * (m.cover_protrusion() + EPS),
                 _ => 2.0 * EPS,
             };
             overapprox = overapprox.max(o);
@@ -913,7 +917,8 @@ impl FastChecker {
     }
 
     /// Largest distance by which the fast model may report a collision that the exact
-    /// geometry does not have (0 for worlds of spheres and boxes; infinite with meshes).
+    /// geometry does not have (0 for worlds of spheres and boxes; two cover cell diagonals with
+    /// solid meshes, infinite with other meshes).
     pub fn max_overapproximation(&self) -> f64 {
         self.overapprox
     }

@@ -512,17 +512,18 @@ impl SphereChecker {
                         if m.vertices.is_empty() {
                             continue;
                         }
-                        let (lo, hi) = m.aabb();
-                        let mid = c + rot * ((lo + hi) * 0.5);
-                        let half = (hi - lo) * 0.5;
-                        (
-                            Obs::Box {
+                        // The boxes of its cover (a solid's, or the box around its vertices).
+                        for (mid, half) in m.cover() {
+                            let mid = c + rot * mid;
+                            obstacles.push(Obs::Box {
                                 c: f3(&mid),
                                 rt: rt(&rot),
                                 half: f3(&half),
-                            },
-                            (mid, half.norm()),
-                        )
+                            });
+                            obstacle_static.push(si as u32);
+                            obstacle_bound.push((mid, half.norm()));
+                        }
+                        continue;
                     }
                 };
                 obstacles.push(o);
@@ -830,21 +831,23 @@ impl SphereChecker {
     }
 
     /// Largest distance by which this model may report a collision that the exact geometry
-    /// does not have: twice (padding + rounding margin), for robot–robot pairs (infinite when an obstacle is a mesh, replaced
-    /// by the box around its vertices).
+    /// does not have: twice (padding + rounding margin), for robot–robot pairs; with a mesh
+    /// obstacle its cover's protrusion (infinite for a mesh that is not a solid).
     pub fn max_overapproximation(&self) -> f64 {
-        let has_mesh = self
+        // A mesh obstacle is its cover: a solid's boxes protrude at most a cell diagonal, the box
+        // around another mesh's vertices is unbounded against the exact checker's hull.
+        let mesh = self
             .world
             .statics
             .iter()
             .flat_map(|s| s.shapes.iter())
-            .any(|g| matches!(g.shape, Shape::Mesh(_)));
-        if has_mesh {
-            f64::INFINITY
-        } else {
-            // Both spheres of a self-collision pair are inflated.
-            2.0 * self.inflate + 1e-6
-        }
+            .filter_map(|g| match &g.shape {
+                Shape::Mesh(m) => Some(m.cover_protrusion()),
+                _ => None,
+            })
+            .fold(0.0, f64::max);
+        // Both spheres of a self-collision pair are inflated.
+        (2.0 * self.inflate + 1e-6).max(mesh + self.inflate + 1e-6)
     }
 
     /// True when every state `a + (b − a)·k/n`, k = 1..=n, is free ("raked": the first call

@@ -5,8 +5,10 @@
 
 mod pose;
 mod shape;
+mod solid;
 mod trig;
 
 pub use pose::{iso_from_rpy, quat_from_rpy, quat_to_rpy, Pose, PoseJson};
 pub use shape::{Geometry, Mesh, Shape};
+pub use solid::{CoverBox, Solid, COVER_CELLS, MAX_COVER_BOXES};
 pub use trig::{atan2, sin_cos};

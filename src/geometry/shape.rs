@@ -5,10 +5,14 @@ use std::sync::Arc;
 
 use nalgebra::{Point3, Vector3};
 
+use super::solid::{CoverBox, Solid};
 use super::Pose;
 
-/// A triangle mesh (collision geometry). Collision checkers use its convex hull, a conservative
-/// superset of the mesh, so a small body inside a closed mesh is never missed.
+/// A triangle mesh (collision geometry). A closed, consistently oriented mesh is a [`Solid`]:
+/// the exact checker uses its true surface and inside, the fast checkers a box cover of it
+/// ([`Mesh::cover`]). Any other mesh is checked as its convex hull (exact) and the box around
+/// its vertices (fast), conservative supersets, so a small body inside a closed mesh or in one
+/// of its concavities is never missed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mesh {
     /// Where the mesh was read from (for messages).
@@ -17,6 +21,8 @@ pub struct Mesh {
     pub vertices: Vec<Point3<f64>>,
     /// Triangles as vertex indices.
     pub triangles: Vec<[u32; 3]>,
+    /// The solid it bounds, or why it is not one (see [`Solid::new`]).
+    pub solid: Result<Arc<Solid>, String>,
 }
 
 impl Mesh {
@@ -52,18 +58,67 @@ impl Mesh {
                 triangles.push([f[0] + base, f[1] + base, f[2] + base]);
             }
         }
+        Mesh::from_triangles(path.display().to_string(), vertices, triangles)
+    }
+
+    /// A mesh from vertices and triangles (`source` names it in messages); the solid is found
+    /// once here.
+    pub fn from_triangles(
+        source: String,
+        vertices: Vec<Point3<f64>>,
+        triangles: Vec<[u32; 3]>,
+    ) -> Result<Mesh, String> {
         if vertices.len() < 4 {
             return Err(format!(
-                "mesh '{}': has {} vertices, a solid needs at least 4",
-                path.display(),
+                "mesh '{source}': has {} vertices, a solid needs at least 4",
                 vertices.len()
             ));
         }
+        if let Some((t, i)) = triangles.iter().enumerate().find_map(|(t, tri)| {
+            tri.iter()
+                .find(|&&i| i as usize >= vertices.len())
+                .map(|&i| (t, i))
+        }) {
+            return Err(format!(
+                "mesh '{source}': triangle {t} uses vertex {i}, it has {}",
+                vertices.len()
+            ));
+        }
+        let solid = if vertices
+            .iter()
+            .all(|v| v.coords.iter().all(|c| c.is_finite()))
+        {
+            Solid::new(&vertices, &triangles).map(Arc::new)
+        } else {
+            Err("non-finite vertex".to_string())
+        };
         Ok(Mesh {
-            source: path.display().to_string(),
+            source,
             vertices,
             triangles,
+            solid,
         })
+    }
+
+    /// Boxes `(centre, half extents)` in the shape frame whose union contains the mesh: the
+    /// solid's cover, else the box around the vertices.
+    pub fn cover(&self) -> Vec<CoverBox> {
+        match &self.solid {
+            Ok(s) => s.cover.clone(),
+            Err(_) => {
+                let (lo, hi) = self.aabb();
+                vec![((lo + hi) * 0.5, (hi - lo) * 0.5)]
+            }
+        }
+    }
+
+    /// The farthest a point of [`Self::cover`] can be from the mesh's solid (infinite for a
+    /// mesh that is not a solid: its box is measured against its convex hull elsewhere).
+    pub fn cover_protrusion(&self) -> f64 {
+        match &self.solid {
+            Ok(s) => s.cover_protrusion(),
+            Err(_) => f64::INFINITY,
+        }
     }
 
     /// Corners `(lo, hi)` of the axis-aligned box around the vertices (zeros for an empty mesh).

@@ -155,13 +155,20 @@ pub fn shape_spheres(shape: &Shape, s: &SpherizeSettings) -> (Vec<(Vector3<f64>,
         Shape::Sphere { radius } => (vec![(Vector3::zeros(), *radius)], 0.0),
         Shape::Box { half_extents } => box_spheres(*half_extents, s),
         Shape::Mesh(m) => {
-            let (lo, hi) = m.aabb();
-            let (mut spheres, p) = box_spheres(0.5 * (hi - lo), s);
-            let mid = 0.5 * (hi + lo);
-            for (c, _) in &mut spheres {
-                *c += mid;
+            // The boxes of its cover (a solid's, or the box around its vertices), each
+            // spherized; the protrusion adds the cover's own.
+            let mut all = Vec::new();
+            let mut protrusion: f64 = 0.0;
+            for (mid, half) in m.cover() {
+                let (spheres, p) = box_spheres(half, s);
+                all.extend(spheres.into_iter().map(|(c, r)| (c + mid, r)));
+                protrusion = protrusion.max(p);
             }
-            (spheres, p)
+            let own = match &m.solid {
+                Ok(solid) => solid.cover_protrusion(),
+                Err(_) => 0.0,
+            };
+            (all, protrusion + own)
         }
         Shape::Cylinder {
             radius,
