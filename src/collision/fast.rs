@@ -75,8 +75,9 @@ enum Prim {
 }
 
 impl Prim {
-    /// The primitives of one shape (one, but a solid mesh gives its cover's boxes), padded.
-    fn from_shape(origin: &Pose, shape: &Shape, pad: f64, out: &mut Vec<Prim>) {
+    /// The primitives of one shape (one, but a mesh gives its cover's boxes: the coarse one on
+    /// a `moving` body), padded.
+    fn from_shape(origin: &Pose, shape: &Shape, pad: f64, moving: bool, out: &mut Vec<Prim>) {
         let c = origin.translation.vector;
         let rot = *origin.rotation.to_rotation_matrix().matrix();
         let p = match shape {
@@ -108,7 +109,12 @@ impl Prim {
                 h: *half_length,
             },
             Shape::Mesh(m) => {
-                out.extend(m.cover().into_iter().map(|(mid, half)| Prim::Obb {
+                let cover = if moving {
+                    m.moving_cover().0
+                } else {
+                    m.cover()
+                };
+                out.extend(cover.into_iter().map(|(mid, half)| Prim::Obb {
                     c: c + rot * mid,
                     rot,
                     half: half.add_scalar(pad + EPS),
@@ -645,7 +651,7 @@ impl FastChecker {
             // needs only the link frames.
             let mut local: Vec<Prim> = Vec::with_capacity(shapes.len());
             for g in shapes {
-                Prim::from_shape(&g.origin, &g.shape, settings.padding, &mut local);
+                Prim::from_shape(&g.origin, &g.shape, settings.padding, true, &mut local);
             }
             if let Some(f) = &rel {
                 for p in &mut local {
@@ -697,7 +703,7 @@ impl FastChecker {
             }
             let mut plain = Vec::with_capacity(st.shapes.len());
             for g in &st.shapes {
-                Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0, &mut plain);
+                Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0, false, &mut plain);
             }
             let prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = plain
                 .into_iter()
@@ -721,16 +727,20 @@ impl FastChecker {
             });
         }
         // Meshes are over-approximated by their cover (a solid's boxes: at most a cell diagonal,
-        // on both bodies of a pair) or the box around their vertices (unbounded against the
-        // exact checker's hull).
-        let shapes = world
+        // on both bodies of a pair; the coarse cover on moving bodies) or the box around their
+        // vertices (unbounded against the exact checker's hull).
+        let moving_shapes = world
             .robots
             .iter()
             .flat_map(|p| p.robot.links.iter().flat_map(|l| l.collision.iter()))
-            .chain(world.attached.iter().flat_map(|a| a.shapes.iter()))
-            .chain(world.statics.iter().flat_map(|s| s.shapes.iter()));
-        for g in shapes {
+            .chain(world.attached.iter().flat_map(|a| a.shapes.iter()));
+        let static_shapes = world.statics.iter().flat_map(|s| s.shapes.iter());
+        let shapes = moving_shapes
+            .map(|g| (g, true))
+            .chain(static_shapes.map(|g| (g, false)));
+        for (g, moving) in shapes {
             let o = match &g.shape {
+                Shape::Mesh(m) if moving => 2.0 * (m.moving_cover().1 + EPS),
                 Shape::Mesh(m) => 2.0 * (m.cover_protrusion() + EPS),
                 _ => 2.0 * EPS,
             };

@@ -121,6 +121,16 @@ impl Mesh {
         }
     }
 
+    /// [`Self::cover`] for a moving body: the solid's coarse cover (at most
+    /// [`super::solid::MAX_MOVING_COVER_BOXES`] boxes), else the box around the vertices; and
+    /// how far it may protrude beyond the solid (infinite for a mesh that is not a solid).
+    pub fn moving_cover(&self) -> (Vec<CoverBox>, f64) {
+        match &self.solid {
+            Ok(s) => (s.moving_cover.clone(), s.moving_protrusion),
+            Err(_) => (self.cover(), f64::INFINITY),
+        }
+    }
+
     /// Corners `(lo, hi)` of the axis-aligned box around the vertices (zeros for an empty mesh).
     pub fn aabb(&self) -> (Vector3<f64>, Vector3<f64>) {
         if self.vertices.is_empty() {

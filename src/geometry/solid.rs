@@ -19,7 +19,9 @@
 //! triangle meets lies wholly inside or wholly outside, and face neighbours of that kind lie on
 //! the same side); the kept cells are merged greedily into boxes. Every point of the cover is in
 //! a cell that meets the solid, so the cover protrudes at most one cell diagonal
-//! ([`Solid::cover_protrusion`]) beyond it. Meshes that are not closed have no solid: checkers
+//! ([`Solid::cover_protrusion`]) beyond it. Moving bodies (robot links, held objects) get a
+//! coarser cover of at most [`MAX_MOVING_COVER_BOXES`] boxes, since their boxes are paired with
+//! other moving bodies' and swept by the certified checks. Meshes that are not closed have no solid: checkers
 //! keep their convex hull (exact) and the box around them (fast), both conservative.
 
 use std::collections::HashMap;
@@ -32,6 +34,11 @@ pub const COVER_CELLS: usize = 48;
 /// Most boxes in a cover: a finer grid that needs more is halved (down to 6 cells a side), so a
 /// checker's cost per mesh stays bounded.
 pub const MAX_COVER_BOXES: usize = 256;
+
+/// Most boxes in the coarse cover of a moving mesh (a robot link, a held object), whose boxes
+/// are paired with other moving bodies' and swept by the certified motion checks: the grid is
+/// halved from 24 cells until it fits, else the box around the mesh is used.
+pub const MAX_MOVING_COVER_BOXES: usize = 16;
 
 /// An axis-aligned box `(centre, half extents)`.
 pub type CoverBox = (Vector3<f64>, Vector3<f64>);
@@ -49,6 +56,10 @@ pub struct Solid {
     pub cover: Vec<CoverBox>,
     /// Edge of the cover's cells.
     pub cell: f64,
+    /// The coarse cover for moving bodies (at most [`MAX_MOVING_COVER_BOXES`] boxes) and a bound
+    /// on how far it protrudes beyond the solid.
+    pub moving_cover: Vec<CoverBox>,
+    pub moving_protrusion: f64,
 }
 
 impl Solid {
@@ -149,12 +160,30 @@ impl Solid {
             cells /= 2;
             (cover, cell) = self::cover(&welded, &tris, cells);
         }
+        let (mut moving_cover, mut moving_protrusion) = (Vec::new(), f64::INFINITY);
+        let mut cells = COVER_CELLS / 2;
+        while cells >= 3 {
+            let (c, h) = self::cover(&welded, &tris, cells);
+            if c.len() <= MAX_MOVING_COVER_BOXES {
+                (moving_cover, moving_protrusion) = (c, h * 3f64.sqrt());
+                break;
+            }
+            cells /= 2;
+        }
+        if moving_cover.is_empty() {
+            // The box around the vertices: no point of it is farther than its diagonal.
+            let (lo, hi) = bounds(&welded);
+            moving_cover = vec![((lo + hi) / 2.0, (hi - lo) / 2.0)];
+            moving_protrusion = (hi - lo).norm();
+        }
         Ok(Solid {
             vertices: welded,
             triangles: tris,
             components,
             cover,
             cell,
+            moving_cover,
+            moving_protrusion,
         })
     }
 
@@ -189,15 +218,21 @@ impl Solid {
     }
 }
 
-/// The cover boxes and the cell edge (module docs).
-fn cover(vertices: &[Point3<f64>], tris: &[[u32; 3]], cells: usize) -> (Vec<CoverBox>, f64) {
-    let (lo, hi) = vertices.iter().fold(
+/// The box `(lo, hi)` around the vertices.
+fn bounds(vertices: &[Point3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+    vertices.iter().fold(
         (
             Vector3::repeat(f64::INFINITY),
             Vector3::repeat(f64::NEG_INFINITY),
         ),
         |(lo, hi), v| (lo.inf(&v.coords), hi.sup(&v.coords)),
-    );
+    )
+}
+
+/// The cover boxes and the cell edge (module docs); each box is clipped to the box around the
+/// vertices, which holds the solid.
+fn cover(vertices: &[Point3<f64>], tris: &[[u32; 3]], cells: usize) -> (Vec<CoverBox>, f64) {
+    let (lo, hi) = bounds(vertices);
     let ext = hi - lo;
     let longest = ext.max();
     let cell = if longest > 0.0 {
@@ -298,8 +333,8 @@ fn cover(vertices: &[Point3<f64>], tris: &[[u32; 3]], cells: usize) -> (Vec<Cove
                         }
                     }
                 }
-                let blo = origin + Vector3::new(i as f64, j as f64, k as f64) * cell;
-                let bhi = origin + Vector3::new(i1 as f64, j1 as f64, k1 as f64) * cell;
+                let blo = (origin + Vector3::new(i as f64, j as f64, k as f64) * cell).sup(&lo);
+                let bhi = (origin + Vector3::new(i1 as f64, j1 as f64, k1 as f64) * cell).inf(&hi);
                 boxes.push(((blo + bhi) / 2.0, (bhi - blo) / 2.0));
             }
         }

@@ -155,19 +155,18 @@ pub fn shape_spheres(shape: &Shape, s: &SpherizeSettings) -> (Vec<(Vector3<f64>,
         Shape::Sphere { radius } => (vec![(Vector3::zeros(), *radius)], 0.0),
         Shape::Box { half_extents } => box_spheres(*half_extents, s),
         Shape::Mesh(m) => {
-            // The boxes of its cover (a solid's, or the box around its vertices), each
-            // spherized; the protrusion adds the cover's own.
+            // The boxes of its moving-body cover (a solid's coarse one, or the box around its
+            // vertices), each spherized; the protrusion adds the cover's own.
             let mut all = Vec::new();
             let mut protrusion: f64 = 0.0;
-            for (mid, half) in m.cover() {
+            let (cover, own) = m.moving_cover();
+            for (mid, half) in cover {
                 let (spheres, p) = box_spheres(half, s);
                 all.extend(spheres.into_iter().map(|(c, r)| (c + mid, r)));
                 protrusion = protrusion.max(p);
             }
-            let own = match &m.solid {
-                Ok(solid) => solid.cover_protrusion(),
-                Err(_) => 0.0,
-            };
+            // A mesh that is not a solid: its box, measured against the box as before.
+            let own = if own.is_finite() { own } else { 0.0 };
             (all, protrusion + own)
         }
         Shape::Cylinder {
