@@ -367,6 +367,44 @@ fn shortcutting_never_lengthens_and_stays_valid() {
     );
 }
 
+/// Random shortcuts that would gain less than `min_gain` of the path's length are not tried
+/// (no motion check), larger gains still are.
+#[test]
+fn shortcuts_below_the_minimum_gain_are_not_checked() {
+    let w = CollisionWorld::single(arm(), Pose::identity());
+    let mut p = planner(&w, raw_settings());
+    // A detour of 0.02 rad at the middle: the path is 0.017 % longer than the straight one.
+    let path0 = vec![ARM_START.to_vec(), vec![0.0, 0.02], ARM_GOAL.to_vec()];
+    let len0 = p.space().path_length(&path0);
+    for (min_gain, tried) in [(0.0, true), (0.01, false)] {
+        let settings = ShortcutSettings {
+            vertex_removal: false,
+            min_gain,
+            ..ShortcutSettings::default()
+        };
+        let mut path = path0.clone();
+        let segments = p.validator().segments();
+        let st = simplify(
+            p.validator(),
+            &mut path,
+            &settings,
+            &mut ChaCha8Rng::seed_from_u64(1),
+            &mut Termination::new(),
+        );
+        // Motion checks besides the final validation of the result's segments.
+        let checked = p.validator().segments() - segments - (path.len() as u64 - 1);
+        let len = p.space().path_length(&path);
+        assert!(!st.reverted);
+        if tried {
+            assert!(st.shortcuts > 0 && checked > 0, "{st:?}");
+            assert!(len < len0 - 1e-6, "{len} vs {len0}");
+        } else {
+            assert_eq!((st.shortcuts, checked), (0, 0), "{st:?}");
+            assert_eq!(path, path0);
+        }
+    }
+}
+
 #[test]
 fn direct_connection_when_nothing_is_in_the_way() {
     let w = CollisionWorld::single(arm(), Pose::identity());

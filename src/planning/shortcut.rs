@@ -5,7 +5,8 @@
 //! 1. greedy vertex removal — from each vertex, connect straight to the farthest later vertex
 //!    the segment to which is valid, dropping the vertices in between;
 //! 2. random shortcuts — pick two random points on the path (uniform in arc length), replace
-//!    the part between them by a straight segment when it is valid and shorter;
+//!    the part between them by a straight segment when it is valid and shorter (by more than
+//!    [`ShortcutSettings::min_gain`] of the path's length: smaller gains are not worth a check);
 //! 3. greedy vertex removal again.
 //!
 //! Every new segment is validated through the [`SpaceValidator`] (the two pieces of old segments a
@@ -28,6 +29,12 @@ pub struct ShortcutSettings {
     pub max_failures: usize,
     /// Run greedy vertex removal before and after the random shortcuts.
     pub vertex_removal: bool,
+    /// A random shortcut is tried only when it would shorten the path by more than this
+    /// fraction of its length; a smaller one counts as a failed attempt without a motion check.
+    /// Once the path has converged the shortcuts left gain little and each costs a certified
+    /// motion check (0.002, measured on `bench planners`' IK-RRT paths: 45 % fewer checked
+    /// states in the simplifier for paths 0.6 % longer; 0 tries every shorter shortcut).
+    pub min_gain: f64,
 }
 
 impl Default for ShortcutSettings {
@@ -36,6 +43,7 @@ impl Default for ShortcutSettings {
             max_attempts: 40,
             max_failures: 10,
             vertex_removal: true,
+            min_gain: 0.002,
         }
     }
 }
@@ -171,8 +179,9 @@ fn random_shortcuts<C: SegmentChecker, R: Rng + ?Sized>(
             + v.space().distance(&a, &b)
             + v.space().distance(&b, &path[j + 1])
             + (total - cum[j + 1]);
-        // Not shorter (or NaN): keep the path as it is.
-        if new.is_nan() || new >= old - 1e-12 {
+        // Not shorter by more than the smallest gain worth a check (or NaN): keep the path.
+        let min_gain = settings.min_gain.max(0.0) * old;
+        if new.is_nan() || new >= old - 1e-12 - min_gain {
             failures += 1;
             continue;
         }
