@@ -24,8 +24,9 @@
 //! 4. **Expansion**: for a facet with a non-empty outside set, its farthest point p is the apex;
 //!    the visible facets are found by a breadth-first walk over facet adjacency; each horizon ridge
 //!    (a visible facet's side whose neighbour is not visible) and p form a new facet, linked to the
-//!    non-visible neighbour across the ridge and to the other new facets through a
-//!    `ridge (5 sorted vertex ids) → (facet, slot)` hash map. The orphaned outside points are
+//!    non-visible neighbour across the ridge and to each other through their ridges that hold p:
+//!    a small open-addressing table keyed by the ridge's other 4 vertex ids (sorted), stamped
+//!    per expansion so it is never cleared. The orphaned outside points are
 //!    reassigned to the new facets. Each point is an apex at most once, so the loop ends after at
 //!    most N rounds.
 //! 5. **Checks**: unpaired or over-paired ridges, a degenerate new facet (hyperplane not
@@ -51,7 +52,15 @@
 //! `v_k − v_0`, computed by modified Gram–Schmidt with re-orthogonalisation (each difference
 //! orthonormalised twice against the previous ones), then the unit coordinate axis with the largest
 //! residual is projected onto the orthogonal complement. The normal is oriented away from the
-//! interior point; the offset is the mean of `n · v_k`.
+//! interior point; the offset is the mean of `n · v_k`. A new facet of step 4 gets its plane
+//! cheaper, from the pencil of its two parents' planes (the visible facet and its non-visible
+//! neighbour both contain the horizon ridge): ψ = −φ_g(p) φ_f + φ_f(p) φ_g vanishes on the ridge
+//! and at the apex p (about 60 flops where Gram–Schmidt costs about 500; it was 46 % of the
+//! nearest-facet search). The pencil plane is kept only when it passes within 1e-14 × scale of
+//! all 6 of its (joggled) vertices and has the interior strictly inside — an a-posteriori check,
+//! so no error is inherited from the parents — and is recomputed by Gram–Schmidt otherwise
+//! (nearly parallel parents, where the pencil cancels: 5 of 243 000 new facets on 100
+//! 8-contact kitchen_two wrench sets, none of 171 000 on 100 20-contact ones).
 //!
 //! Cost: O(N log N)-ish expected for points in general position plus O(F) per round for the
 //! visible set, where F (the number of facets) can grow like O(N^3) in 6-D in the worst case;
@@ -60,14 +69,16 @@
 //! mode on the 2-core development machine (8 cone edges, point contacts): 3 contacts ≈ 640
 //! facets in 1.5 ms, 4 contacts ≈ 1300 facets in 3.6 ms, 10 random contacts ≈ 5800 facets in
 //! about 40 ms, 20 about 14 000 facets in 0.1 s, 64 about 60 000 facets in 0.55 s; with 32 cone
-//! edges 64 contacts give 6.1e5 facets in 9 s.
+//! edges 64 contacts give 6.1e5 facets in 9 s. Those figures predate the pencil planes and the
+//! stamped ridge table, which made the 20-contact hull about 2.7× faster (`manyhands bench
+//! multi-robot --only score`, one core, alternated in one loaded sitting: median 38.6 ms
+//! against 105 ms).
 
 mod nearest;
 
 pub use nearest::{depth_exceeds, nearest_facet_depth, NearestDepth};
 
-use std::collections::hash_map::Entry;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
 /// The dimension of wrench space.
 pub const DIM: usize = 6;
@@ -314,6 +325,8 @@ enum Fail {
 struct F {
     v: [u32; DIM],
     n: [u32; DIM],
+    /// The neighbour `n[k]`'s vertex opposite the shared ridge (for the convexity check).
+    o: [u32; DIM],
     normal: Point6,
     off: f64,
     outside: Vec<u32>,
@@ -334,7 +347,7 @@ struct Builder {
     visible: Vec<u32>,
     new_ids: Vec<u32>,
     pending: Vec<u32>,
-    ridges: HashMap<[u32; DIM - 1], (u32, u8), RidgeHash>,
+    ridges: RidgeTable,
     orphans: Vec<u32>,
     /// The initial simplex's vertices.
     simplex: [u32; DIM + 1],
@@ -342,40 +355,96 @@ struct Builder {
     births: u32,
 }
 
-/// A multiply-xor hasher for the ridge map (keys are 5 small vertex ids; SipHash's DoS
-/// resistance buys nothing here and costs most of a ridge lookup). The pairing of ridges does
-/// not depend on the hash, so the hull does not either.
-#[derive(Default, Clone, Copy)]
-struct RidgeHash;
+/// Largest residual (relative to the scale) of a new facet's pencil plane at its 6 vertices
+/// ([`Builder::through_ridge`]) before it is recomputed by Gram–Schmidt.
+const PENCIL_RESIDUAL: f64 = 1e-14;
 
-impl std::hash::BuildHasher for RidgeHash {
-    type Hasher = RidgeHasher;
-    fn build_hasher(&self) -> RidgeHasher {
-        RidgeHasher(0)
+/// Pairs the ridges through the apex of one expansion's new facets (each such ridge is shared
+/// by exactly two new facets): open addressing keyed by the ridge's 4 other vertex ids
+/// (sorted), slots stamped with the expansion so nothing is cleared between expansions. The
+/// pairing does not depend on the hash, so the hull does not either.
+#[derive(Default)]
+struct RidgeTable {
+    slots: Vec<RidgeSlot>,
+    stamp: u32,
+    /// Ridges inserted and not yet paired in this expansion.
+    open: usize,
+}
+
+#[derive(Clone, Copy, Default)]
+struct RidgeSlot {
+    key: [u32; DIM - 2],
+    facet: u32,
+    slot: u8,
+    paired: bool,
+    stamp: u32,
+}
+
+impl RidgeTable {
+    /// Starts an expansion with at most `ridges` insertions.
+    fn begin(&mut self, ridges: usize) {
+        let cap = (2 * ridges).next_power_of_two().max(16);
+        if self.slots.len() < cap {
+            self.slots = vec![RidgeSlot::default(); cap];
+            self.stamp = 0;
+        }
+        if self.stamp == u32::MAX {
+            self.slots.iter_mut().for_each(|s| s.stamp = 0);
+            self.stamp = 0;
+        }
+        self.stamp += 1;
+        self.open = 0;
+    }
+
+    /// Inserts the ridge `key` of (`facet`, `slot`), or pairs it with the one inserted before:
+    /// `Ok(Some(that facet, its slot))`; a third occurrence is an error.
+    fn pair(&mut self, key: [u32; DIM - 2], facet: u32, slot: u8) -> Result<Option<(u32, u8)>, ()> {
+        let mask = self.slots.len() - 1;
+        let h = (u64::from(key[0]) | u64::from(key[1]) << 32).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (u64::from(key[2]) | u64::from(key[3]) << 32).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        let mut i = (h >> 32) as usize & mask;
+        loop {
+            let s = &mut self.slots[i];
+            if s.stamp != self.stamp {
+                *s = RidgeSlot {
+                    key,
+                    facet,
+                    slot,
+                    paired: false,
+                    stamp: self.stamp,
+                };
+                self.open += 1;
+                return Ok(None);
+            }
+            if s.key == key {
+                if s.paired {
+                    return Err(());
+                }
+                s.paired = true;
+                self.open -= 1;
+                return Ok(Some((s.facet, s.slot)));
+            }
+            i = (i + 1) & mask;
+        }
     }
 }
 
-struct RidgeHasher(u64);
-
-impl std::hash::Hasher for RidgeHasher {
-    fn finish(&self) -> u64 {
-        self.0 ^ (self.0 >> 29)
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for c in bytes.chunks(4) {
-            let mut w = [0u8; 4];
-            w[..c.len()].copy_from_slice(c);
-            self.write_u64(u64::from(u32::from_le_bytes(w)));
+/// Sorts 5 (id, slot) pairs by id (a sorting network).
+fn sort5(k: &mut [(u32, u8); DIM - 1]) {
+    for (a, b) in [
+        (0, 1),
+        (3, 4),
+        (2, 4),
+        (2, 3),
+        (0, 3),
+        (0, 2),
+        (1, 4),
+        (1, 3),
+        (1, 2),
+    ] {
+        if k[a].0 > k[b].0 {
+            k.swap(a, b);
         }
-    }
-    fn write_u32(&mut self, x: u32) {
-        self.write_u64(u64::from(x));
-    }
-    fn write_u64(&mut self, x: u64) {
-        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7C_C1_B7_27_22_0A_95);
-    }
-    fn write_usize(&mut self, x: usize) {
-        self.write_u64(x as u64);
     }
 }
 
@@ -463,27 +532,34 @@ impl Builder {
     fn alloc(&mut self, v: [u32; DIM], normal: Point6, off: f64) -> u32 {
         self.live += 1;
         self.births = self.births.wrapping_add(1);
-        let f = F {
-            birth: self.births,
-            v,
-            n: [NONE; DIM],
-            normal,
-            off,
-            outside: Vec::new(),
-            alive: true,
-            vis: 0,
-            seen: 0,
-        };
         match self.free.pop() {
             Some(i) => {
+                // In place: the slot keeps its outside set's allocation (cleared by kill).
                 let slot = &mut self.facets[i as usize];
-                let mut outside = std::mem::take(&mut slot.outside);
-                outside.clear();
-                *slot = F { outside, ..f };
+                slot.birth = self.births;
+                slot.v = v;
+                slot.n = [NONE; DIM];
+                slot.o = [NONE; DIM];
+                slot.normal = normal;
+                slot.off = off;
+                slot.alive = true;
+                slot.vis = 0;
+                slot.seen = 0;
                 i
             }
             None => {
-                self.facets.push(f);
+                self.facets.push(F {
+                    birth: self.births,
+                    v,
+                    n: [NONE; DIM],
+                    o: [NONE; DIM],
+                    normal,
+                    off,
+                    outside: Vec::new(),
+                    alive: true,
+                    vis: 0,
+                    seen: 0,
+                });
                 (self.facets.len() - 1) as u32
             }
         }
@@ -660,6 +736,8 @@ impl Builder {
             let id = self.alloc(v, normal, off);
             debug_assert_eq!(id as usize, k);
             self.facets[id as usize].n = nb;
+            // Facet j (without vertex j) has simplex vertex k off the shared ridge.
+            self.facets[id as usize].o = [simplex[k]; DIM];
         }
         self.simplex = simplex;
         Ok(interior)
@@ -679,7 +757,6 @@ impl Builder {
         scale: f64,
     ) -> Result<(), Fail> {
         let tau = 1e-10 * scale;
-        let tiny = 1e-13 * scale;
         let f0u = f0 as usize;
         let p = &pts[apex as usize];
         // Visible facets: breadth-first over adjacency from f0.
@@ -709,7 +786,6 @@ impl Builder {
         }
         // Horizon → new facets.
         self.new_ids.clear();
-        self.ridges.clear();
         for vi in 0..self.visible.len() {
             let f = self.visible[vi];
             for k in 0..DIM {
@@ -719,54 +795,108 @@ impl Builder {
                 }
                 let mut v = self.facets[f as usize].v;
                 v[k] = apex;
-                let (normal, off) = Self::oriented(pts, &v, interior, tiny, tau)?;
+                let (normal, off) = self.through_ridge(pts, f, k, &v, interior, scale)?;
                 let nf = self.alloc(v, normal, off);
-                self.facets[nf as usize].n[k] = g;
-                let gn = &mut self.facets[g as usize].n;
-                match gn.iter().position(|&x| x == f) {
-                    Some(j) => gn[j] = nf,
-                    None => return Err(Fail::Numeric),
-                }
+                let Some(j) = self.facets[g as usize].n.iter().position(|&x| x == f) else {
+                    return Err(Fail::Numeric);
+                };
+                let gf = &mut self.facets[g as usize];
+                gf.n[j] = nf;
+                gf.o[j] = apex;
+                let gv = gf.v[j];
+                let nfu = &mut self.facets[nf as usize];
+                nfu.n[k] = g;
+                nfu.o[k] = gv;
                 self.new_ids.push(nf);
             }
         }
+        // The new facets' ridges through the apex, paired by their other 4 vertices.
+        self.ridges.begin(self.new_ids.len() * (DIM - 1));
         for ni in 0..self.new_ids.len() {
             let nf = self.new_ids[ni];
             let v = self.facets[nf as usize].v;
-            for i in 0..DIM {
-                if v[i] == apex {
-                    continue;
+            // The 5 other vertices with their slots, sorted by id: the ridge opposite slot
+            // w[r].1 is the apex and w without w[r], still sorted.
+            let mut w = [(0u32, 0u8); DIM - 1];
+            let mut s = 0;
+            for (j, &x) in v.iter().enumerate() {
+                if x != apex && s < DIM - 1 {
+                    w[s] = (x, j as u8);
+                    s += 1;
                 }
-                let mut key = [0u32; DIM - 1];
-                let mut s = 0;
-                for (j, &x) in v.iter().enumerate() {
-                    if j != i {
-                        key[s] = x;
-                        s += 1;
-                    }
-                }
-                key.sort_unstable();
-                match self.ridges.entry(key) {
-                    Entry::Vacant(e) => {
-                        e.insert((nf, i as u8));
-                    }
-                    Entry::Occupied(e) => {
-                        let (of, oi) = e.remove();
-                        if self.facets[nf as usize].n[i] != NONE
-                            || self.facets[of as usize].n[oi as usize] != NONE
+            }
+            sort5(&mut w);
+            let keys = [
+                [w[1].0, w[2].0, w[3].0, w[4].0],
+                [w[0].0, w[2].0, w[3].0, w[4].0],
+                [w[0].0, w[1].0, w[3].0, w[4].0],
+                [w[0].0, w[1].0, w[2].0, w[4].0],
+                [w[0].0, w[1].0, w[2].0, w[3].0],
+            ];
+            for (r, &key) in keys.iter().enumerate() {
+                let i = w[r].1;
+                match self.ridges.pair(key, nf, i) {
+                    Ok(None) => {}
+                    Ok(Some((of, oi))) => {
+                        if self.facets[of as usize].n[oi as usize] != NONE
+                            || self.facets[nf as usize].n[i as usize] != NONE
                         {
                             return Err(Fail::Numeric);
                         }
-                        self.facets[nf as usize].n[i] = of;
+                        self.facets[nf as usize].n[i as usize] = of;
+                        self.facets[nf as usize].o[i as usize] =
+                            self.facets[of as usize].v[oi as usize];
                         self.facets[of as usize].n[oi as usize] = nf;
+                        self.facets[of as usize].o[oi as usize] = v[i as usize];
                     }
+                    Err(()) => return Err(Fail::Numeric),
                 }
             }
         }
-        if !self.ridges.is_empty() {
+        if self.ridges.open != 0 {
             return Err(Fail::Numeric);
         }
         Ok(())
+    }
+
+    /// The plane of the new facet `v` (the visible facet `f` with its vertex `k` replaced by
+    /// the apex p = `v[k]`) on the horizon ridge between `f` and its non-visible neighbour
+    /// g = `f.n[k]`. Both planes contain the ridge, so the pencil ψ = b φ_f + a φ_g
+    /// (φ(x) = n · x − offset) does too, and a = φ_f(p), b = −φ_g(p) make it vanish at p:
+    /// about 60 flops where the Gram–Schmidt of [`hyperplane`] costs about 500. a > 0 and
+    /// b ≥ 0 (p above f, not above g), so the normal points out. It is kept only when it
+    /// passes within [`PENCIL_RESIDUAL`] × scale of all 6 (joggled) vertices — an
+    /// a-posteriori check, so no error is inherited from the parents beyond that — and has the
+    /// interior strictly inside; otherwise (nearly parallel parents, where the pencil cancels)
+    /// the plane is recomputed by [`Builder::oriented`].
+    fn through_ridge(
+        &self,
+        pts: &[Point6],
+        f: u32,
+        k: usize,
+        v: &[u32; DIM],
+        interior: &Point6,
+        scale: f64,
+    ) -> Result<(Point6, f64), Fail> {
+        let tau = 1e-10 * scale;
+        let tiny = 1e-13 * scale;
+        let ff = &self.facets[f as usize];
+        let gg = &self.facets[ff.n[k] as usize];
+        let p = &pts[v[k] as usize];
+        let a = dot(&ff.normal, p) - ff.off; // φ_f(p) > 0
+        let b = gg.off - dot(&gg.normal, p); // −φ_g(p) ≥ 0
+        let mut n: Point6 = std::array::from_fn(|i| b * ff.normal[i] + a * gg.normal[i]);
+        let len = dot(&n, &n).sqrt();
+        if len > 0.0 && len.is_finite() {
+            n = n.map(|x| x / len);
+            let d: [f64; DIM] = std::array::from_fn(|k| dot(&n, &pts[v[k] as usize]));
+            let off = d.iter().sum::<f64>() / DIM as f64;
+            let res = d.iter().fold(0.0f64, |m, x| m.max((x - off).abs()));
+            if res <= PENCIL_RESIDUAL * scale && dot(&n, interior) - off < -tau {
+                return Ok((n, off));
+            }
+        }
+        Self::oriented(pts, v, interior, tiny, tau)
     }
 
     /// Step 5's local convexity: every live facet's neighbours are live and their opposite
@@ -783,10 +913,10 @@ impl Builder {
                 if g == NONE || !self.facets[g as usize].alive {
                     return Err(Fail::Numeric);
                 }
-                let gv = &self.facets[g as usize].v;
-                let Some(&opp) = gv.iter().find(|x| !self.facets[f].v.contains(x)) else {
+                let opp = self.facets[f].o[k];
+                if opp == NONE {
                     return Err(Fail::Numeric);
-                };
+                }
                 if self.dist(f as u32, &pts[opp as usize]) > tol {
                     return Err(Fail::Numeric);
                 }

@@ -34,12 +34,19 @@
 //! points for its normal n below −slack, a separating direction — the origin is outside the
 //! hull ([`NearestDepth::Outside`]).
 //!
-//! Cost: O(N) per popped facet (the scan) plus quickhull's cost for the facets of hull(S). On
-//! the kitchen_two table grasps with 8 cone edges (`manyhands bench multi-robot --only score`,
-//! one core of the loaded 2-core machine): 20 contacts (160 wrenches) grow a median 735 facets
-//! in 1.2 ms where the full hull has 14 400 facets in 57 ms; the collector's 8-contact
-//! combinations 1155 facets in 1.7 ms against 4800 in 12 ms. [`depth_exceeds`] stops far
-//! earlier (a median 40–60 µs there).
+//! Cost: O(N) per popped facet (the scan) plus quickhull's cost for the facets of hull(S). The
+//! pops are few (on the 20-contact sets below a median 31 pops and 20 apexes, so |S| ≈ 27), so
+//! the cost is building hull(S): about 1700 facets created (800 alive at the end) per set. Per
+//! created facet the plane comes from its parents' pencil ([`super`]'s module docs), the ridges
+//! are paired in a stamped open-addressing table, and the builder's memory is reused between
+//! calls on a thread (`Work`), which cut the instructions per 20-contact set from 6.0 M to
+//! 2.4 M (callgrind on 100 kitchen_two sets; 8 contacts 8.4 M → 3.3 M). On the kitchen_two
+//! table grasps with 8 cone edges (`manyhands bench multi-robot --only score`, one core of
+//! the loaded 2-core machine, alternated with the previous binary): 20 contacts (160
+//! wrenches) grow a median 735 facets in about a third of the previous 1.2–1.8 ms (figures in
+//! the commit that brought this), where the full hull has 14 400 facets; the collector's
+//! 8-contact combinations grow 1155 facets against 4800. [`depth_exceeds`] stops far earlier
+//! (a median 40–60 µs there).
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -113,10 +120,45 @@ pub fn depth_exceeds(
     search(points, max_facets, Some(bound))
 }
 
+/// The search's reusable state: the builder's facet slots, ridge table and the heap keep their
+/// memory from one call to the next on a thread (the collector scores thousands of
+/// combinations; growing these from empty each time cost about a tenth of a search).
+#[derive(Default)]
+struct Work {
+    b: Builder,
+    heap: BinaryHeap<Entry>,
+}
+
+/// Kept between calls only up to this many facet slots (about 10 MB), so one huge input does
+/// not pin its memory to the thread.
+const KEEP_FACETS: usize = 1 << 16;
+
+thread_local! {
+    static WORK: std::cell::RefCell<Work> = std::cell::RefCell::new(Work::default());
+}
+
 fn search(
     points: &[Point6],
     max_facets: usize,
     accept: Option<f64>,
+) -> Result<NearestDepth, HullError> {
+    WORK.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut w) => {
+            let r = search_in(points, max_facets, accept, &mut w);
+            if w.b.facets.capacity() > KEEP_FACETS {
+                *w = Work::default();
+            }
+            r
+        }
+        Err(_) => search_in(points, max_facets, accept, &mut Work::default()),
+    })
+}
+
+fn search_in(
+    points: &[Point6],
+    max_facets: usize,
+    accept: Option<f64>,
+    w: &mut Work,
 ) -> Result<NearestDepth, HullError> {
     let (scale, keep) = super::prepare(points)?;
     // The first attempt of ConvexHull::with_options: the same joggled points.
@@ -125,7 +167,7 @@ fn search(
         .iter()
         .map(|&i| joggle(&points[i as usize], delta, 0))
         .collect();
-    let mut b = Builder::default();
+    let Work { b, heap } = w;
     let interior = match b.init(&pts, scale, delta) {
         Ok(i) => i,
         Err(Fail::Hard(e)) => return Err(e),
@@ -137,13 +179,12 @@ fn search(
     let mut rest: Vec<u32> = (0..pts.len() as u32)
         .filter(|i| !simplex.contains(i))
         .collect();
-    let mut heap: BinaryHeap<Entry> = (0..=DIM as u32)
-        .map(|id| Entry {
-            off: b.facets[id as usize].off,
-            id,
-            birth: b.facets[id as usize].birth,
-        })
-        .collect();
+    heap.clear();
+    heap.extend((0..=DIM as u32).map(|id| Entry {
+        off: b.facets[id as usize].off,
+        id,
+        birth: b.facets[id as usize].birth,
+    }));
     let mut nearest: Option<f64> = None;
     let mut best = f64::INFINITY;
     let mut round = 0u32;
