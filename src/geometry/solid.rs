@@ -333,8 +333,11 @@ fn cover(vertices: &[Point3<f64>], tris: &[[u32; 3]], cells: usize) -> (Vec<Cove
                         }
                     }
                 }
-                let blo = (origin + Vector3::new(i as f64, j as f64, k as f64) * cell).sup(&lo);
-                let bhi = (origin + Vector3::new(i1 as f64, j1 as f64, k1 as f64) * cell).inf(&hi);
+                // Clipped to the vertices' box, grown by the round-off margin.
+                let blo = (origin + Vector3::new(i as f64, j as f64, k as f64) * cell)
+                    .sup(&lo.add_scalar(-margin));
+                let bhi = (origin + Vector3::new(i1 as f64, j1 as f64, k1 as f64) * cell)
+                    .inf(&hi.add_scalar(margin));
                 boxes.push(((blo + bhi) / 2.0, (bhi - blo) / 2.0));
             }
         }
