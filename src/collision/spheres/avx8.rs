@@ -8,8 +8,11 @@ use std::arch::x86_64::*;
 type V = __m256;
 
 /// An obstacle with its parameters already broadcast to 8 lanes, so the tests of [`obs`] read
-/// them as vector operands (no broadcast per test). Built once per checker.
+/// them as vector operands (no broadcast per test). Built once per checker; stored inline in
+/// one array read by the hot loop (a box in another allocation would cost an indirection per
+/// test), so the variants' sizes differ on purpose.
 #[derive(Debug, Clone, Copy)]
+#[allow(clippy::large_enum_variant)]
 pub(super) enum ObsWide {
     Sphere {
         c: [Lane; 3],
