@@ -44,94 +44,6 @@ use crate::model::JointKind;
 pub const LANES: usize = 8;
 type Lane = [f32; LANES];
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Axis {
-    X,
-    Y,
-    Z,
-    General,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum StepKind {
-    /// The root link of a robot: its frame is the fixed `origin` (the robot's base).
-    Root,
-    Revolute(Axis),
-    Prismatic,
-}
-
-/// One node of the reduced kinematic tree: the frame after a movable joint (or a root).
-#[derive(Debug, Clone)]
-struct Step {
-    kind: StepKind,
-    parent: u32,
-    /// Joint origin in the parent node's frame: rotation column-major, then translation.
-    rot: [f32; 9],
-    /// The shape of `rot`, so that its zero terms cost nothing (VAMP compiles them away).
-    rot_kind: OriginRot,
-    t: [f32; 3],
-    /// Bit k: `t[k]` is not zero (zero terms of the translation are skipped).
-    t_terms: u8,
-    axis: [f32; 3],
-    var: u32,
-    mul: f32,
-    off: f32,
-    /// Largest |translation| of a prismatic joint over its limits (0 for revolute joints).
-    travel: f64,
-    /// Range of the bodies riding on this node.
-    bodies: (u32, u32),
-}
-
-/// The shape of a joint origin's rotation. URDF origins are mostly identities or quarter turns
-/// (`rpy` of ±π/2), whose products with the parent frame need no arithmetic.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum OriginRot {
-    Identity,
-    /// Column c is `±e_k`: `(k, sign bit)` per column (sign bit 0 for +, `0x8000_0000` for −).
-    Permutation([(u8, u32); 3]),
-    General,
-}
-
-/// Entries within this of 0 or ±1 in a joint origin are taken as exactly 0 or ±1 (the f32
-/// model's rounding, [`SphereChecker::ROUNDING_MARGIN`], is orders of magnitude larger).
-const ORIGIN_SNAP: f64 = 1e-9;
-
-impl OriginRot {
-    fn classify(m: &Matrix3<f64>) -> OriginRot {
-        if (m - Matrix3::identity()).abs().max() < ORIGIN_SNAP {
-            return OriginRot::Identity;
-        }
-        let mut cols = [(0u8, 0u32); 3];
-        for (c, col) in cols.iter_mut().enumerate() {
-            let Some(k) = (0..3).find(|&k| m[(k, c)].abs() > 0.5) else {
-                return OriginRot::General;
-            };
-            let unit = (m[(k, c)].abs() - 1.0).abs() < ORIGIN_SNAP
-                && (0..3).all(|r| r == k || m[(r, c)].abs() < ORIGIN_SNAP);
-            if !unit {
-                return OriginRot::General;
-            }
-            *col = (k as u8, if m[(k, c)] < 0.0 { 0x8000_0000 } else { 0 });
-        }
-        OriginRot::Permutation(cols)
-    }
-}
-
-/// A joint origin's translation as f32 with its zero terms (within [`ORIGIN_SNAP`]) set to 0
-/// and marked absent.
-fn origin_terms(t: &Vector3<f64>) -> ([f32; 3], u8) {
-    let mut v = f3(t);
-    let mut mask = 0u8;
-    for k in 0..3 {
-        if t[k].abs() < ORIGIN_SNAP {
-            v[k] = 0.0;
-        } else {
-            mask |= 1 << k;
-        }
-    }
-    (v, mask)
-}
-
 /// A link's spheres.
 #[derive(Debug, Clone)]
 struct Body {
@@ -187,6 +99,9 @@ pub struct SphereChecker {
     /// Fine spheres in their node frame (x, y, z, r).
     spheres: Vec<[f32; 4]>,
     obstacles: Vec<Obs>,
+    /// The obstacles pre-broadcast for the AVX2 tests (same order).
+    #[cfg(target_arch = "x86_64")]
+    obstacles_wide: Vec<avx8::ObsWide>,
     /// Static body index of each obstacle.
     obstacle_static: Vec<u32>,
     body_obstacles: Vec<u32>,
@@ -219,18 +134,20 @@ pub struct SphereChecker {
     avx2: bool,
     inflate: f64,
     // Certified motion checks (see [`SphereChecker::segment_certified`]).
-    /// Per body, its movable ancestor joints from the body's node up to the root: the world
-    /// variable and the bound of the speed of the body's sphere centres per unit change of it
-    /// (m/rad or m/m). Ranges in `chain_range`.
-    chain: Vec<(u32, f64)>,
-    chain_range: Vec<(u32, u32)>,
-    /// Per body, prefix sums of its chain's displacement bounds over the current segment
-    /// (`chain length + 1` entries from `cum_off[body]`).
-    cum: Vec<f64>,
-    cum_off: Vec<u32>,
-    /// Per self pair, the entries of `cum` holding each body's displacement from the joints
-    /// below the pair's common ancestor (joints above it move both rigidly and do not count).
-    pair_cum: Vec<(u32, u32)>,
+    /// The chains' speed bounds summed per variable, variable-major (`dof × bodies`): a
+    /// body's displacement bound over a segment is `Σ_v |Δq_v| · var_w[v · bodies + body]`,
+    /// one vectorised pass over the bodies per variable.
+    var_w: Vec<f64>,
+    /// Per self pair (`pair-major`, `dof` each): the speed bounds of both bodies' chain
+    /// entries below the pair's common ancestor, per variable (joints above it move both
+    /// rigidly and do not count).
+    pair_w: Vec<f64>,
+    /// Per self pair: its displacement bound over the current segment (valid when
+    /// `pair_len_epoch` is `seg_epoch`; computed only for pairs that reach the sphere tests).
+    pair_len: Vec<f64>,
+    pair_len_epoch: Vec<u32>,
+    /// Counts certified segments (the epoch of `pair_len`).
+    seg_epoch: u32,
     /// Every prismatic joint has bounded travel, so the speed bounds are finite.
     certifiable: bool,
     /// Per body: displacement bound of its spheres over the segment being certified.
@@ -257,6 +174,8 @@ pub struct SphereChecker {
     tight_states: Vec<(usize, u32)>,
     /// Sub-intervals to refine: (t0, t1, depth, range of `focus_pool`, or `NO_FOCUS`).
     refine: Vec<(f64, f64, u32, u32, u32)>,
+    /// The first pass's sub-intervals with a tight end (ascending), before pairing.
+    refine_needed: Vec<usize>,
     /// The bodies and self pairs each refinement tests (see [`Self::certify`]).
     focus_pool: Vec<u32>,
     /// Refinements test only what was tight at their ends (off only to compare in tests).
@@ -669,6 +588,9 @@ impl SphereChecker {
         // Speed bounds: a sphere centre c riding on node k moves, per unit of a revolute
         // variable of an ancestor node i, at most |c − o_i| ≤ D_i (o_i on i's axis), where
         // D_k = max |c| in node k's frame and D_parent = D_i + |t_i| (+ prismatic travel).
+        // Per body, its movable ancestor joints from the body's node up to the root (`chain`,
+        // ranges in `chain_range`): the world variable and that bound (m/rad or m/m); summed
+        // per variable into `var_w` and, below each self pair's common ancestor, `pair_w`.
         let mut chain: Vec<(u32, f64)> = Vec::new();
         let mut chain_range = Vec::with_capacity(nb);
         let mut cum_off = Vec::with_capacity(nb);
@@ -725,13 +647,25 @@ impl SphereChecker {
             }
             cum_off[a] + n
         };
-        let pair_cum: Vec<(u32, u32)> = self_pairs
-            .iter()
-            .map(|&(a, b)| {
-                let (a, b) = (a as usize, b as usize);
-                (below_common(a, b), below_common(b, a))
-            })
-            .collect();
+        let dof = world.dof();
+        let mut var_w = vec![0.0f64; dof * nb];
+        for (bi, &(c0, c1)) in chain_range.iter().enumerate() {
+            for &(v, w) in &chain[c0 as usize..c1 as usize] {
+                var_w[v as usize * nb + bi] += w;
+            }
+        }
+        let n_pairs = self_pairs.len();
+        let mut pair_w = vec![0.0f64; dof * n_pairs];
+        for (pi, &(a, b)) in self_pairs.iter().enumerate() {
+            let (a, b) = (a as usize, b as usize);
+            for (x, below) in [(a, below_common(a, b)), (b, below_common(b, a))] {
+                let c0 = chain_range[x].0 as usize;
+                let n = (below - cum_off[x]) as usize;
+                for &(v, w) in &chain[c0..c0 + n] {
+                    pair_w[pi * dof + v as usize] += w;
+                }
+            }
+        }
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
@@ -749,6 +683,8 @@ impl SphereChecker {
             ninfl: vec![0.0; n_nodes],
             bodies,
             spheres,
+            #[cfg(target_arch = "x86_64")]
+            obstacles_wide: obstacles.iter().map(avx8::ObsWide::of).collect(),
             obstacles,
             obstacle_static,
             body_obstacle_sphere: body_obstacles
@@ -764,11 +700,11 @@ impl SphereChecker {
             checks: 0,
             avx2,
             inflate,
-            chain,
-            chain_range,
-            cum: vec![0.0; cum_len as usize],
-            cum_off,
-            pair_cum,
+            pair_len: vec![0.0; n_pairs],
+            pair_len_epoch: vec![0; n_pairs],
+            seg_epoch: 0,
+            var_w,
+            pair_w,
             certifiable,
             seg_len: vec![0.0; nb],
             infl: vec![0.0; nb],
@@ -779,6 +715,7 @@ impl SphereChecker {
             tight_log: Vec::new(),
             tight_states: Vec::new(),
             refine: Vec::new(),
+            refine_needed: Vec::new(),
             focus_pool: Vec::new(),
             focus: true,
         })
@@ -1088,165 +1025,6 @@ impl SphereChecker {
         near_mask::<N>(&self.ncw[na], &self.ncw[nb], r) != 0
     }
 
-    #[inline(always)]
-    fn step<const N: usize, const AVX: bool>(&mut self, si: usize) {
-        let s = &self.steps[si];
-        if s.kind == StepKind::Root {
-            let f = &mut self.frames[si];
-            for k in 0..9 {
-                f[k] = [s.rot[k]; LANES];
-            }
-            for k in 0..3 {
-                f[9 + k] = [s.t[k]; LANES];
-            }
-            return;
-        }
-        let (pi, ci) = (s.parent as usize, si);
-        let (lo, hi) = self.frames.split_at_mut(ci);
-        let p = &lo[pi];
-        let f = &mut hi[0];
-        // t = P.rot · o.t + P.t ; m = P.rot · o.rot (columns x, y, z at 0, 3, 6).
-        let mut m = [[0.0f32; N]; 9];
-        let mut t = [[0.0f32; N]; 3];
-        for r in 0..3 {
-            t[r] = if s.t_terms == 0b111 {
-                lin4::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], &p[9 + r], s.t)
-            } else {
-                // The same sum in the same order without its zero terms.
-                let mut o = [0.0f32; N];
-                o.copy_from_slice(&p[9 + r][..N]);
-                for k in 0..3 {
-                    if s.t_terms & (1 << k) != 0 {
-                        for l in 0..N {
-                            o[l] = fmadd::<AVX>(p[k * 3 + r][l], s.t[k], o[l]);
-                        }
-                    }
-                }
-                o
-            };
-        }
-        match s.rot_kind {
-            OriginRot::Identity => {
-                for k in 0..9 {
-                    m[k].copy_from_slice(&p[k][..N]);
-                }
-            }
-            OriginRot::Permutation(cols) => {
-                for c in 0..3 {
-                    let (k, sign) = cols[c];
-                    let k = usize::from(k).min(2); // (no bounds checks below)
-                    for r in 0..3 {
-                        m[c * 3 + r] = signed::<N>(&p[k * 3 + r], sign);
-                    }
-                }
-            }
-            OriginRot::General => {
-                for c in 0..3 {
-                    let o = [s.rot[c * 3], s.rot[c * 3 + 1], s.rot[c * 3 + 2]];
-                    for r in 0..3 {
-                        m[c * 3 + r] = lin3::<N, AVX>(&p[r], &p[3 + r], &p[6 + r], o);
-                    }
-                }
-            }
-        }
-        let q = &self.qv[s.var as usize];
-        let mut v = [0.0f32; N];
-        for l in 0..N {
-            v[l] = s.mul * q[l] + s.off;
-        }
-        match s.kind {
-            StepKind::Root => unreachable!(),
-            StepKind::Prismatic => {
-                for r in 0..3 {
-                    let a = s.axis;
-                    for l in 0..N {
-                        let d = m[r][l] * a[0] + m[3 + r][l] * a[1] + m[6 + r][l] * a[2];
-                        t[r][l] += d * v[l];
-                    }
-                }
-            }
-            StepKind::Revolute(ax) => {
-                let (sn, cs) = sincos_lanes::<N, AVX>(&v);
-                let (i, j) = match ax {
-                    Axis::Z => (0, 3),
-                    Axis::X => (3, 6),
-                    Axis::Y => (6, 0),
-                    Axis::General => (usize::MAX, 0),
-                };
-                if i != usize::MAX {
-                    // Rotation about the third axis of the pair: i' = i c + j s, j' = j c − i s.
-                    for r in 0..3 {
-                        let (a, b) = (m[i + r], m[j + r]);
-                        for l in 0..N {
-                            m[i + r][l] = fmadd::<AVX>(a[l], cs[l], b[l] * sn[l]);
-                            m[j + r][l] = fmadd::<AVX>(b[l], cs[l], -(a[l] * sn[l]));
-                        }
-                    }
-                } else {
-                    let (ux, uy, uz) = (s.axis[0], s.axis[1], s.axis[2]);
-                    // Rodrigues, column-major, per lane.
-                    let mut rm = [[0.0f32; N]; 9];
-                    for l in 0..N {
-                        let (sv, cv) = (sn[l], cs[l]);
-                        let cc = 1.0 - cv;
-                        rm[0][l] = cv + ux * ux * cc;
-                        rm[1][l] = uy * ux * cc + uz * sv;
-                        rm[2][l] = uz * ux * cc - uy * sv;
-                        rm[3][l] = ux * uy * cc - uz * sv;
-                        rm[4][l] = cv + uy * uy * cc;
-                        rm[5][l] = uz * uy * cc + ux * sv;
-                        rm[6][l] = ux * uz * cc + uy * sv;
-                        rm[7][l] = uy * uz * cc - ux * sv;
-                        rm[8][l] = cv + uz * uz * cc;
-                    }
-                    let mut o = [[0.0f32; N]; 9];
-                    for c in 0..3 {
-                        for r in 0..3 {
-                            for l in 0..N {
-                                o[c * 3 + r][l] = m[r][l] * rm[c * 3][l]
-                                    + m[3 + r][l] * rm[c * 3 + 1][l]
-                                    + m[6 + r][l] * rm[c * 3 + 2][l];
-                            }
-                        }
-                    }
-                    m = o;
-                }
-            }
-        }
-        for k in 0..9 {
-            f[k][..N].copy_from_slice(&m[k]);
-        }
-        for k in 0..3 {
-            f[9 + k][..N].copy_from_slice(&t[k]);
-        }
-    }
-
-    /// World position of a point of a node frame, all lanes.
-    #[inline(always)]
-    fn place<const N: usize, const AVX: bool>(f: &[Lane; 12], p: &[f32; 3]) -> [[f32; N]; 3] {
-        [
-            lin4::<N, AVX>(&f[0], &f[3], &f[6], &f[9], *p),
-            lin4::<N, AVX>(&f[1], &f[4], &f[7], &f[10], *p),
-            lin4::<N, AVX>(&f[2], &f[5], &f[8], &f[11], *p),
-        ]
-    }
-    #[inline(always)]
-    fn ensure_spheres<const N: usize, const AVX: bool>(&mut self, b: usize) {
-        if self.sw_epoch[b] == self.epoch {
-            return;
-        }
-        self.sw_epoch[b] = self.epoch;
-        let body = &self.bodies[b];
-        let f = &self.frames[body.node as usize];
-        for si in body.spheres.0 as usize..body.spheres.1 as usize {
-            let s = self.spheres[si];
-            let w = Self::place::<N, AVX>(f, &[s[0], s[1], s[2]]);
-            for r in 0..3 {
-                self.sw[si][r][..N].copy_from_slice(&w[r]);
-            }
-        }
-    }
-
     /// The body's spheres against its obstacles. With an inflation, a lane whose inflated
     /// spheres touch but whose plain spheres do not is logged in `tight_log`; a plain touch is a hit.
     #[inline(always)]
@@ -1351,7 +1129,7 @@ impl SphereChecker {
             infl,
             body_obstacles,
             body_obstacle_sphere,
-            obstacles,
+            obstacles_wide,
             sw,
             sw_epoch,
             epoch,
@@ -1377,7 +1155,7 @@ impl SphereChecker {
             if point_near(c, ob, br + ob[3]) == 0 {
                 continue;
             }
-            let o = &obstacles[oi as usize];
+            let o = &obstacles_wide[oi as usize];
             if obs(o, c, br) == 0 {
                 continue;
             }
@@ -1545,6 +1323,8 @@ impl CollisionChecker for AutoChecker {
 }
 
 mod certified;
+mod kinematics;
+use kinematics::{origin_terms, Axis, OriginRot, Step, StepKind};
 
 #[cfg(test)]
 mod tests;

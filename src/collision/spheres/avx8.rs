@@ -7,6 +7,65 @@ use std::arch::x86_64::*;
 
 type V = __m256;
 
+/// An obstacle with its parameters already broadcast to 8 lanes, so the tests of [`obs`] read
+/// them as vector operands (no broadcast per test). Built once per checker; stored inline in
+/// one array read by the hot loop (a box in another allocation would cost an indirection per
+/// test), so the variants' sizes differ on purpose.
+#[derive(Debug, Clone, Copy)]
+#[allow(clippy::large_enum_variant)]
+pub(super) enum ObsWide {
+    Sphere {
+        c: [Lane; 3],
+        r: f32,
+    },
+    Box {
+        c: [Lane; 3],
+        rt: [[Lane; 3]; 3],
+        half: [Lane; 3],
+    },
+    Cylinder {
+        c: [Lane; 3],
+        axis: [Lane; 3],
+        r: Lane,
+        h: Lane,
+    },
+    Capsule {
+        c: [Lane; 3],
+        axis: [Lane; 3],
+        r: f32,
+        h: Lane,
+        neg_h: Lane,
+    },
+}
+
+impl ObsWide {
+    pub(super) fn of(o: &Obs) -> ObsWide {
+        let w = |v: f32| [v; 8];
+        let w3 = |v: &[f32; 3]| [w(v[0]), w(v[1]), w(v[2])];
+        match o {
+            Obs::Sphere { c, r } => ObsWide::Sphere { c: w3(c), r: *r },
+            Obs::Box { c, rt, half } => ObsWide::Box {
+                c: w3(c),
+                rt: [w3(&rt[0]), w3(&rt[1]), w3(&rt[2])],
+                half: w3(half),
+            },
+            Obs::Cylinder { c, axis, r, h } => ObsWide::Cylinder {
+                c: w3(c),
+                axis: w3(axis),
+                r: w(*r),
+                h: w(*h),
+            },
+            Obs::Capsule { c, axis, r, h } => ObsWide::Capsule {
+                c: w3(c),
+                axis: w3(axis),
+                r: *r,
+                h: w(*h),
+                neg_h: w(-h),
+            },
+        }
+    }
+}
+
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 pub(super) fn load3(w: &[Lane; 3]) -> [V; 3] {
@@ -105,68 +164,65 @@ pub(super) fn point_near(a: [V; 3], p: &[f32; 4], r: f32) -> u32 {
     le_zero(d)
 }
 
-/// Lanes whose sphere (centre `p`, radius `r`) touches the obstacle.
+/// Lanes whose sphere (centre `p`, radius `r`) touches the obstacle (parameters pre-broadcast,
+/// [`ObsWide`]; the operations of the generic `obs_mask`, fused).
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-pub(super) fn obs(o: &Obs, p: [V; 3], r: f32) -> u32 {
+pub(super) fn obs(o: &ObsWide, p: [V; 3], r: f32) -> u32 {
     let zero = _mm256_setzero_ps();
     let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
-    let rel = |c: &[f32; 3]| {
+    let rel = |c: &[Lane; 3]| {
         [
-            _mm256_sub_ps(p[0], _mm256_set1_ps(c[0])),
-            _mm256_sub_ps(p[1], _mm256_set1_ps(c[1])),
-            _mm256_sub_ps(p[2], _mm256_set1_ps(c[2])),
+            _mm256_sub_ps(p[0], load(&c[0])),
+            _mm256_sub_ps(p[1], load(&c[1])),
+            _mm256_sub_ps(p[2], load(&c[2])),
         ]
     };
-    let dot = |a: &[f32; 3], d: &[V; 3]| {
+    let dot = |a: &[Lane; 3], d: &[V; 3]| {
         _mm256_fmadd_ps(
-            _mm256_set1_ps(a[2]),
+            load(&a[2]),
             d[2],
-            _mm256_fmadd_ps(
-                _mm256_set1_ps(a[1]),
-                d[1],
-                _mm256_mul_ps(_mm256_set1_ps(a[0]), d[0]),
-            ),
+            _mm256_fmadd_ps(load(&a[1]), d[1], _mm256_mul_ps(load(&a[0]), d[0])),
         )
     };
     let d = match o {
-        Obs::Sphere { c, r: ro } => {
+        ObsWide::Sphere { c, r: ro } => {
             let d = rel(c);
             dist2_minus(d[0], d[1], d[2], (r + ro) * (r + ro))
         }
-        Obs::Box { c, rt, half } => {
+        ObsWide::Box { c, rt, half } => {
             let d = rel(c);
             let mut acc = _mm256_set1_ps(-(r * r));
             for k in 0..3 {
                 let q = _mm256_and_ps(dot(&rt[k], &d), abs_mask);
-                let e = _mm256_max_ps(_mm256_sub_ps(q, _mm256_set1_ps(half[k])), zero);
+                let e = _mm256_max_ps(_mm256_sub_ps(q, load(&half[k])), zero);
                 acc = _mm256_fmadd_ps(e, e, acc);
             }
             acc
         }
-        Obs::Cylinder { c, axis, r: rc, h } => {
+        ObsWide::Cylinder { c, axis, r: rc, h } => {
             let d = rel(c);
             let pz = dot(axis, &d);
             let all = dist2_minus(d[0], d[1], d[2], 0.0);
             let rad2 = _mm256_max_ps(_mm256_fnmadd_ps(pz, pz, all), zero);
-            let dr = _mm256_max_ps(
-                _mm256_sub_ps(_mm256_sqrt_ps(rad2), _mm256_set1_ps(*rc)),
-                zero,
-            );
-            let ez = _mm256_max_ps(
-                _mm256_sub_ps(_mm256_and_ps(pz, abs_mask), _mm256_set1_ps(*h)),
-                zero,
-            );
+            let dr = _mm256_max_ps(_mm256_sub_ps(_mm256_sqrt_ps(rad2), load(rc)), zero);
+            let ez = _mm256_max_ps(_mm256_sub_ps(_mm256_and_ps(pz, abs_mask), load(h)), zero);
             _mm256_fmadd_ps(dr, dr, _mm256_fmsub_ps(ez, ez, _mm256_set1_ps(r * r)))
         }
-        Obs::Capsule { c, axis, r: rc, h } => {
+        ObsWide::Capsule {
+            c,
+            axis,
+            r: rc,
+            h,
+            neg_h,
+        } => {
             let d = rel(c);
             let pz = dot(axis, &d);
-            let t = _mm256_min_ps(_mm256_max_ps(pz, _mm256_set1_ps(-h)), _mm256_set1_ps(*h));
+            let t = _mm256_min_ps(_mm256_max_ps(pz, load(neg_h)), load(h));
             let e = [
-                _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[0]), d[0]),
-                _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[1]), d[1]),
-                _mm256_fnmadd_ps(t, _mm256_set1_ps(axis[2]), d[2]),
+                _mm256_fnmadd_ps(t, load(&axis[0]), d[0]),
+                _mm256_fnmadd_ps(t, load(&axis[1]), d[1]),
+                _mm256_fnmadd_ps(t, load(&axis[2]), d[2]),
             ];
             dist2_minus(e[0], e[1], e[2], (r + rc) * (r + rc))
         }

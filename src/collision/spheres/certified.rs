@@ -6,12 +6,29 @@
 
 use super::{SphereChecker, LANES, NO_FOCUS};
 
-/// Appends to `out` the ids (bodies, self pairs) tight at state `i` or `i + 1`, each once;
+/// [`SphereChecker::load_lanes`] with AVX: per variable, the 8 states as two 4-lane f64
+/// products and sums (the same IEEE operations as the scalar code, no fused multiply-add, so
+/// the same values), rounded to f32 together.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn load_lanes_avx(qv: &mut [super::Lane], a: &[f64], b: &[f64], ts: &[f64; LANES]) {
+    use std::arch::x86_64::*;
+    let t0 = _mm256_loadu_pd(ts.as_ptr());
+    let t1 = _mm256_loadu_pd(ts.as_ptr().add(4));
+    for ((v, &ai), &bi) in qv.iter_mut().zip(a).zip(b) {
+        let (x, d) = (_mm256_set1_pd(ai), _mm256_set1_pd(bi - ai));
+        let lo = _mm256_cvtpd_ps(_mm256_add_pd(x, _mm256_mul_pd(d, t0)));
+        let hi = _mm256_cvtpd_ps(_mm256_add_pd(x, _mm256_mul_pd(d, t1)));
+        _mm256_storeu_ps(v.as_mut_ptr(), _mm256_set_m128(hi, lo));
+    }
+}
+
+/// Appends to `out` the ids (bodies, self pairs) tight at any state `i..=j`, each once;
 /// `tight` holds (state, id) sorted and without repeats.
-pub(super) fn focus_of_states(tight: &[(usize, u32)], i: usize, out: &mut Vec<u32>) {
+pub(super) fn focus_of_states(tight: &[(usize, u32)], i: usize, j: usize, out: &mut Vec<u32>) {
     let start = out.len();
     let lo = tight.partition_point(|e| e.0 < i);
-    let hi = tight.partition_point(|e| e.0 <= i + 1);
+    let hi = tight.partition_point(|e| e.0 <= j);
     for &(_, id) in &tight[lo..hi] {
         if !out[start..].contains(&id) {
             out.push(id);
@@ -19,11 +36,34 @@ pub(super) fn focus_of_states(tight: &[(usize, u32)], i: usize, out: &mut Vec<u3
     }
 }
 
-/// Appends to `out` the ids of a check's tight log (each id once there) tight in lane `l` or
-/// `l + 1`: the ends of the sub-interval between them.
-pub(super) fn focus_of_lanes(log: &[(u32, u32)], l: usize, out: &mut Vec<u32>) {
-    let ends = 0b11u32 << l;
+/// Appends to `out` the ids of a check's tight log (each id once there) tight in any lane
+/// `l..=l + span`: the ends of the `span` sub-intervals between them.
+pub(super) fn focus_of_lanes(log: &[(u32, u32)], l: usize, span: usize, out: &mut Vec<u32>) {
+    let ends = ((1u32 << (span + 1)) - 1) << l;
     out.extend(log.iter().filter(|e| e.1 & ends != 0).map(|e| e.0));
+}
+
+/// Sub-intervals refined together: a run of consecutive sub-intervals that need refining is
+/// taken two at a time (one 8-lane call splits both into 7 parts of 2/7 of one, instead of
+/// two calls of 1/7 each; the middle state is checked once, not twice), a lone one alone.
+/// `needed(i)` says whether sub-interval `i < n` needs refining; `emit(i, span)` receives
+/// each group (first sub-interval, 1 or 2 of them) in ascending order.
+#[inline]
+pub(super) fn pair_runs(
+    n: usize,
+    needed: impl Fn(usize) -> bool,
+    mut emit: impl FnMut(usize, usize),
+) {
+    let mut i = 0;
+    while i < n {
+        if !needed(i) {
+            i += 1;
+            continue;
+        }
+        let span = if i + 1 < n && needed(i + 1) { 2 } else { 1 };
+        emit(i, span);
+        i += span;
+    }
 }
 
 impl SphereChecker {
@@ -43,6 +83,12 @@ impl SphereChecker {
     /// Writes the states `a + (b − a)·t` of the lanes' parameters into the lane buffer.
     #[inline]
     pub(super) fn load_lanes(&mut self, a: &[f64], b: &[f64], ts: &[f64; LANES]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
+            unsafe { load_lanes_avx(&mut self.qv, a, b, ts) };
+            return;
+        }
         for (i, v) in self.qv.iter_mut().enumerate() {
             let (ai, di) = (a[i], b[i] - a[i]);
             for l in 0..LANES {
@@ -64,14 +110,20 @@ impl SphereChecker {
     /// Extra distance self pair `pi`'s spheres must keep in the current check: half what
     /// both bodies can travel along a sub-interval, counting only the joints below their common
     /// ancestor (those above move both rigidly). At most `infl[a] + infl[b]`, which the
-    /// body-level test uses instead, so this is computed only for pairs that pass it.
+    /// body-level test uses instead, so this is computed only for pairs that pass it (once per
+    /// segment).
     #[inline(always)]
-    pub(super) fn pair_inflation(&self, pi: usize) -> f32 {
+    pub(super) fn pair_inflation(&mut self, pi: usize) -> f32 {
         if self.pair_scale == 0.0 {
             return 0.0;
         }
-        let (pa, pb) = self.pair_cum[pi];
-        (self.pair_scale * (self.cum[pa as usize] + self.cum[pb as usize])) as f32
+        if self.pair_len_epoch[pi] != self.seg_epoch {
+            self.pair_len_epoch[pi] = self.seg_epoch;
+            let dof = self.seg_dq.len();
+            let w = &self.pair_w[pi * dof..(pi + 1) * dof];
+            self.pair_len[pi] = self.seg_dq.iter().zip(w).map(|(d, w)| d * w).sum();
+        }
+        (self.pair_scale * self.pair_len[pi]) as f32
     }
 
     /// Certified motion check: true only when the whole continuous straight segment `a → b`
@@ -84,35 +136,32 @@ impl SphereChecker {
     /// that distance of one end). The segment is split into the fewest equal sub-intervals whose
     /// inflation stays at most `max_inflation` metres, their end states are checked 8 per call
     /// in raked order, and sub-intervals next to a state that is free only with plain spheres
-    /// are split in 7 (one 8-lane call, a 7× smaller inflation) until certified. A refinement
-    /// tests only the bodies (against their obstacles) and self pairs tight at its ends: the
-    /// coarser check certified every other one free over the whole sub-interval. A state colliding with plain
-    /// spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
+    /// are split in 7 (one 8-lane call, a 7× smaller inflation; two adjacent ones together,
+    /// 7 parts of 2/7 of one, see [`pair_runs`]) until certified. A refinement tests only the
+    /// bodies (against their obstacles) and self pairs tight at its ends and the states between:
+    /// the coarser check certified every other one free over the whole sub-interval. A state
+    /// colliding with plain spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
     /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
         debug_assert!(self.certifiable && max_inflation > 0.0);
-        let mut lmax = 0.0f64;
         for ((d, &x), &y) in self.seg_dq.iter_mut().zip(a).zip(b) {
             *d = (y - x).abs();
         }
-        let dq = &self.seg_dq;
-        for ((len, &(c0, c1)), &o) in self
-            .seg_len
-            .iter_mut()
-            .zip(&self.chain_range)
-            .zip(&self.cum_off)
-        {
-            let chain = &self.chain[c0 as usize..c1 as usize];
-            let o = o as usize;
-            let cum = &mut self.cum[o..o + chain.len() + 1];
-            cum[0] = 0.0;
-            let mut l = 0.0;
-            for (&(v, w), c) in chain.iter().zip(&mut cum[1..]) {
-                l += dq[v as usize] * w;
-                *c = l;
+        // Per body Σ_v |Δq_v|·w_v, one pass over the bodies per variable.
+        let nb = self.seg_len.len();
+        self.seg_len.fill(0.0);
+        for (&d, w) in self.seg_dq.iter().zip(self.var_w.chunks_exact(nb.max(1))) {
+            if d != 0.0 {
+                for (l, &w) in self.seg_len.iter_mut().zip(w) {
+                    *l += d * w;
+                }
             }
-            *len = l;
-            lmax = lmax.max(l);
+        }
+        let lmax = self.seg_len.iter().fold(0.0f64, |m, &l| m.max(l));
+        self.seg_epoch = self.seg_epoch.wrapping_add(1);
+        if self.seg_epoch == 0 {
+            self.pair_len_epoch.fill(0);
+            self.seg_epoch = 1;
         }
         let n = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, Self::CERTIFY_MAX_STATES);
         // The n + 1 states fill whole 8-lane calls: the spare lanes make sub-intervals shorter
@@ -162,36 +211,50 @@ impl SphereChecker {
         if self.tight_states.is_empty() {
             return true;
         }
-        // Sub-intervals [i, i+1] with a tight end, each once. A body (against all its
-        // obstacles) or self pair free with the inflation at both ends is free over the whole
-        // sub-interval (the certificate above, applied to it alone), so the refinement tests
-        // only what was tight at either end.
+        // Sub-intervals [i, i+1] with a tight end, each once, in pairs ([`pair_runs`]). A
+        // body (against all its obstacles) or self pair free with the inflation at both ends
+        // is free over the whole sub-interval (the certificate above, applied to it alone),
+        // so the refinement tests only what was tight at its ends and the states between.
         self.refine.clear();
         self.focus_pool.clear();
         self.tight_states.sort_unstable();
         self.tight_states.dedup();
-        let tight = &self.tight_states;
-        let mut last = usize::MAX;
-        for idx in 0..tight.len() {
-            let k = tight[idx].0;
-            if idx > 0 && tight[idx - 1].0 == k {
-                continue;
-            }
-            for i in [k.wrapping_sub(1), k] {
-                if i < n && i != last && (last == usize::MAX || i > last) {
-                    let (fs, fe) = if self.focus {
-                        let start = self.focus_pool.len();
-                        focus_of_states(tight, i, &mut self.focus_pool);
-                        (start as u32, self.focus_pool.len() as u32)
-                    } else {
-                        (NO_FOCUS, NO_FOCUS)
-                    };
-                    self.refine
-                        .push((i as f64 * h, (i + 1) as f64 * h, 0, fs, fe));
-                    last = i;
+        self.refine_needed.clear();
+        {
+            let tight = &self.tight_states;
+            let needed = &mut self.refine_needed;
+            for idx in 0..tight.len() {
+                let k = tight[idx].0;
+                if idx > 0 && tight[idx - 1].0 == k {
+                    continue;
+                }
+                for i in [k.wrapping_sub(1), k] {
+                    if i < n && needed.last().is_none_or(|&l| i > l) {
+                        needed.push(i);
+                    }
                 }
             }
         }
+        let needed = std::mem::take(&mut self.refine_needed);
+        pair_runs(
+            n,
+            |i| {
+                // `needed` is ascending; `pair_runs` asks in ascending order.
+                needed.binary_search(&i).is_ok()
+            },
+            |i, span| {
+                let (fs, fe) = if self.focus {
+                    let start = self.focus_pool.len();
+                    focus_of_states(&self.tight_states, i, i + span, &mut self.focus_pool);
+                    (start as u32, self.focus_pool.len() as u32)
+                } else {
+                    (NO_FOCUS, NO_FOCUS)
+                };
+                self.refine
+                    .push((i as f64 * h, (i + span) as f64 * h, 0, fs, fe));
+            },
+        );
+        self.refine_needed = needed;
         let mut budget = Self::CERTIFY_MAX_REFINEMENTS;
         while let Some((t0, t1, depth, fs, fe)) = self.refine.pop() {
             if depth >= Self::CERTIFY_MAX_DEPTH || budget == 0 {
@@ -220,20 +283,29 @@ impl SphereChecker {
             if hit {
                 return false;
             }
-            // Lanes free with the plain spheres but not with the inflation.
+            // Lanes free with the plain spheres but not with the inflation; the sub-intervals
+            // next to them, in pairs.
             let m = self.tight_log.iter().fold(0, |m, e| m | e.1);
-            for l in 0..LANES - 1 {
-                if m & (0b11 << l) != 0 {
+            if m == 0 {
+                continue;
+            }
+            let refine = &mut self.refine;
+            let pool = &mut self.focus_pool;
+            let log = &self.tight_log;
+            pair_runs(
+                LANES - 1,
+                |l| m & (0b11 << l) != 0,
+                |l, span| {
                     let (fs, fe) = if fs == NO_FOCUS {
                         (NO_FOCUS, NO_FOCUS)
                     } else {
-                        let start = self.focus_pool.len();
-                        focus_of_lanes(&self.tight_log, l, &mut self.focus_pool);
-                        (start as u32, self.focus_pool.len() as u32)
+                        let start = pool.len();
+                        focus_of_lanes(log, l, span, pool);
+                        (start as u32, pool.len() as u32)
                     };
-                    self.refine.push((ts[l], ts[l + 1], depth + 1, fs, fe));
-                }
-            }
+                    refine.push((ts[l], ts[l + span], depth + 1, fs, fe));
+                },
+            );
         }
         true
     }

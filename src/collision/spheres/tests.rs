@@ -205,16 +205,16 @@ fn focus_holds_what_is_tight_at_either_end() {
     use super::SELF_PAIR;
     let states = [(2, 4), (3, 1), (3, 4), (4, 7), (5, SELF_PAIR | 2), (9, 1)];
     let mut out = vec![99];
-    focus_of_states(&states, 3, &mut out);
+    focus_of_states(&states, 3, 4, &mut out);
     assert_eq!(out, [99, 1, 4, 7], "state 3 and state 4, 4 once");
     out.clear();
-    focus_of_states(&states, 4, &mut out);
+    focus_of_states(&states, 4, 5, &mut out);
     assert_eq!(out, [7, SELF_PAIR | 2]);
     out.clear();
-    focus_of_states(&states, 1, &mut out);
+    focus_of_states(&states, 1, 2, &mut out);
     assert_eq!(out, [4], "only the right end tight");
     out.clear();
-    focus_of_states(&states, 6, &mut out);
+    focus_of_states(&states, 6, 7, &mut out);
     assert!(out.is_empty());
     let log = [
         (3, 0b0000_0001),
@@ -222,17 +222,46 @@ fn focus_holds_what_is_tight_at_either_end() {
         (SELF_PAIR | 1, 0b1000_0000),
     ];
     out.clear();
-    focus_of_lanes(&log, 0, &mut out);
+    focus_of_lanes(&log, 0, 1, &mut out);
     assert_eq!(out, [3]);
     out.clear();
-    focus_of_lanes(&log, 5, &mut out);
+    focus_of_lanes(&log, 5, 1, &mut out);
     assert_eq!(out, [5], "only the right end tight");
     out.clear();
-    focus_of_lanes(&log, 6, &mut out);
+    focus_of_lanes(&log, 6, 1, &mut out);
     assert_eq!(out, [5, SELF_PAIR | 1]);
     out.clear();
-    focus_of_lanes(&log, 2, &mut out);
+    focus_of_lanes(&log, 2, 1, &mut out);
     assert!(out.is_empty());
+    // Two sub-intervals at once: every id tight at any of their three states.
+    out.clear();
+    focus_of_states(&states, 2, 4, &mut out);
+    assert_eq!(out, [4, 1, 7]);
+    out.clear();
+    focus_of_lanes(&log, 5, 2, &mut out);
+    assert_eq!(out, [5, SELF_PAIR | 1]);
+    out.clear();
+    focus_of_lanes(&log, 1, 2, &mut out);
+    assert!(out.is_empty());
+}
+
+/// Runs of sub-intervals to refine are grouped two at a time, a lone one alone, each needed
+/// one exactly once and nothing else.
+#[test]
+fn refinements_pair_runs() {
+    use super::certified::pair_runs;
+    let groups = |n: usize, need: &[usize]| {
+        let mut g = Vec::new();
+        pair_runs(n, |i| need.contains(&i), |i, span| g.push((i, span)));
+        g
+    };
+    assert_eq!(groups(7, &[]), []);
+    assert_eq!(groups(7, &[3]), [(3, 1)]);
+    assert_eq!(groups(7, &[2, 3]), [(2, 2)]);
+    assert_eq!(groups(7, &[0, 1, 2]), [(0, 2), (2, 1)]);
+    assert_eq!(groups(7, &[1, 2, 3, 4, 6]), [(1, 2), (3, 2), (6, 1)]);
+    assert_eq!(groups(7, &[5, 6]), [(5, 2)]);
+    assert_eq!(groups(1, &[0]), [(0, 1)]);
 }
 
 #[test]
