@@ -302,6 +302,14 @@ impl Tree {
         }
     }
 
+    /// Makes every dynamic-domain radius infinite again: a restart of the domains (see
+    /// `rrt_connect`'s `DYNAMIC_DOMAIN_STALL`).
+    pub fn reset_radii(&mut self) {
+        self.radii.fill(f64::INFINITY);
+        self.infinite_radii = self.radii.len();
+        self.finite_radius_bound = 0.0;
+    }
+
     /// True only when `q` is certainly farther from every state than that state's
     /// dynamic-domain radius, so from its nearest state too: the sample would be skipped
     /// (Yershova et al., ICRA 2005). By the triangle inequality every state is at least
