@@ -1,6 +1,8 @@
 //! The exact (parry3d) checker against hand-computed cases: primitive shapes, self-collision and
 //! SRDF-disabled pairs, two robots, attached objects, meshes, clearance, and a two-arm robot of spheres.
 
+mod common;
+
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -90,32 +92,12 @@ const ARM_SRDF: &str = r#"<robot name="arm">
   <disable_collisions link1="link2" link2="hand" reason="Adjacent"/>
 </robot>"#;
 
-/// A free-floating probe: three prismatic joints x, y, z carrying one shape.
-fn probe_urdf(geometry: &str) -> String {
-    let pj = |name: &str, parent: &str, child: &str, axis: &str| {
-        format!(
-            r#"<joint name="{name}" type="prismatic"><parent link="{parent}"/><child link="{child}"/>
-               <axis xyz="{axis}"/><limit lower="-10" upper="10" velocity="1" effort="1"/></joint>"#
-        )
-    };
-    format!(
-        r#"<robot name="probe">
-  <link name="world"/><link name="px"/><link name="py"/>
-  <link name="tool"><collision>{geometry}</collision></link>
-  {}{}{}
-</robot>"#,
-        pj("x", "world", "px", "1 0 0"),
-        pj("y", "px", "py", "0 1 0"),
-        pj("z", "py", "tool", "0 0 1"),
-    )
-}
-
 fn probe(geometry: &str, obstacle_shape: Shape) -> ExactChecker {
     probe_with_base(geometry, obstacle_shape, Path::new("."))
 }
 
 fn probe_with_base(geometry: &str, obstacle_shape: Shape, base: &Path) -> ExactChecker {
-    let r = Arc::new(Robot::from_strings(&probe_urdf(geometry), None, base).unwrap());
+    let r = Arc::new(Robot::from_strings(&common::probe_urdf(geometry, 10.0), None, base).unwrap());
     ExactChecker::new(&world(&r, vec![obstacle("o", [0.0; 3], obstacle_shape)]))
 }
 

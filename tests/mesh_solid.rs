@@ -6,6 +6,8 @@
 //! clearance exceeds its stated over-approximation); certified motions past the legs are free
 //! under a dense exact re-check.
 
+mod common;
+
 use std::path::Path;
 use std::sync::Arc;
 
@@ -26,22 +28,7 @@ fn statuette() -> Arc<Mesh> {
 
 /// A free-floating probe (prismatic x, y, z) carrying one shape, among `statics`.
 fn probe_world(geometry: &str, statics: Vec<StaticBody>) -> CollisionWorld {
-    let pj = |name: &str, parent: &str, child: &str, axis: &str| {
-        format!(
-            r#"<joint name="{name}" type="prismatic"><parent link="{parent}"/><child link="{child}"/>
-               <axis xyz="{axis}"/><limit lower="-2" upper="2" velocity="1" effort="1"/></joint>"#
-        )
-    };
-    let urdf = format!(
-        r#"<robot name="probe">
-  <link name="world"/><link name="px"/><link name="py"/>
-  <link name="tool"><collision>{geometry}</collision></link>
-  {}{}{}
-</robot>"#,
-        pj("x", "world", "px", "1 0 0"),
-        pj("y", "px", "py", "0 1 0"),
-        pj("z", "py", "tool", "0 0 1"),
-    );
+    let urdf = common::probe_urdf(geometry, 2.0);
     let r = Arc::new(Robot::from_strings(&urdf, None, Path::new(".")).unwrap());
     let mut w = CollisionWorld::single(r, Pose::identity());
     w.statics = statics;

@@ -14,6 +14,27 @@ use manyhands::model::{load_robot_dir, Scene};
 use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{IkRrt, IkRrtSettings, JointSpace, PlanResult, Termination};
 
+/// A free-floating probe robot: prismatic joints x, y, z (limits ±`limit`) carrying one
+/// collision geometry (URDF `<geometry>` text) on its link `tool`.
+pub fn probe_urdf(geometry: &str, limit: f64) -> String {
+    let pj = |name: &str, parent: &str, child: &str, axis: &str| {
+        format!(
+            r#"<joint name="{name}" type="prismatic"><parent link="{parent}"/><child link="{child}"/>
+               <axis xyz="{axis}"/><limit lower="-{limit}" upper="{limit}" velocity="1" effort="1"/></joint>"#
+        )
+    };
+    format!(
+        r#"<robot name="probe">
+  <link name="world"/><link name="px"/><link name="py"/>
+  <link name="tool"><collision>{geometry}</collision></link>
+  {}{}{}
+</robot>"#,
+        pj("x", "world", "px", "1 0 0"),
+        pj("y", "px", "py", "0 1 0"),
+        pj("z", "py", "tool", "0 0 1"),
+    )
+}
+
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
