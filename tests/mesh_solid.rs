@@ -14,7 +14,9 @@ use std::sync::Arc;
 use manyhands::collision::{
     CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
 };
-use manyhands::geometry::{iso_from_rpy, Geometry, Mesh, Pose, Shape, COVER_CELLS};
+use manyhands::geometry::{
+    iso_from_rpy, Geometry, Mesh, Pose, Shape, COVER_CELLS, MAX_MOVING_COVER_BOXES,
+};
 use manyhands::Robot;
 use nalgebra::{Point3, Vector3};
 use parry3d_f64::math::Vector as PVector;
@@ -89,6 +91,15 @@ fn statuette_is_a_closed_solid_of_joined_parts() {
             .any(|(c, h)| (p - c).abs().iter().zip(h.iter()).all(|(d, h)| *d <= *h))
     };
     assert!(m.vertices.iter().all(|v| in_cover(&v.coords)));
+    // The coarse cover of moving bodies: few boxes, and it holds the solid too.
+    assert!(!solid.moving_cover.is_empty() && solid.moving_cover.len() <= MAX_MOVING_COVER_BOXES);
+    let in_moving_cover = |p: &Vector3<f64>| {
+        solid
+            .moving_cover
+            .iter()
+            .any(|(c, h)| (p - c).abs().iter().zip(h.iter()).all(|(d, h)| *d <= *h))
+    };
+    assert!(m.vertices.iter().all(|v| in_moving_cover(&v.coords)));
     let mut rng = Mix(7);
     let mut inside = 0;
     for _ in 0..20_000 {
@@ -100,6 +111,10 @@ fn statuette_is_a_closed_solid_of_joined_parts() {
         if solid.winding(&p) > 0.5 {
             inside += 1;
             assert!(in_cover(&p), "{p:?} inside the solid, outside its cover");
+            assert!(
+                in_moving_cover(&p),
+                "{p:?} inside the solid, outside its moving cover"
+            );
         }
     }
     assert!(inside > 500, "{inside} of 20000 samples inside");
@@ -111,12 +126,15 @@ fn statuette_is_a_closed_solid_of_joined_parts() {
         "{cover_volume} vs {box_volume}"
     );
     println!(
-        "statuette: {} triangles, {} parts, cover {} boxes of {:.1} mm cells, {:.0} % of its box",
+        "statuette: {} triangles, {} parts, cover {} boxes of {:.1} mm cells, {:.0} % of its box, \
+         moving cover {} boxes (protrusion {:.1} mm)",
         m.triangles.len(),
         solid.components,
         solid.cover.len(),
         solid.cell * 1e3,
-        100.0 * cover_volume / box_volume
+        100.0 * cover_volume / box_volume,
+        solid.moving_cover.len(),
+        solid.moving_protrusion * 1e3
     );
 }
 
