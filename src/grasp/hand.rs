@@ -8,7 +8,8 @@
 //! 3-DoF fingers). Variables before them (a movable thumb base) are *base joints*, set per grasp to
 //! one of `base_steps` values spread over their limits. The fingers are ordered with the one of
 //! most variables first (the thumb with its movable base: "we start from the thumb as no stable
-//! grasp can be obtained without it"), ties in SRDF order, unless the caller names the order.
+//! grasp can be obtained without it"), ties in SRDF order, unless the caller names the order
+//! (fingers it does not name follow in the default order).
 //! The fingertip is the chain's tip frame; its radius is half the smallest cross-section of the
 //! last link with collision geometry (the contact link).
 
@@ -29,8 +30,8 @@ use crate::model::Robot;
 pub enum HandError {
     #[error("hand: robot '{robot}' has no group '{group}'")]
     NoGroup { robot: String, group: String },
-    #[error("hand: group '{group}' has no finger (an SRDF chain group of ≥ 3 joints all in the hand)")]
-    NoFingers { group: String },
+    #[error("hand: group '{group}' has {found} finger(s) (SRDF chain groups of ≥ 3 joints all in the hand); a precision grasp needs ≥ 3")]
+    NoFingers { group: String, found: usize },
     #[error("hand: the fingers of '{group}' start at different links ({a}, {b})")]
     TwoPalms { group: String, a: String, b: String },
     #[error("fingers: '{0}' is not a finger of the hand")]
@@ -140,13 +141,18 @@ impl Hand {
             let Some(chain) = Chain::new(&robot, b, t) else {
                 continue;
             };
-            if chain.vars.len() >= 3 && chain.vars.iter().all(|v| vars.contains(v)) {
+            if fg.name != group
+                && chain.vars.len() >= 3
+                && chain.vars.len() < vars.len()
+                && chain.vars.iter().all(|v| vars.contains(v))
+            {
                 found.push((fg.name.clone(), chain));
             }
         }
-        if found.is_empty() {
+        if found.len() < 3 {
             return Err(HandError::NoFingers {
                 group: group.to_string(),
+                found: found.len(),
             });
         }
         let palm = found[0].1.base_link;
@@ -167,6 +173,9 @@ impl Hand {
                         .ok_or_else(|| HandError::UnknownFinger(n.clone()))?;
                     ordered.push(found.remove(i));
                 }
+                // Fingers not named follow, most joints first.
+                found.sort_by_key(|(_, c)| std::cmp::Reverse(c.vars.len()));
+                ordered.append(&mut found);
                 found = ordered;
             }
             None => found.sort_by_key(|(_, c)| std::cmp::Reverse(c.vars.len())),
@@ -227,7 +236,8 @@ impl Hand {
             let mid = limits.map(|(lo, hi)| (lo + hi) / 2.0);
             let mut tip = |q: &[f64; 3]| ik.fk(q).translation.vector;
             let (w, e) = workspace_grids(&mut tip, &limits, ws.steps);
-            let workspace = approximate_workspace(&w, &e, ws.max_spheres, ws.min_radius.unwrap_or(tip_r / 2.0));
+            let workspace =
+                approximate_workspace(&w, &e, ws.max_spheres, ws.min_radius.unwrap_or(tip_r / 2.0));
             for &l in &links {
                 add_link(l, &mut chains);
                 finger_links.push(l);

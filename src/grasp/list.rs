@@ -13,9 +13,13 @@
 //!    Alg. 1): the surface points ([`super::surface`], kd-tree) inside the sphere, nearest its
 //!    centre first, whose outward normal faces the finger's base (at most
 //!    `candidates_per_sphere` per sphere), are tried with the finger's position-only numeric
-//!    IK; a solution is a contact when the finger's links are free of the object (its contact
-//!    link may touch it, penetrating at most `contact_tolerance`) and of the hand links placed so
-//!    far (palm and earlier fingers; pairs the SRDF disables are skipped). The true mesh is used
+//!    IK (the fingertip frame sent to the point); a solution is a contact when the finger's
+//!    links are free of the object and of the hand links placed so far (palm and earlier
+//!    fingers; pairs the SRDF disables are skipped) and its contact link touches the object
+//!    within `contact_tolerance` (gap or depth). A contact link deeper than that (a flat
+//!    fingertip on a tilted surface) moves the IK target out along the surface normal by the
+//!    excess and tries again (three times at most). The contact is where the contact link
+//!    touches: parry's contact point on the object and the inward surface normal there. The true mesh is used
 //!    (parry's `TriMesh` and the winding-number inside test of [`crate::geometry::Solid`]), so a
 //!    finger may go between the statuette's legs. A thumb with base joints tries `base_steps`
 //!    base values (mid-range first). A finger without contact is left stretched (its rest
@@ -167,15 +171,23 @@ impl GraspListParams {
     pub fn validate(&self) -> Result<(), GraspListError> {
         let bad = |f: &str, r: String| Err(GraspListError::invalid(f, r));
         if !(1..=MAX_POSITIONS).contains(&self.positions) {
-            return bad("positions", format!("must be in 1..={MAX_POSITIONS}, got {}", self.positions));
+            return bad(
+                "positions",
+                format!("must be in 1..={MAX_POSITIONS}, got {}", self.positions),
+            );
         }
         if self.orientation_level > MAX_SO3_LEVEL {
             return bad(
                 "orientation_level",
-                format!("must be in 0..={MAX_SO3_LEVEL}, got {}", self.orientation_level),
+                format!(
+                    "must be in 0..={MAX_SO3_LEVEL}, got {}",
+                    self.orientation_level
+                ),
             );
         }
-        let frames = self.positions.saturating_mul(so3_grid_len(self.orientation_level));
+        let frames = self
+            .positions
+            .saturating_mul(so3_grid_len(self.orientation_level));
         if frames > MAX_FRAMES {
             return bad(
                 "positions",
@@ -184,18 +196,30 @@ impl GraspListParams {
         }
         if let Some(s) = self.surface_spacing {
             if !(s.is_finite() && (1e-4..=0.1).contains(&s)) {
-                return bad("surface_spacing", format!("must be in 0.0001..=0.1 m, got {s}"));
+                return bad(
+                    "surface_spacing",
+                    format!("must be in 0.0001..=0.1 m, got {s}"),
+                );
             }
         }
         if !(3..=40).contains(&self.workspace_steps) {
-            return bad("workspace_steps", format!("must be in 3..=40, got {}", self.workspace_steps));
+            return bad(
+                "workspace_steps",
+                format!("must be in 3..=40, got {}", self.workspace_steps),
+            );
         }
         if !(1..=64).contains(&self.max_spheres) {
-            return bad("max_spheres", format!("must be in 1..=64, got {}", self.max_spheres));
+            return bad(
+                "max_spheres",
+                format!("must be in 1..=64, got {}", self.max_spheres),
+            );
         }
         if let Some(r) = self.min_sphere_radius {
             if !(r.is_finite() && (1e-4..=0.1).contains(&r)) {
-                return bad("min_sphere_radius", format!("must be in 0.0001..=0.1 m, got {r}"));
+                return bad(
+                    "min_sphere_radius",
+                    format!("must be in 0.0001..=0.1 m, got {r}"),
+                );
             }
         }
         if !(1..=64).contains(&self.candidates_per_sphere) {
@@ -205,7 +229,10 @@ impl GraspListParams {
             );
         }
         if !(1..=16).contains(&self.base_steps) {
-            return bad("base_steps", format!("must be in 1..=16, got {}", self.base_steps));
+            return bad(
+                "base_steps",
+                format!("must be in 1..=16, got {}", self.base_steps),
+            );
         }
         if !(self.contact_tolerance.is_finite() && (0.0..=0.01).contains(&self.contact_tolerance)) {
             return bad(
@@ -223,11 +250,17 @@ impl GraspListParams {
             .map_err(|e| GraspListError::invalid(e.field(), e.reason()))?;
         for (i, w) in self.weights.iter().enumerate() {
             if !(w.is_finite() && *w >= 0.0 && *w <= 1e6) {
-                return bad(&format!("weights[{i}]"), format!("must be in 0..=1e6, got {w}"));
+                return bad(
+                    &format!("weights[{i}]"),
+                    format!("must be in 0..=1e6, got {w}"),
+                );
             }
         }
         if !(1..=MAX_GRASPS).contains(&self.max_grasps) {
-            return bad("max_grasps", format!("must be in 1..={MAX_GRASPS}, got {}", self.max_grasps));
+            return bad(
+                "max_grasps",
+                format!("must be in 1..={MAX_GRASPS}, got {}", self.max_grasps),
+            );
         }
         Ok(())
     }
@@ -277,7 +310,10 @@ impl GraspObject {
             let Shape::Mesh(m) = &g.shape else {
                 return Err(GraspListError::invalid(
                     &format!("object.shapes[{i}]"),
-                    format!("a {} (grasp lists sample mesh surfaces only)", g.shape.kind()),
+                    format!(
+                        "a {} (grasp lists sample mesh surfaces only)",
+                        g.shape.kind()
+                    ),
                 ));
             };
             let solid = m.solid.as_ref().ok().cloned();
@@ -354,7 +390,11 @@ impl GraspObject {
     }
 
     /// The surface points ([`SurfaceSamples`]) of all meshes, spacing `spacing`.
-    pub fn sample_surface(&self, spacing: f64, seed: u64) -> Result<SurfaceSamples, GraspListError> {
+    pub fn sample_surface(
+        &self,
+        spacing: f64,
+        seed: u64,
+    ) -> Result<SurfaceSamples, GraspListError> {
         let mut verts = Vec::new();
         let mut tris = Vec::new();
         let mut solid = None;
@@ -409,6 +449,32 @@ impl GraspObject {
             }
         }
         worst
+    }
+
+    /// Where `shape` at `pose` touches the object within `tol` (distance or depth): the signed
+    /// distance (negative: depth), the contact point on the object and the inward normal there.
+    pub fn touch(
+        &self,
+        shape: &SharedShape,
+        pose: &Pose,
+        tol: f64,
+    ) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
+        let mut best: Option<(f64, Vector3<f64>, Vector3<f64>)> = None;
+        let pp = to_parry(pose);
+        for o in &self.shapes {
+            if let Ok(Some(c)) =
+                query::contact(&o.parry_pose, o.shape.as_ref(), &pp, shape.as_ref(), tol)
+            {
+                if c.dist.abs() <= tol && best.is_none_or(|b| c.dist < b.0) {
+                    let p = Vector3::new(c.point1.x, c.point1.y, c.point1.z);
+                    let n = -Vector3::new(c.normal1.x, c.normal1.y, c.normal1.z);
+                    if n.norm() > 0.0 {
+                        best = Some((c.dist, p, n.normalize()));
+                    }
+                }
+            }
+        }
+        best
     }
 
     fn nested(&self, o: &ObjectShape, shape: &SharedShape, pose: &Pose) -> bool {
@@ -519,11 +585,7 @@ pub struct GraspList {
 }
 
 /// The palm poses of the grasp frames (module docs, step 1), position-major.
-pub fn grasp_frames(
-    hand: &Hand,
-    object: &GraspObject,
-    params: &GraspListParams,
-) -> Vec<Pose> {
+pub fn grasp_frames(hand: &Hand, object: &GraspObject, params: &GraspListParams) -> Vec<Pose> {
     let (lo, hi) = object.aabb();
     let ext = hi - lo;
     let vol = ext.x.max(1e-9) * ext.y.max(1e-9) * ext.z.max(1e-9);
@@ -552,11 +614,21 @@ pub fn grasp_frames(
     out
 }
 
+/// One finger's contact: the finger, the nearest surface sample (its curvature), the contact
+/// point and inward normal (object frame), the finger's force-ellipsoid major axis.
+struct FingerContact {
+    finger: usize,
+    sample: usize,
+    point: Vector3<f64>,
+    normal: Vector3<f64>,
+    axis: Vector3<f64>,
+}
+
 /// What a frame gives before the quality step.
 struct Candidate {
     palm: Pose,
     config: Vec<f64>,
-    contacts: Vec<(usize, usize, Vector3<f64>)>, // (finger, surface point, force-ellipsoid axis)
+    contacts: Vec<FingerContact>,
 }
 
 /// Per-thread state.
@@ -589,7 +661,13 @@ struct Ctx<'a> {
 impl Ctx<'_> {
     /// Whether `link` at `pose` (object frame) collides with the object (the contact link may
     /// enter it by at most the tolerance) or with a placed link.
-    fn link_blocked(&self, link: usize, pose: &Pose, contact: bool, placed: &[(usize, Pose)]) -> bool {
+    fn link_blocked(
+        &self,
+        link: usize,
+        pose: &Pose,
+        contact: bool,
+        placed: &[(usize, Pose)],
+    ) -> bool {
         let shapes = &self.hand.shapes[&link];
         let bounds = &self.bounds[&link];
         for ((s, local), b) in shapes.iter().zip(bounds) {
@@ -703,6 +781,147 @@ impl Ctx<'_> {
         out
     }
 
+    /// Finger `fi` reaching surface point `p` (outward normal `n`): the fingertip is sent to `p`
+    /// by IK; the finger's other links must be free of the object and the placed links, its
+    /// contact link must touch the object within the tolerance. A contact link deeper than that
+    /// (a flat tip on a tilted surface) sends the target back along `n` and tries again (at most
+    /// three times). The contact is where the contact link touches the object: parry's contact
+    /// point on the object and its inward normal.
+    #[allow(clippy::too_many_arguments)]
+    fn touch_at(
+        &self,
+        fi: usize,
+        palm: &Pose,
+        ib: &Pose,
+        p: Vector3<f64>,
+        n: Vector3<f64>,
+        w: &mut Worker,
+        rng: &mut ChaCha8Rng,
+        base_mark: usize,
+    ) -> Option<FingerContact> {
+        let f = &self.hand.fingers[fi];
+        let tol = self.params.contact_tolerance;
+        let ib_inv = ib.inverse();
+        let mut target_p = p;
+        for k in 0..3 {
+            w.q[f.ik_vars[k]] = f.mid[k];
+        }
+        for _ in 0..4 {
+            w.placed.truncate(base_mark);
+            let target = Pose::from_parts(
+                Translation3::from((ib_inv * Point3::from(target_p)).coords),
+                UnitQuaternion::identity(),
+            );
+            let sol = w.iks[fi].solve(&target, &w.q, rng).ok()?;
+            for k in 0..3 {
+                w.q[f.ik_vars[k]] = sol[f.ik_vars[k]];
+            }
+            for &l in &f.links {
+                if f.base_links.contains(&l) || l == f.contact_link {
+                    continue;
+                }
+                let pose = palm * self.hand.link_in_palm(l, &w.q);
+                if self.link_blocked(l, &pose, false, &w.placed) {
+                    return None;
+                }
+                w.placed.push((l, pose));
+            }
+            let cl = f.contact_link;
+            let pose = palm * self.hand.link_in_palm(cl, &w.q);
+            if self.link_blocked(cl, &pose, true, &w.placed) {
+                // Deeper than the tolerance or hitting the hand: only depth is worth a retry.
+                let depth = self.link_depth(cl, &pose);
+                if depth.is_finite() && depth > tol && self.hand_free(cl, &pose, &w.placed) {
+                    target_p += n * (depth - tol / 2.0);
+                    continue;
+                }
+                return None;
+            }
+            let (point, normal) = self.link_touch(cl, &pose, tol)?;
+            w.placed.push((cl, pose));
+            // Force-ellipsoid major axis (object frame).
+            let j = f.ik_chain.jacobian(self.robot, &w.q);
+            let jp = j.fixed_rows::<3>(0).into_owned();
+            let m: Matrix3<f64> = &jp * jp.transpose();
+            let e = SymmetricEigen::new(m);
+            let imin = e
+                .eigenvalues
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1.total_cmp(b.1))
+                .map_or(0, |x| x.0);
+            let axis = ib.rotation * e.eigenvectors.column(imin).into_owned();
+            return Some(FingerContact {
+                finger: fi,
+                sample: self.surface.nearest(&point),
+                point,
+                normal,
+                axis,
+            });
+        }
+        None
+    }
+
+    /// Deepest penetration of `link` at `pose` into the object.
+    fn link_depth(&self, link: usize, pose: &Pose) -> f64 {
+        let shapes = &self.hand.shapes[&link];
+        let bounds = &self.bounds[&link];
+        shapes
+            .iter()
+            .zip(bounds)
+            .map(|((s, local), b)| self.object.depth(s, &(pose * local), *b))
+            .fold(0.0, f64::max)
+    }
+
+    /// Whether `link` at `pose` is free of the placed hand links.
+    fn hand_free(&self, link: usize, pose: &Pose, placed: &[(usize, Pose)]) -> bool {
+        let shapes = &self.hand.shapes[&link];
+        let bounds = &self.bounds[&link];
+        shapes.iter().zip(bounds).all(|((s, local), b)| {
+            let w = pose * local;
+            placed.iter().all(|(other, opose)| {
+                if *other == link || self.robot.is_disabled(link, *other) {
+                    return true;
+                }
+                self.hand.shapes[other]
+                    .iter()
+                    .zip(&self.bounds[other])
+                    .all(|((s2, l2), b2)| {
+                        let w2 = opose * l2;
+                        (w.translation.vector - w2.translation.vector).norm() > b + b2
+                            || !query::intersection_test(
+                                &to_parry(&w),
+                                s.as_ref(),
+                                &to_parry(&w2),
+                                s2.as_ref(),
+                            )
+                            .map(|r| r.intersecting)
+                            .unwrap_or(true)
+                    })
+            })
+        })
+    }
+
+    /// Where `link` at `pose` touches the object (within `tol`): the contact point on the object
+    /// and the inward normal; `None` when it is farther than `tol`.
+    fn link_touch(
+        &self,
+        link: usize,
+        pose: &Pose,
+        tol: f64,
+    ) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let shapes = &self.hand.shapes[&link];
+        let mut best: Option<(f64, Vector3<f64>, Vector3<f64>)> = None;
+        for (s, local) in shapes {
+            if let Some((d, p, n)) = self.object.touch(s, &(pose * local), tol) {
+                if best.is_none_or(|b| d < b.0) {
+                    best = Some((d, p, n));
+                }
+            }
+        }
+        best.map(|b| (b.1, b.2))
+    }
+
     /// Finger `fi`'s contact (module docs, step 2), its links placed; `None` leaves the
     /// placed links as they were.
     fn finger_contact(
@@ -711,7 +930,7 @@ impl Ctx<'_> {
         palm: &Pose,
         w: &mut Worker,
         rng: &mut ChaCha8Rng,
-    ) -> Option<(usize, usize, Vector3<f64>)> {
+    ) -> Option<FingerContact> {
         let f = &self.hand.fingers[fi];
         let mark = w.placed.len();
         let fracs: &[f64] = if f.base_vars.is_empty() {
@@ -730,7 +949,6 @@ impl Ctx<'_> {
             }
             let base_mark = w.placed.len();
             let ib = palm * self.hand.link_in_palm(f.ik_base, &w.q);
-            let ib_inv = ib.inverse();
             let base_origin = ib.translation.vector;
             for s in &f.workspace {
                 let s = transform_sphere(&ib, s);
@@ -745,40 +963,8 @@ impl Ctx<'_> {
                         continue;
                     }
                     tried += 1;
-                    let target = Pose::from_parts(
-                        Translation3::from((ib_inv * Point3::from(p)).coords),
-                        UnitQuaternion::identity(),
-                    );
-                    for k in 0..3 {
-                        w.q[f.ik_vars[k]] = f.mid[k];
-                    }
-                    let Ok(sol) = w.iks[fi].solve(&target, &w.q, rng) else {
-                        continue;
-                    };
-                    for k in 0..3 {
-                        w.q[f.ik_vars[k]] = sol[f.ik_vars[k]];
-                    }
-                    w.placed.truncate(base_mark);
-                    let ik_links: Vec<usize> = f
-                        .links
-                        .iter()
-                        .copied()
-                        .filter(|l| !f.base_links.contains(l))
-                        .collect();
-                    if self.place_finger_links(fi, palm, w, &ik_links, true) {
-                        // Force-ellipsoid major axis (object frame).
-                        let j = f.ik_chain.jacobian(self.robot, &w.q);
-                        let jp = j.fixed_rows::<3>(0).into_owned();
-                        let m: Matrix3<f64> = &jp * jp.transpose();
-                        let e = SymmetricEigen::new(m);
-                        let (imin, _) = e
-                            .eigenvalues
-                            .iter()
-                            .enumerate()
-                            .min_by(|a, b| a.1.total_cmp(b.1))
-                            .unwrap_or((0, &0.0));
-                        let axis = ib.rotation * e.eigenvectors.column(imin).into_owned();
-                        return Some((fi, idx, axis));
+                    if let Some(c) = self.touch_at(fi, palm, &ib, p, n, w, rng, base_mark) {
+                        return Some(c);
                     }
                 }
             }
@@ -821,9 +1007,20 @@ pub fn build_grasp_list(
     let base_fracs: Vec<f64> = {
         let n = params.base_steps;
         let mut v: Vec<f64> = (0..n)
-            .map(|i| if n == 1 { 0.5 } else { i as f64 / (n - 1) as f64 })
+            .map(|i| {
+                if n == 1 {
+                    0.5
+                } else {
+                    i as f64 / (n - 1) as f64
+                }
+            })
             .collect();
-        v.sort_by(|a, b| (a - 0.5).abs().total_cmp(&(b - 0.5).abs()).then(a.total_cmp(b)));
+        v.sort_by(|a, b| {
+            (a - 0.5)
+                .abs()
+                .total_cmp(&(b - 0.5).abs())
+                .then(a.total_cmp(b))
+        });
         v
     };
     let ctx = Ctx {
@@ -866,7 +1063,7 @@ pub fn build_grasp_list(
                     let contacts: Vec<Contact> = c
                         .contacts
                         .iter()
-                        .map(|&(_, idx, _)| Contact::new(surface.points[idx], -surface.normals[idx]))
+                        .map(|k| Contact::new(k.point, k.normal))
                         .collect();
                     grasp_quality(&contacts, &object.centre, &ws_settings)
                         .ok()
@@ -916,13 +1113,13 @@ pub fn build_grasp_list(
                 .contacts
                 .iter()
                 .zip(&contacts)
-                .map(|(&(_, _, a), k)| a.normalize().dot(&k.normal.normalize()).abs())
+                .map(|(fc, k)| fc.axis.normalize().dot(&k.normal.normalize()).abs())
                 .sum::<f64>()
                 / n,
             curvature: c
                 .contacts
                 .iter()
-                .map(|&(_, idx, _)| 1.0 - surface.curvature[idx] / surface.max_curvature)
+                .map(|fc| 1.0 - surface.curvature[fc.sample] / surface.max_curvature)
                 .sum::<f64>()
                 / n,
         };
@@ -939,8 +1136,8 @@ pub fn build_grasp_list(
                 .contacts
                 .iter()
                 .zip(&contacts)
-                .map(|(&(fi, _, _), k)| ListContact {
-                    finger: hand.fingers[fi].group.clone(),
+                .map(|(fc, k)| ListContact {
+                    finger: hand.fingers[fc.finger].group.clone(),
                     point: k.point.into(),
                     normal: k.normal.into(),
                 })

@@ -41,16 +41,17 @@ pub fn hand_hash(hand: &Hand) -> String {
             }
         }
     }
-    let mut links: Vec<&usize> = hand.shapes.keys().collect();
-    links.sort();
-    for &l in links {
+    // Sorted: a HashMap's order differs between processes.
+    let mut links: Vec<usize> = hand.shapes.keys().copied().collect();
+    links.sort_unstable();
+    for &l in &links {
         h.update(r.links[l].name.as_bytes());
         for g in &r.links[l].collision {
             h.update(format!("{:?}", g.origin).as_bytes());
             hash_shape(&mut h, &g.shape);
         }
-        for (a, b) in hand.shapes.keys().map(|&b| (l, b)) {
-            h.update([r.is_disabled(a, b) as u8]);
+        for &b in &links {
+            h.update([r.is_disabled(l, b) as u8]);
         }
     }
     hex(h.finalize())
@@ -203,7 +204,13 @@ pub fn list_file_name(hand: &Hand, object: &GraspObject, params: &GraspListParam
     ));
     let clean = |s: &str| -> String {
         s.chars()
-            .map(|c| if c.is_ascii_alphanumeric() || c == '_' { c } else { '_' })
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
             .collect()
     };
     format!(

@@ -36,6 +36,7 @@
 //! contacts): four side-face centres → ε = 0.169650; μ = 1 → 0.339299; m = 4 → 0.144338; two
 //! opposite face centres → rank 5, not force closure (`tests/grasp_quality.rs`).
 
+pub mod double_grasp;
 pub mod finger_workspace;
 pub mod hand;
 pub mod hull;
@@ -50,16 +51,18 @@ use nalgebra::{Point3, Vector3};
 
 use crate::geometry::{Geometry, Shape};
 
+pub use hand::{Finger, Hand, HandError, WorkspaceParams};
 pub use hull::{
     depth_exceeds, nearest_facet_depth, ConvexHull, Facet, HullError, HullOptions, NearestDepth,
     Point6,
 };
-pub use hand::{Finger, Hand, HandError, WorkspaceParams};
 pub use list::{
     build_grasp_list, GraspList, GraspListError, GraspListParams, GraspListStats, GraspObject,
     GraspScores, ListContact, SingleGrasp,
 };
-pub use list_cache::{load_grasp_list, read_grasp_list, save_grasp_list, GraspListCache, ListFileError};
+pub use list_cache::{
+    load_grasp_list, read_grasp_list, save_grasp_list, GraspListCache, ListFileError,
+};
 pub use object::{grasp_contacts, score_object_grasps, ObjectGraspScores};
 pub use wrench_space::{
     grasp_quality, primitive_wrenches, primitive_wrenches_into, quality_of_wrenches,

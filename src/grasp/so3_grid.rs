@@ -34,7 +34,10 @@ pub fn healpix_centre(nside: u64, ipix: u64) -> (f64, f64) {
         let iring = (1 + isqrt(1 + 2 * ipix)) >> 1;
         let iphi = ipix + 1 - 2 * iring * (iring - 1);
         let r = iring as f64;
-        (1.0 - r * r / (3.0 * ns * ns), (iphi as f64 - 0.5) * PI / (2.0 * r))
+        (
+            1.0 - r * r / (3.0 * ns * ns),
+            (iphi as f64 - 0.5) * PI / (2.0 * r),
+        )
     } else if ipix < npix - ncap {
         // Equatorial belt.
         let ip = ipix - ncap;
@@ -51,7 +54,10 @@ pub fn healpix_centre(nside: u64, ipix: u64) -> (f64, f64) {
         let iring = (1 + isqrt(2 * ip - 1)) >> 1;
         let iphi = 4 * iring + 1 - (ip - 2 * iring * (iring - 1));
         let r = iring as f64;
-        (-1.0 + r * r / (3.0 * ns * ns), (iphi as f64 - 0.5) * PI / (2.0 * r))
+        (
+            -1.0 + r * r / (3.0 * ns * ns),
+            (iphi as f64 - 0.5) * PI / (2.0 * r),
+        )
     };
     (z.clamp(-1.0, 1.0).acos(), phi)
 }

@@ -132,11 +132,7 @@ impl SurfaceSamples {
                 }
             })
             .collect();
-        let max_curvature = curvature
-            .iter()
-            .copied()
-            .fold(0.0f64, f64::max)
-            .max(1e-12);
+        let max_curvature = curvature.iter().copied().fold(0.0f64, f64::max).max(1e-12);
         Ok(SurfaceSamples {
             points,
             normals,
@@ -153,6 +149,13 @@ impl SurfaceSamples {
 
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
+    }
+
+    /// Index of the point nearest `p`.
+    pub fn nearest(&self, p: &Vector3<f64>) -> usize {
+        self.tree
+            .nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z])
+            .item as usize
     }
 
     /// Indices of the points within `radius` of `centre`, nearest first.
