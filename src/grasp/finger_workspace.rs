@@ -83,7 +83,7 @@ pub fn approximate_workspace(
             .max_by(|&a, &b| d[a].total_cmp(&d[b]).then(b.cmp(&a)));
         let Some(best) = best else { break };
         let r = d[best];
-        if !(r >= r_min) || !r.is_finite() {
+        if r.is_nan() || r < r_min || !r.is_finite() {
             break;
         }
         let s = WorkspaceSphere {

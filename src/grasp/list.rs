@@ -752,8 +752,8 @@ impl Ctx<'_> {
                     let mark = w.placed.len();
                     let mut ok = false;
                     for cfg in [f.rest, f.mid] {
-                        for k in 0..3 {
-                            w.q[f.ik_vars[k]] = cfg[k];
+                        for (&v, x) in f.ik_vars.iter().zip(cfg) {
+                            w.q[v] = x;
                         }
                         w.placed.truncate(mark);
                         let links = f.links.clone();
@@ -1041,7 +1041,8 @@ pub fn build_grasp_list(
     let done = AtomicUsize::new(0);
     let total = frames.len();
     let stopped = std::sync::atomic::AtomicBool::new(false);
-    let results: Vec<(FrameOutcome, Option<(f64, Vec<Contact>)>)> = frames
+    type FrameResult = (FrameOutcome, Option<(f64, Vec<Contact>)>);
+    let results: Vec<FrameResult> = frames
         .par_iter()
         .enumerate()
         .map_init(

@@ -65,7 +65,7 @@ impl SurfaceSamples {
             area += a;
             cum.push(area);
         }
-        if !(area > 0.0) {
+        if area.is_nan() || area <= 0.0 {
             return Err("the surface has no area".into());
         }
         let wanted = (area / (spacing * spacing)).ceil();
