@@ -51,6 +51,9 @@ pub enum BenchCmd {
     /// Trajectory timing (TOPP-RA on the polyline): the kitchen task's path and 100-waypoint
     /// Panda-like paths, median µs per parameterisation.
     Timing(super::bench_timing::TimingBenchArgs),
+    /// Single-grasp lists (paper 003 §IV-A): one list per hand from scratch, median seconds
+    /// over seeded builds beside the ≤ 1 s target [paper: about 1 min].
+    GraspList(Box<super::bench_grasp_list::GraspListBenchArgs>),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -69,6 +72,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
         BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
         BenchCmd::Timing(a) => super::bench_timing::run(ctx, a)?,
+        BenchCmd::GraspList(a) => super::bench_grasp_list::run(ctx, a)?,
     }
     Ok(())
 }

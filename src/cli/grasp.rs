@@ -1,5 +1,7 @@
 //! `manyhands grasp quality`: force closure, wrench rank and the Ferrari–Canny ε (L1 grasp wrench
 //! space, [`manyhands::grasp`]) of a scene object's grasps or of contacts read from a file.
+//! `manyhands grasp list`: the single-grasp list of a hand and an object (paper 003 §IV-A,
+//! [`manyhands::grasp::list`]), cached in `data/grasps`, with a progress bar.
 
 use std::path::{Path, PathBuf};
 
@@ -9,8 +11,15 @@ use nalgebra::Vector3;
 use serde::Deserialize;
 use serde_json::{json, Value};
 
+use std::io::IsTerminal;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use manyhands::grasp::list::workspace_params;
+use manyhands::grasp::list_cache::list_file_name;
 use manyhands::grasp::{
-    grasp_quality, score_object_grasps, Contact, GraspError, GraspQuality, WrenchSpaceSettings,
+    build_grasp_list, grasp_quality, load_grasp_list, save_grasp_list, score_object_grasps,
+    Contact, GraspError, GraspList, GraspListCache, GraspListParams, GraspObject, GraspQuality,
+    Hand, SingleGrasp, WrenchSpaceSettings,
 };
 use manyhands::model::{ContactPoint, GraspType};
 
@@ -21,6 +30,249 @@ pub enum GraspCmd {
     /// Force closure, wrench rank and Ferrari–Canny ε of a scene object's grasps (--scene,
     /// --object) or of contacts from a JSON file (--contacts).
     Quality(QualityArgs),
+    /// The single-grasp list of a multi-finger hand and an object (paper 003 §IV-A): built once
+    /// and cached (refused and rebuilt when hand, object or parameters differ).
+    List(Box<ListArgs>),
+}
+
+/// The parameters of a grasp list ([`GraspListParams`]); unset flags keep the defaults.
+#[derive(Args, Debug, Clone)]
+pub struct ListParamArgs {
+    /// Grasp positions in the object's box (about).
+    #[arg(long)]
+    pub positions: Option<usize>,
+    /// SO(3) grid level: 72 · 8^level orientations (0..=4).
+    #[arg(long)]
+    pub orientation_level: Option<u32>,
+    /// Spacing of the surface samples in m (default: the smallest fingertip radius).
+    #[arg(long)]
+    pub spacing: Option<f64>,
+    /// Grid values per finger joint for the workspace spheres (003 Alg. 1).
+    #[arg(long)]
+    pub workspace_steps: Option<usize>,
+    /// Most workspace spheres per finger.
+    #[arg(long)]
+    pub max_spheres: Option<usize>,
+    /// Surface points tried per workspace sphere.
+    #[arg(long)]
+    pub candidates: Option<usize>,
+    /// Values tried for a thumb's base joint.
+    #[arg(long)]
+    pub base_steps: Option<usize>,
+    /// Depth in m by which a fingertip may enter the object at a contact.
+    #[arg(long)]
+    pub contact_tolerance: Option<f64>,
+    /// Friction coefficient μ of the force-closure test.
+    #[arg(long, allow_negative_numbers = true)]
+    pub mu: Option<f64>,
+    /// Quality weights: force closure, centroid, force ellipsoid, curvature (003: 1,1,1,6).
+    #[arg(long, allow_negative_numbers = true)]
+    pub weights: Option<String>,
+    /// Most grasps kept.
+    #[arg(long)]
+    pub max_grasps: Option<usize>,
+    /// Finger groups in search order, thumb first (default: most joints first).
+    #[arg(long)]
+    pub fingers: Option<String>,
+    /// Seed of the surface sampling and IK restarts.
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+impl ListParamArgs {
+    pub fn params(&self) -> Result<GraspListParams> {
+        let mut p = GraspListParams::default();
+        if let Some(v) = self.positions {
+            p.positions = v;
+        }
+        if let Some(v) = self.orientation_level {
+            p.orientation_level = v;
+        }
+        p.surface_spacing = self.spacing.or(p.surface_spacing);
+        if let Some(v) = self.workspace_steps {
+            p.workspace_steps = v;
+        }
+        if let Some(v) = self.max_spheres {
+            p.max_spheres = v;
+        }
+        if let Some(v) = self.candidates {
+            p.candidates_per_sphere = v;
+        }
+        if let Some(v) = self.base_steps {
+            p.base_steps = v;
+        }
+        if let Some(v) = self.contact_tolerance {
+            p.contact_tolerance = v;
+        }
+        if let Some(v) = self.mu {
+            p.mu = v;
+        }
+        if let Some(w) = &self.weights {
+            let v: Vec<f64> = w
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|e| anyhow!("weights: '{w}': {e} (flag --weights)"))?;
+            p.weights = v
+                .try_into()
+                .map_err(|_| anyhow!("weights: four values expected (flag --weights)"))?;
+        }
+        if let Some(v) = self.max_grasps {
+            p.max_grasps = v;
+        }
+        if let Some(f) = &self.fingers {
+            p.fingers = Some(f.split(',').map(|s| s.trim().to_string()).collect());
+        }
+        if let Some(v) = self.seed {
+            p.seed = v;
+        }
+        p.validate().map_err(|e| anyhow!("{e}"))?;
+        Ok(p)
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct ListArgs {
+    /// Robot (name in robots/ or a .urdf path).
+    #[arg(long)]
+    pub robot: String,
+    /// The hand's SRDF group (its fingers are the chain groups within it).
+    #[arg(long)]
+    pub hand: String,
+    /// The object: a mesh file, or the name of one in the scenes folder's meshes/ (e.g.
+    /// statuette).
+    #[arg(long)]
+    pub mesh: String,
+    #[command(flatten)]
+    pub params: ListParamArgs,
+    /// Folder of cached lists.
+    #[arg(long, default_value = "data/grasps")]
+    pub cache: PathBuf,
+    /// Build even if a cached list exists (the cache is still updated).
+    #[arg(long)]
+    pub rebuild: bool,
+    /// Also write the list to this file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Check this list file against the hand, object and parameters instead of building.
+    #[arg(long, conflicts_with_all = ["out", "rebuild"])]
+    pub load: Option<PathBuf>,
+    /// Grasps to print (best first).
+    #[arg(long, default_value_t = 5)]
+    pub top: usize,
+}
+
+/// The object of `--mesh`: a path, else `scenes/meshes/NAME.obj`.
+pub fn mesh_object(ctx: &Ctx, mesh: &str) -> Result<GraspObject> {
+    let p = Path::new(mesh);
+    let path = if p.is_file() {
+        p.to_path_buf()
+    } else {
+        let named = ctx.scenes_dir.join("meshes").join(format!("{mesh}.obj"));
+        if !named.is_file() {
+            bail!(
+                "mesh: '{mesh}' is neither a file nor a mesh of {} (flag --mesh)",
+                ctx.scenes_dir.join("meshes").display()
+            );
+        }
+        named
+    };
+    GraspObject::from_mesh_file(&path).map_err(|e| anyhow!("{e} (flag --mesh)"))
+}
+
+fn list(ctx: &Ctx, a: &ListArgs) -> Result<()> {
+    let params = a.params.params()?;
+    let robot = ctx.robot(&a.robot)?;
+    let hand = Hand::new(
+        robot,
+        &a.hand,
+        params.fingers.as_deref(),
+        &workspace_params(&params),
+    )
+    .map_err(|e| anyhow!("{e} (flag --{})", e.field()))?;
+    let object = mesh_object(ctx, &a.mesh)?;
+    if let Some(file) = &a.load {
+        let l = load_grasp_list(file, &hand, &object, &params).map_err(|e| anyhow!("{e}"))?;
+        return print_list(ctx, &l, false, a.top);
+    }
+    let cache = GraspListCache::new(Some(a.cache.clone()));
+    let hidden = ctx.json || !std::io::stderr().is_terminal();
+    let bar = if hidden {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("grasp frames [{bar:30}] {pos}/{len} {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let (l, built) = if a.rebuild {
+        let l = build_grasp_list(&hand, &object, &params, &progress, &|| false)
+            .map_err(|e| anyhow!("{e}"))?;
+        let dir = &a.cache;
+        if std::fs::create_dir_all(dir).is_ok() {
+            let _ = save_grasp_list(&l, &dir.join(list_file_name(&hand, &object, &params)));
+        }
+        (std::sync::Arc::new(l), true)
+    } else {
+        cache
+            .get_or_build(&hand, &object, &params, &progress, &|| false)
+            .map_err(|e| anyhow!("{e}"))?
+    };
+    bar.finish_and_clear();
+    if let Some(out) = &a.out {
+        save_grasp_list(&l, out).map_err(|e| anyhow!("{e}"))?;
+    }
+    print_list(ctx, &l, built, a.top)
+}
+
+fn print_list(ctx: &Ctx, l: &GraspList, built: bool, top: usize) -> Result<()> {
+    let best: Vec<&SingleGrasp> = l.grasps.iter().take(top).collect();
+    let v = json!({
+        "robot": l.robot, "hand": l.hand, "object": l.object, "built": built,
+        "fingers": l.fingers, "params": l.params, "stats": l.stats,
+        "hand_hash": l.hand_hash, "object_hash": l.object_hash, "params_hash": l.params_hash,
+        "grasps": l.grasps.len(), "best": best,
+    });
+    ctx.print(&v, || {
+        let s = &l.stats;
+        let mut t = format!(
+            "{} {} × {}: {} grasps ({} {:.2} s; {} frames, palm free {}, thumb contact {}, ≥3 contacts {}, force closure {}; {} surface points, spheres per finger {:?})\n",
+            l.robot,
+            l.hand,
+            l.object,
+            l.grasps.len(),
+            if built { "built in" } else { "cached, built in" },
+            s.seconds,
+            s.frames,
+            s.palm_free,
+            s.thumb_contacts,
+            s.candidates,
+            s.force_closure,
+            s.surface_points,
+            s.spheres
+        );
+        for (i, g) in best.iter().enumerate() {
+            let fingers: Vec<&str> = g.contacts.iter().map(|c| c.finger.as_str()).collect();
+            t += &format!(
+                "  #{i}: quality {:.3} (fc {:.3}, centroid {:.3}, ellipsoid {:.3}, curvature {:.3}), ε {:.4}, contacts {}\n",
+                g.quality,
+                g.scores.force_closure,
+                g.scores.centroid,
+                g.scores.ellipsoid,
+                g.scores.curvature,
+                g.epsilon,
+                fingers.join(",")
+            );
+        }
+        t
+    });
+    Ok(())
 }
 
 #[derive(Args, Debug)]
@@ -62,6 +314,7 @@ pub struct QualityArgs {
 pub fn run(ctx: &Ctx, cmd: &GraspCmd) -> Result<()> {
     match cmd {
         GraspCmd::Quality(a) => quality(ctx, a),
+        GraspCmd::List(a) => list(ctx, a),
     }
 }
 

@@ -1,6 +1,7 @@
 //! Command-line front end (clap). Thin: parses arguments, calls the library, prints text or JSON.
 
 mod bench;
+mod bench_grasp_list;
 mod bench_ik;
 mod bench_planners;
 mod bench_timing;

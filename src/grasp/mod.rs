@@ -26,24 +26,42 @@
 //!
 //! Modules: [`wrench_space`] (contacts, settings, primitive wrenches, rank, ε), [`hull`] (the
 //! own 6-D quickhull with joggle) and [`object`] (a scene object's grasps scored with a shared
-//! centre and λ). [`object_centre`] gives the centre and radius of a scene object from its
+//! centre and λ); paper 003 §IV-A's single-grasp lists: [`list`] (the generator), [`hand`] (a
+//! multi-finger hand from URDF + SRDF), [`finger_workspace`] (Alg. 1), [`so3_grid`] (the
+//! HEALPix × S¹ orientation grid), [`surface`] (surface samples in a kd-tree) and
+//! [`list_cache`] (list files keyed by hand, object and parameters). [`object_centre`] gives the centre and radius of a scene object from its
 //! shapes.
 //!
 //! Reference values (unit cube at the origin, inward normals, μ = 0.5, m = 8, λ = 1, point
 //! contacts): four side-face centres → ε = 0.169650; μ = 1 → 0.339299; m = 4 → 0.144338; two
 //! opposite face centres → rank 5, not force closure (`tests/grasp_quality.rs`).
 
+pub mod double_grasp;
+pub mod finger_workspace;
+pub mod hand;
 pub mod hull;
+pub mod list;
+pub mod list_cache;
 pub mod object;
+pub mod so3_grid;
+pub mod surface;
 pub mod wrench_space;
 
 use nalgebra::{Point3, Vector3};
 
 use crate::geometry::{Geometry, Shape};
 
+pub use hand::{Finger, Hand, HandError, WorkspaceParams};
 pub use hull::{
     depth_exceeds, nearest_facet_depth, ConvexHull, Facet, HullError, HullOptions, NearestDepth,
     Point6,
+};
+pub use list::{
+    build_grasp_list, GraspList, GraspListError, GraspListParams, GraspListStats, GraspObject,
+    GraspScores, ListContact, SingleGrasp,
+};
+pub use list_cache::{
+    load_grasp_list, read_grasp_list, save_grasp_list, GraspListCache, ListFileError,
 };
 pub use object::{grasp_contacts, score_object_grasps, ObjectGraspScores};
 pub use wrench_space::{

@@ -9,12 +9,13 @@
 pub use manyhands_api::{
     BasePlacementRequest, BimanualPlan, CheckFast, CheckRequest, CheckResponse, CollisionSweep,
     ConfigMap, DualArmIkRequest, EndEffectorInfo, FkRequest, FkResponse, GraspContact,
-    GraspIkRequest, GraspIkResponse, GraspPlannerName, GraspQualityRequest, GraspQualityResponse,
-    GraspQualityScore, GroupInfo, HandRef, Health, IkFrame, IkOrder, IkRequest, IkResponse,
-    IkSolver, Job, JobList, JobState, JobSummary, JointInfo, JointSpacePlan, KitchenTaskPlan,
-    LinkPose, MultiRobotRequest, PlanRequest, PlanRobot, PoseBody, PoseOut, ReachPlan, RegionJson,
-    RegraspPlan, RobotDetail, RobotSummary, RobotUpload, SceneRobotConfig, SceneRobotInfo,
-    SceneSummary, ScheduleRequest, ScheduleTrajectory, Source, TwoHandIkResponse,
+    GraspIkRequest, GraspIkResponse, GraspListParamsBody, GraspListPlan, GraspPlannerName,
+    GraspQualityRequest, GraspQualityResponse, GraspQualityScore, GroupInfo, HandRef, Health,
+    IkFrame, IkOrder, IkRequest, IkResponse, IkSolver, Job, JobList, JobState, JobSummary,
+    JointInfo, JointSpacePlan, KitchenTaskPlan, LinkPose, MultiRobotRequest, PlanRequest,
+    PlanRobot, PoseBody, PoseOut, ReachPlan, RegionJson, RegraspPlan, RobotDetail, RobotSummary,
+    RobotUpload, SceneRobotConfig, SceneRobotInfo, SceneSummary, ScheduleRequest,
+    ScheduleTrajectory, Source, TwoHandIkResponse,
 };
 pub use manyhands_api::{
     JointTrajectory, TimedWaypoint, TrajectoryEvent, TrajectoryPoint, TrajectoryRequest,

@@ -85,6 +85,11 @@ pub struct Catalog {
     /// Serialises uploads and deletions (validation + files + maps).
     write: std::sync::Mutex<()>,
     grids: Arc<GridCache>,
+    /// Single-grasp lists (003 §IV-A) under `<data-dir>/grasps`.
+    grasp_lists: Arc<crate::grasp::GraspListCache>,
+    grasp_dir: PathBuf,
+    /// The built-in scenes' `meshes/` folder (objects of `kind: grasp_list` by name).
+    meshes_dir: PathBuf,
 }
 
 /// A name usable as a file stem: 1..=64 of `[A-Za-z0-9_.-]`, not starting with a dot.
@@ -272,7 +277,27 @@ impl Catalog {
             scenes_dir: up_scenes,
             write: std::sync::Mutex::new(()),
             grids: Arc::new(GridCache::new(Some(data_dir.join("reach")))),
+            grasp_lists: Arc::new(crate::grasp::GraspListCache::new(Some(
+                data_dir.join("grasps"),
+            ))),
+            grasp_dir: data_dir.join("grasps"),
+            meshes_dir: scenes_dir.join("meshes"),
         })
+    }
+
+    /// Single-grasp lists built by `kind: grasp_list`, kept under `<data-dir>/grasps`.
+    pub fn grasp_lists(&self) -> Arc<crate::grasp::GraspListCache> {
+        self.grasp_lists.clone()
+    }
+
+    /// The folder of the grasp-list files.
+    pub fn grasp_dir(&self) -> &Path {
+        &self.grasp_dir
+    }
+
+    /// The built-in meshes folder (`<scenes>/meshes`).
+    pub fn meshes_dir(&self) -> &Path {
+        &self.meshes_dir
     }
 
     /// Reachability grids built on demand (Bimanual IK-RRT), kept under `<data-dir>/reach`.

@@ -122,6 +122,9 @@ pub fn prepare(req: &PlanRequest, catalog: &Catalog, max_seconds: f64) -> ApiRes
             super::multi_robot::prepare_multi_robot(r, catalog, max_seconds)
         }
         PlanRequest::Schedule(r) => super::multi_robot::prepare_schedule(r, catalog, max_seconds),
+        PlanRequest::GraspList(r) => {
+            super::grasp_lists::prepare_grasp_list(r, catalog, max_seconds)
+        }
     }
 }
 

@@ -17,6 +17,7 @@ pub mod dual_arm_ik;
 pub mod error;
 pub mod extract;
 pub mod grasp_ik;
+pub mod grasp_lists;
 pub mod grasp_quality;
 pub mod jobs;
 pub mod kinds;
@@ -350,6 +351,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/v1/ik/dual-arm", post(dual_arm_ik::dual_arm_ik))
         .route("/v1/ik/base-placement", post(dual_arm_ik::base_placement))
         .route("/v1/grasp-quality", post(grasp_quality::grasp_quality))
+        .route("/v1/grasp-lists", get(grasp_lists::list_index))
+        .route("/v1/grasp-lists/{id}", get(grasp_lists::get_list))
         .route("/v1/plans", post(plans::submit).get(plans::list))
         .route("/v1/plans/{id}", get(plans::get).delete(plans::cancel))
         .route("/v1/plans/{id}/events", get(plans::events))

@@ -129,6 +129,7 @@ pub fn parse_plan_request(v: Value) -> ApiResult<PlanRequest> {
         "bimanual" => Ok(PlanRequest::Bimanual(de_kind(v)?)),
         "multi_robot" => Ok(PlanRequest::MultiRobot(de_kind(v)?)),
         "schedule" => Ok(PlanRequest::Schedule(de_kind(v)?)),
+        "grasp_list" => Ok(PlanRequest::GraspList(de_kind(v)?)),
         k => Err(ApiError::invalid(
             "kind",
             format!("unknown kind '{k}'; one of {:?}", PlanRequest::KINDS),

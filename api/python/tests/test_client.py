@@ -65,6 +65,8 @@ EVERY_KIND = [
     {"kind": "schedule", "scene": "kitchen_two", "trajectories": [
         {"robot": "armar_a", "joints": ["base_x", "base_y"], "path": [[0, -1.2], [0, 2.6]]},
         {"robot": "armar_b", "joints": ["base_x", "base_y"], "path": [[-1.2, -0.7], [1.2, -0.7]]}]},
+    {"kind": "grasp_list", "robot": "justin", "hand": "left_hand", "mesh": "statuette",
+     "params": {"positions": 8}},
 ]
 
 

@@ -27,9 +27,9 @@ pub use grasp::{
     TwoHandIkResponse,
 };
 pub use plans::{
-    BimanualPlan, CollisionSweep, GraspPlannerName, HandRef, Job, JobList, JobState, JobSummary,
-    JointSpacePlan, KitchenTaskPlan, MultiRobotRequest, PlanRequest, PlanRobot, ReachPlan,
-    RegraspPlan, ScheduleRequest, ScheduleTrajectory,
+    BimanualPlan, CollisionSweep, GraspListParamsBody, GraspListPlan, GraspPlannerName, HandRef,
+    Job, JobList, JobState, JobSummary, JointSpacePlan, KitchenTaskPlan, MultiRobotRequest,
+    PlanRequest, PlanRobot, ReachPlan, RegraspPlan, ScheduleRequest, ScheduleTrajectory,
 };
 pub use queries::{
     CheckFast, CheckRequest, CheckResponse, ConfigMap, FkRequest, FkResponse, IkFrame, IkOrder,

@@ -86,6 +86,89 @@ pub struct CollisionSweep {
     pub time_limit: Option<f64>,
 }
 
+/// `kind: grasp_list` — the single-grasp list of a multi-finger hand and an object (paper 003
+/// §IV-A): grasp frames on a grid of positions in the object's box × an SO(3) grid, contacts
+/// found finger by finger (thumb first) with each finger's workspace spheres and IK, force
+/// closure (ε > 0) and a weighted quality. Built once and kept under the data folder (a list of
+/// another hand, object or parameters is never reused); the result names the list's `id`
+/// (`GET /v1/grasp-lists/{id}`) and its best grasps. Give `mesh`, or `scene` with `object`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct GraspListPlan {
+    /// Robot model (e.g. `justin`).
+    pub robot: String,
+    /// The hand's SRDF group (e.g. `left_hand`); its fingers are the chain groups within it.
+    pub hand: String,
+    /// A mesh of the built-in scenes' `meshes/` folder by file stem (e.g. `statuette`).
+    #[serde(default)]
+    pub mesh: Option<String>,
+    /// A scene whose `object` is grasped (its mesh shapes).
+    #[serde(default)]
+    pub scene: Option<String>,
+    #[serde(default)]
+    pub object: Option<String>,
+    /// The list's parameters (unset fields keep their defaults).
+    #[serde(default)]
+    pub params: Option<GraspListParamsBody>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+}
+
+/// Parameters of a single-grasp list; each unset field keeps its default.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct GraspListParamsBody {
+    /// Grasp positions in the object's box, about (1..=100000, default 125).
+    #[serde(default)]
+    pub positions: Option<usize>,
+    /// SO(3) grid level, 72 · 8^level orientations (0..=4, default 0).
+    #[serde(default)]
+    pub orientation_level: Option<u32>,
+    /// Spacing of the surface samples in m (default: the smallest fingertip radius).
+    #[serde(default)]
+    pub surface_spacing: Option<f64>,
+    /// Grid values per finger joint for the workspace spheres (3..=40, default 12).
+    #[serde(default)]
+    pub workspace_steps: Option<usize>,
+    /// Most workspace spheres per finger (1..=64, default 16).
+    #[serde(default)]
+    pub max_spheres: Option<usize>,
+    /// Smallest workspace sphere radius in m (default: half the fingertip radius).
+    #[serde(default)]
+    pub min_sphere_radius: Option<f64>,
+    /// Surface points tried per workspace sphere (1..=64, default 4).
+    #[serde(default)]
+    pub candidates_per_sphere: Option<usize>,
+    /// Values tried for a thumb's base joints (1..=16, default 3).
+    #[serde(default)]
+    pub base_steps: Option<usize>,
+    /// Depth in m a fingertip may enter the object at its contact (0..=0.01, default 0.001).
+    #[serde(default)]
+    pub contact_tolerance: Option<f64>,
+    /// Friction coefficient of the force-closure test (default 0.5).
+    #[serde(default)]
+    pub mu: Option<f64>,
+    /// Friction-cone edges (3..=32, default 8).
+    #[serde(default)]
+    pub cone_edges: Option<usize>,
+    /// Weights of the force-closure, centroid, force-ellipsoid and curvature scores (default
+    /// 1, 1, 1, 6 as paper 003).
+    #[serde(default)]
+    pub weights: Option<[f64; 4]>,
+    /// Most grasps kept (1..=100000, default 2000).
+    #[serde(default)]
+    pub max_grasps: Option<usize>,
+    /// Seed of the surface sampling and the finger IK restarts (default 1).
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Finger groups in search order, thumb first (default: most joints first).
+    #[serde(default)]
+    pub fingers: Option<Vec<String>>,
+}
+
 /// `kind: reach` — grasp an object of the scene with one hand (IK-RRT, 000 Alg. 3, or J+-RRT,
 /// Alg. 1–2). IK-RRT's randomized IK is filtered by the arm's reachability grid (000 §II-D),
 /// built on first use and cached under the data folder.
@@ -407,11 +490,12 @@ pub enum PlanRequest {
     Bimanual(BimanualPlan),
     MultiRobot(MultiRobotRequest),
     Schedule(ScheduleRequest),
+    GraspList(GraspListPlan),
 }
 
 impl PlanRequest {
     /// Every `kind` tag, in the order of the variants.
-    pub const KINDS: [&'static str; 8] = [
+    pub const KINDS: [&'static str; 9] = [
         "joint_space",
         "collision_sweep",
         "reach",
@@ -420,6 +504,7 @@ impl PlanRequest {
         "bimanual",
         "multi_robot",
         "schedule",
+        "grasp_list",
     ];
 
     /// The `kind` tag of this request.
@@ -433,6 +518,7 @@ impl PlanRequest {
             PlanRequest::Bimanual(_) => "bimanual",
             PlanRequest::MultiRobot(_) => "multi_robot",
             PlanRequest::Schedule(_) => "schedule",
+            PlanRequest::GraspList(_) => "grasp_list",
         }
     }
 }
@@ -542,6 +628,7 @@ mod tests {
             json!({"kind": "bimanual", "scene": "s", "robot": "r", "object": "o"}),
             json!({"kind": "multi_robot", "scene": "s", "object": "o"}),
             json!({"kind": "schedule", "scene": "s", "trajectories": []}),
+            json!({"kind": "grasp_list", "robot": "r", "hand": "h", "mesh": "m"}),
         ];
         assert_eq!(bodies.len(), PlanRequest::KINDS.len());
         for (body, kind) in bodies.iter().zip(PlanRequest::KINDS) {
