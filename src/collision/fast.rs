@@ -49,7 +49,7 @@ const EPS: f64 = 1e-9;
 const PERMANENT: u32 = u32::MAX;
 
 #[derive(Debug, Clone, Copy)]
-enum Prim {
+pub(crate) enum Prim {
     Sphere {
         c: Vector3<f64>,
         r: f64,
@@ -211,7 +211,7 @@ impl Prim {
 
     /// Farthest point of the primitive in direction `d` (for GJK).
     #[inline]
-    fn support(&self, d: &Vector3<f64>) -> Vector3<f64> {
+    pub(crate) fn support(&self, d: &Vector3<f64>) -> Vector3<f64> {
         match *self {
             Prim::Sphere { c, r } => {
                 let n = d.norm();

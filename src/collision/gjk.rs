@@ -366,19 +366,15 @@ mod tests {
         }
         assert!(agree > 19_000);
     }
-    /// In the cylinder's frame, as the fast checker's support does: `d − a(d·a)` in world
-    /// coordinates loses the radial direction to round-off when `d` is nearly axial.
+    /// The fast checker's own cylinder support (the one `prims_hit` hands to [`intersect`]).
     fn cylinder_support(c: V, r: Matrix3<f64>, radius: f64, half: f64) -> impl Fn(&V) -> V {
-        move |d: &V| {
-            let l = r.tr_mul(d);
-            let n = (l.x * l.x + l.y * l.y).sqrt();
-            let (x, y) = if n > 0.0 {
-                (l.x * radius / n, l.y * radius / n)
-            } else {
-                (0.0, 0.0)
-            };
-            c + r * V::new(x, y, half.copysign(l.z))
-        }
+        let prim = crate::collision::fast::Prim::Cylinder {
+            c,
+            rot: r,
+            r: radius,
+            h: half,
+        };
+        move |d: &V| prim.support(d)
     }
 
     /// Near-contact cylinder/box and cylinder/cylinder pairs against parry's exact test: placed at
