@@ -494,6 +494,7 @@ fn cube_object(grasps: Vec<(&str, Vec<Contact>)>) -> manyhands::model::Object {
                 quality: 0.5,
             })
             .collect(),
+        goal: None,
     }
 }
 

@@ -7,6 +7,7 @@ mod bench_planners;
 mod bench_timing;
 mod commands;
 mod data;
+mod exchange;
 mod grasp;
 mod load_http;
 mod loadtest;

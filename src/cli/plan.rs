@@ -155,6 +155,9 @@ pub enum PlanCmd {
     /// Multi-Robot-RRT (002 Alg. 3): one Bimanual IK-RRT worker per robot, a collector scoring
     /// grasp wrench spaces and rejecting deadlocks, then phase-space scheduling (002 §V).
     MultiRobot(MultiRobotArgs),
+    /// The exchange position and the grasp, exchange and place configurations of a two-hand
+    /// pick-and-place (003 §V-C) for a scene object and its goal pose.
+    Exchange(Box<super::exchange::ExchangeArgs>),
     Bimanual {
         #[arg(long, default_value = "kitchen")]
         scene: String,
@@ -268,7 +271,7 @@ pub(super) fn termination(c: &Common) -> Result<Termination> {
 
 pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
     let opts = match cmd {
-        PlanCmd::MultiRobot(_) => TimingOptions::default(),
+        PlanCmd::MultiRobot(_) | PlanCmd::Exchange(_) => TimingOptions::default(),
         PlanCmd::Reach { common, .. }
         | PlanCmd::Regrasp { common, .. }
         | PlanCmd::Kitchen { common, .. }
@@ -276,6 +279,7 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
     };
     let (scene, plan, extra): (Scene, TaskPlan, String) = match cmd {
         PlanCmd::MultiRobot(a) => return super::multi_robot::plan(ctx, a),
+        PlanCmd::Exchange(a) => return super::exchange::plan(ctx, a),
         PlanCmd::Reach {
             scene,
             robot,

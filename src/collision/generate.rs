@@ -92,6 +92,7 @@ pub fn random_boxes(
             }],
             mass: None,
             grasps: Vec::new(),
+            goal: None,
         };
         let mut trial = json.clone();
         trial.obstacles.push(body.clone());

@@ -64,6 +64,7 @@ pub fn arm_cell(c: &ArmCell) -> SceneJson {
         }],
         mass: None,
         grasps: Vec::new(),
+        goal: None,
     };
     let corner = (half - c.inset).max(0.0) * std::f64::consts::SQRT_2;
     let robots = (0..c.arms)

@@ -44,6 +44,9 @@ pub struct BodyJson {
     pub mass: Option<f64>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub grasps: Vec<GraspJson>,
+    /// Objects only: where a pick-and-place task puts the object (paper 003's final pose q_o^f).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goal: Option<PoseJson>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -137,6 +140,8 @@ pub struct Object {
     pub body: Body,
     pub mass: Option<f64>,
     pub grasps: Vec<Grasp>,
+    /// Where a pick-and-place task puts the object (003's q_o^f), if the scene says.
+    pub goal: Option<Pose>,
 }
 
 /// A robot model placed in the scene.
@@ -222,6 +227,12 @@ impl Scene {
                     "obstacles are fixed and have no grasps; make it an object".into(),
                 ));
             }
+            if b.goal.is_some() {
+                return Err(err(
+                    format!("{el}.goal"),
+                    "obstacles are fixed and have no goal pose; make it an object".into(),
+                ));
+            }
             if let Some(prev) = names.insert(&b.name, "obstacle") {
                 return Err(err(
                     format!("{el}.name"),
@@ -289,10 +300,15 @@ impl Scene {
                     quality: g.quality,
                 });
             }
+            let goal = match &b.goal {
+                Some(g) => Some(g.to_pose().map_err(|r| err(format!("{el}.goal"), r))?),
+                None => None,
+            };
             objects.push(Object {
                 body,
                 mass: b.mass,
                 grasps,
+                goal,
             });
         }
         let mut placements = Vec::new();

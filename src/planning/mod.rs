@@ -22,6 +22,7 @@ pub mod mbm_data;
 pub mod mbm_gen;
 pub mod multi_robot_rrt;
 pub mod phase_space;
+pub mod pick_place;
 pub mod range;
 mod result;
 mod rng;

@@ -1,0 +1,353 @@
+//! The pick-and-place scene and the key configurations of paper 003 §V-C
+//! (`manyhands::planning::pick_place`): `scenes/pick_place.json`'s statuette is reachable by
+//! justin's right hand only at its initial pose and by the left only at its goal pose (the
+//! configuration search: torso sampled in its window, every grasp of the hand's list, the arms'
+//! analytic IK, the exact checker); the exchange position is the free grid node of least Fig. 6
+//! cost; the grasp, exchange and place configurations are free under the exact checker, within
+//! the joint limits and put the palms where the grasps say; a seed gives the same result; a pose
+//! out of both hands' reach fails with a clear error, quickly.
+
+use std::path::Path;
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+use manyhands::collision::{AttachedBody, CollisionChecker, CollisionWorld, ExactChecker};
+use manyhands::geometry::{Geometry, Pose, Shape};
+use manyhands::grasp::list::workspace_params;
+use manyhands::grasp::{build_grasp_list, GraspList, GraspListParams, GraspObject};
+use manyhands::kinematics::link_pose;
+use manyhands::model::load_robot_dir;
+use manyhands::planning::pick_place::{
+    exchange_grid, key_configurations, single_configuration, within_limits, ConfigParams,
+    ConfigStats, ExchangeParams, Holder, KeyConfigurations, PickPlaceError, PickPlaceProblem,
+};
+use manyhands::Scene;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn problem() -> &'static PickPlaceProblem {
+    static P: OnceLock<PickPlaceProblem> = OnceLock::new();
+    P.get_or_init(|| {
+        let lib = load_robot_dir(&root().join("robots")).expect("robots load");
+        let scene = Scene::from_file(&root().join("scenes/pick_place.json"), &lib)
+            .expect("pick_place loads");
+        PickPlaceProblem::from_scene(
+            &scene,
+            "justin",
+            "statuette",
+            "right_hand",
+            "left_hand",
+            &workspace_params(&GraspListParams::default()),
+        )
+        .expect("the problem sets up")
+    })
+}
+
+/// The default grasp lists of both hands, built once per test binary.
+fn lists() -> &'static (GraspList, GraspList) {
+    static L: OnceLock<(GraspList, GraspList)> = OnceLock::new();
+    L.get_or_init(|| {
+        let p = problem();
+        let lp = GraspListParams::default();
+        let object = GraspObject::new("statuette", p.object.clone()).expect("object");
+        let build = |h| build_grasp_list(h, &object, &lp, &|_, _| {}, &|| false).expect("list");
+        (build(&p.pick.hand), build(&p.place.hand))
+    })
+}
+
+fn keys(seed: u64) -> KeyConfigurations {
+    let p = problem();
+    let (r, l) = lists();
+    let params = ConfigParams {
+        seed,
+        ..ConfigParams::default()
+    };
+    let grid = exchange_grid(p, &params.exchange).expect("grid");
+    key_configurations(p, r, l, &grid, &params).expect("key configurations")
+}
+
+#[test]
+fn scene_poses_are_reachable_by_one_hand_only() {
+    let p = problem();
+    let (r, l) = lists();
+    let params = ConfigParams::default();
+    let all = |list: &GraspList| (0..list.grasps.len()).collect::<Vec<_>>();
+    let mut st = ConfigStats::default();
+    let t0 = Instant::now();
+    // Right hand (pick) at the initial pose, left (place) at the final pose: found.
+    let g = single_configuration(
+        p,
+        Holder::Pick,
+        r,
+        &all(r),
+        &p.initial,
+        "initial",
+        &params,
+        &mut st,
+    )
+    .expect("the right hand reaches the initial pose");
+    let f = single_configuration(
+        p,
+        Holder::Place,
+        l,
+        &all(l),
+        &p.final_pose,
+        "final",
+        &params,
+        &mut st,
+    )
+    .expect("the left hand reaches the final pose");
+    assert!(within_limits(p, &g.q) && within_limits(p, &f.q));
+    // Swapped: the left hand (as the place hand) at the initial pose, the right (as the pick
+    // hand) at the final pose: every grasp of the whole list, every torso sample, no solution.
+    let swapped_l = single_configuration(
+        p,
+        Holder::Place,
+        l,
+        &all(l),
+        &p.initial,
+        "initial",
+        &params,
+        &mut st,
+    );
+    let swapped_r = single_configuration(
+        p,
+        Holder::Pick,
+        r,
+        &all(r),
+        &p.final_pose,
+        "final",
+        &params,
+        &mut st,
+    );
+    println!("right@initial grasp {} score {:.3}; left@final grasp {} score {:.3}; left@initial {swapped_l:?}; right@final {swapped_r:?}; {:.2} s",
+        g.grasp, g.score, f.grasp, f.score, t0.elapsed().as_secs_f64());
+    for (res, pose, hand) in [
+        (swapped_l, "initial", "left_hand"),
+        (swapped_r, "final", "right_hand"),
+    ] {
+        match res {
+            Err(PickPlaceError::Unreachable {
+                pose: ps, hand: h, ..
+            }) => {
+                assert_eq!((ps.as_str(), h.as_str()), (pose, hand));
+            }
+            other => panic!("{hand} at the {pose} pose: expected unreachable, got {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn exchange_position_is_the_free_node_of_least_cost() {
+    let p = problem();
+    let grid = exchange_grid(p, &ExchangeParams::default()).expect("grid");
+    let best = grid.nodes[grid.best];
+    assert!(best.free);
+    let free = grid.nodes.iter().filter(|n| n.free).count();
+    assert!(
+        free < grid.nodes.len(),
+        "some node is blocked (desk, vase, torso)"
+    );
+    for n in grid.nodes.iter().filter(|n| n.free) {
+        assert!(
+            n.cost >= best.cost,
+            "node {:?} is cheaper than the best",
+            n.index
+        );
+    }
+    // Every node is in both reach balls and in front of the shoulders.
+    let sp = Vector3::from(grid.pick_shoulder);
+    let sl = Vector3::from(grid.place_shoulder);
+    let front = Vector3::from(grid.front);
+    for n in &grid.nodes {
+        let e = Vector3::from(n.position);
+        assert!((e - sp).norm() <= p.pick.tcp_reach() + 1e-9);
+        assert!((e - sl).norm() <= p.place.tcp_reach() + 1e-9);
+        assert!(front.dot(&(e - 0.5 * (sp + sl))) > 0.0);
+    }
+    // The best node's object ball, checked by the exact checker against the obstacles and the
+    // robot's links the arms do not move (arms in their rest pose; arm links may touch it).
+    let e = grid.position();
+    let r = &p.robot;
+    let arm_joints: Vec<usize> = p
+        .pick
+        .arm
+        .chain()
+        .joints
+        .iter()
+        .chain(&p.place.arm.chain().joints)
+        .copied()
+        .collect();
+    let moved: Vec<usize> = (0..r.links.len())
+        .filter(|&l| {
+            let mut k = l;
+            while let Some(j) = r.links[k].parent_joint {
+                if arm_joints.contains(&j) {
+                    return true;
+                }
+                k = r.joints[j].parent;
+            }
+            false
+        })
+        .collect();
+    let ball_world = |at: Vector3<f64>| {
+        let mut w = CollisionWorld::single(r.clone(), p.base);
+        w.statics = p.obstacles.clone();
+        w.attached.push(AttachedBody {
+            name: "ball".into(),
+            robot: 0,
+            link: 0,
+            rel: (p.base * link_pose(r, &p.rest, 0)).inverse()
+                * Pose::from_parts(Translation3::from(at), UnitQuaternion::identity()),
+            shapes: vec![Geometry {
+                origin: Pose::identity(),
+                shape: Shape::Sphere {
+                    radius: p.object_radius,
+                },
+            }],
+            touch: moved.clone(),
+        });
+        w
+    };
+    let mut c = ExactChecker::new(&ball_world(e));
+    assert_eq!(c.first_contact(&p.rest), None, "the exchange ball collides");
+    // A blocked node's ball does collide.
+    if let Some(n) = grid.nodes.iter().find(|n| !n.free) {
+        let mut c = ExactChecker::new(&ball_world(Vector3::from(n.position)));
+        assert!(
+            c.first_contact(&p.rest).is_some(),
+            "node {:?} is free",
+            n.index
+        );
+    }
+    println!(
+        "exchange at {:?}, cost {:.3}; {} nodes, {free} free",
+        best.position,
+        best.cost,
+        grid.nodes.len()
+    );
+}
+
+/// Palm pose error (m, rad) of `q` against the grasp at `object_pose`.
+fn palm_error(p: &PickPlaceProblem, palm: usize, q: &[f64], want: &Pose) -> (f64, f64) {
+    let got = p.base * link_pose(&p.robot, q, palm);
+    let d = got.inverse() * want;
+    (d.translation.vector.norm(), d.rotation.angle())
+}
+
+#[test]
+fn key_configurations_are_free_within_limits_and_grasp() {
+    let p = problem();
+    let (r, l) = lists();
+    let t0 = Instant::now();
+    let k = keys(1);
+    println!(
+        "double {:?}; {} complete; stats {:?}; {:.1} ms",
+        k.double,
+        k.complete,
+        k.stats,
+        t0.elapsed().as_secs_f64() * 1e3
+    );
+    let a = &r.grasps[k.double.pick];
+    let b = &l.grasps[k.double.place];
+    assert_eq!(
+        (k.grasp.grasp, k.place.grasp),
+        (k.double.pick, k.double.place)
+    );
+    let checks: [(&str, &[f64], Pose, CollisionWorld); 3] = [
+        (
+            "grasp",
+            &k.grasp.q,
+            p.initial,
+            p.held_world(&p.pick, a, None),
+        ),
+        (
+            "exchange",
+            &k.exchange,
+            k.exchange_pose,
+            p.held_world(&p.pick, a, Some(&p.place)),
+        ),
+        (
+            "place",
+            &k.place.q,
+            p.final_pose,
+            p.held_world(&p.place, b, None),
+        ),
+    ];
+    for (name, q, pose, world) in checks {
+        assert!(within_limits(p, q), "{name}: out of limits");
+        let mut c = ExactChecker::new(&world);
+        assert_eq!(c.first_contact(q), None, "{name}: collides");
+        // Only the robot's torso, the grasping arms and the fingers moved from the rest.
+        let holding_pick = name != "place";
+        let holding_place = name != "grasp";
+        for (v, (&x, &x0)) in q.iter().zip(&p.rest).enumerate() {
+            let free = p.torso.contains(&v)
+                || (holding_pick
+                    && (p.pick.arm.vars().contains(&v) || p.pick.hand.vars.contains(&v)))
+                || (holding_place
+                    && (p.place.arm.vars().contains(&v) || p.place.hand.vars.contains(&v)));
+            assert!(free || x == x0, "{name}: {} moved", p.robot.var_name(v));
+        }
+        // The palms are where the grasps put them.
+        if holding_pick {
+            let (dp, dr) = palm_error(p, p.pick.hand.palm, q, &(pose * a.palm_pose()));
+            assert!(
+                dp < 1e-6 && dr < 1e-6,
+                "{name}: pick palm off by {dp} m, {dr} rad"
+            );
+        }
+        if holding_place {
+            let (dp, dr) = palm_error(p, p.place.hand.palm, q, &(pose * b.palm_pose()));
+            assert!(
+                dp < 1e-6 && dr < 1e-6,
+                "{name}: place palm off by {dp} m, {dr} rad"
+            );
+        }
+    }
+    // The object at the exchange pose is free of the obstacles with the two hands on it: the
+    // exact checker with the object held by the place hand instead gives the same answer.
+    let mut c = ExactChecker::new(&p.held_world(&p.place, b, Some(&p.pick)));
+    assert_eq!(c.first_contact(&k.exchange), None);
+}
+
+#[test]
+fn same_seed_same_configurations() {
+    let a = keys(7);
+    let b = keys(7);
+    assert_eq!(a, b);
+}
+
+#[test]
+fn a_pose_out_of_both_hands_reach_fails_clearly() {
+    let p = problem();
+    let (r, l) = lists();
+    // 3 m behind the robot: neither hand reaches it.
+    let far = Pose::from_parts(
+        Translation3::new(-3.0, 0.0, 0.75),
+        UnitQuaternion::identity(),
+    );
+    let params = ConfigParams::default();
+    for (q, which) in [
+        (p.with_poses(far, p.final_pose), "initial"),
+        (p.with_poses(p.initial, far), "final"),
+    ] {
+        let t0 = Instant::now();
+        let grid = exchange_grid(&q, &params.exchange);
+        let res = grid.and_then(|g| key_configurations(&q, r, l, &g, &params));
+        let secs = t0.elapsed().as_secs_f64();
+        match &res {
+            Err(e @ PickPlaceError::Unreachable { pose, reason, .. }) => {
+                assert_eq!(pose, which);
+                assert!(reason.contains("reach"), "{e}");
+                println!("{which}: {e} ({secs:.2} s)");
+            }
+            other => panic!("{which}: expected unreachable, got {other:?}"),
+        }
+        assert!(secs < 10.0, "{which}: {secs} s");
+    }
+}
