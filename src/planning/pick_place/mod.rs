@@ -58,7 +58,7 @@ pub enum PickPlaceError {
     Invalid { field: String, reason: String },
     #[error(
         "the object's {pose} pose is out of reach of the {hand}: {reason} \
-         ({grasps} grasps free of the environment, {torso} torso samples, {ik} IK solutions, {checks} collision checks)"
+         ({grasps} grasps tried, {torso} torso samples each, {ik} IK solutions, {checks} collision checks)"
     )]
     Unreachable {
         pose: String,
