@@ -1,8 +1,10 @@
 //! The pick-and-place scene and the key configurations of paper 003 §V-C
 //! (`manyhands::planning::pick_place`): `scenes/pick_place.json`'s statuette is reachable by
 //! justin's right hand only at its initial pose and by the left only at its goal pose (the
-//! configuration search: torso sampled in its window, every grasp of the hand's list, the arms'
-//! analytic IK, the exact checker); the exchange position is the free grid node of least Fig. 6
+//! configuration search: torso sampled in its window — ± 10 % of each torso joint's range about
+//! the rest configuration by default; justin's torso_1 turns ± 2.6 rad, and a hand can reach
+//! nearly anything around the robot with the whole range —, every grasp of the hand's list, the
+//! arms' analytic IK, the exact checker); the exchange position is the free grid node of least Fig. 6
 //! cost; the grasp, exchange and place configurations are free under the exact checker, within
 //! the joint limits and put the palms where the grasps say; a seed gives the same result; a pose
 //! out of both hands' reach fails with a clear error, quickly.
