@@ -79,6 +79,12 @@ pub struct MbmArgs {
     /// Alternate the trees instead of growing the smaller one (VAMP and this bench balance).
     #[arg(long)]
     pub no_balance: bool,
+    /// Lazy certification: tree edges whose certificate's first pass finds their states free
+    /// are added at once and fully certified only when they lie on a found path (see
+    /// `RrtConnectSettings::lazy`; default: every edge certified when it is added). Returned
+    /// paths are fully certified either way.
+    #[arg(long)]
+    pub lazy_certify: bool,
     /// Plan with the general primitive checker (FastChecker) even when the robot is made of
     /// spheres (default: the f32 8-lane sphere checker whenever it applies).
     #[arg(long)]
@@ -439,6 +445,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         certify: (a.certify > 0.0).then_some(a.certify),
         dynamic_domain: (dynamic_domain > 0.0).then_some(dynamic_domain),
         balance: !a.no_balance,
+        lazy: a.lazy_certify,
     };
     let started = chrono_like_now();
     let t_all = Instant::now();

@@ -1323,6 +1323,7 @@ impl CollisionChecker for AutoChecker {
 }
 
 mod certified;
+pub use certified::SegmentScreen;
 mod kinematics;
 use kinematics::{origin_terms, Axis, OriginRot, Step, StepKind};
 

@@ -331,6 +331,7 @@ pub fn solve_settings(world: &CollisionWorld, space: &JointSpace) -> RrtConnectS
         certify: Some(0.04),
         dynamic_domain: derived.as_ref().map(|d| d.dynamic_domain),
         balance: true,
+        lazy: false,
     }
 }
 

@@ -49,6 +49,9 @@ pub struct PlanStats {
     /// when the checker does not certify motions this way): every returned segment is then
     /// proven collision-free as a continuous motion in the fast model.
     pub certification: Option<crate::collision::CertifyStats>,
+    /// States removed from the trees because an edge accepted by the screening pass of lazy
+    /// certification failed its full certification (`RrtConnectSettings::lazy`).
+    pub lazy_removed: u64,
 }
 
 impl PlanStats {

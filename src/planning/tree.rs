@@ -203,6 +203,9 @@ pub struct Tree {
     parents: Vec<u32>,
     /// Dynamic-domain radius of each state (`f64::INFINITY` until a planner sets one).
     radii: Vec<f64>,
+    /// Per state: the edge from its parent is not yet proven valid (lazy planners, see
+    /// [`Tree::mark_unproven`]).
+    unproven: Vec<bool>,
     kd: Vec<KdNode>,
     kd_overflow: Vec<u32>,
     leaf_data: Vec<f64>,
@@ -230,6 +233,7 @@ impl Tree {
             states: Vec::with_capacity(weights.len() * 1024),
             parents: Vec::with_capacity(1024),
             radii: Vec::with_capacity(1024),
+            unproven: Vec::with_capacity(1024),
             kd: vec![KdNode::Leaf {
                 len: 0,
                 items: [0; BUCKET],
@@ -253,6 +257,7 @@ impl Tree {
         self.states.clear();
         self.parents.clear();
         self.radii.clear();
+        self.unproven.clear();
         self.kd.clear();
         self.kd_overflow.clear();
         self.kd.push(KdNode::Leaf {
@@ -365,6 +370,7 @@ impl Tree {
         self.states.extend_from_slice(q);
         self.parents.push(parent);
         self.radii.push(f64::INFINITY);
+        self.unproven.push(false);
         self.infinite_radii += 1;
         let i = (self.parents.len() - 1) as u32;
         if (i as usize) < LINEAR_SCAN_MAX {
@@ -617,6 +623,65 @@ impl Tree {
         (best.0 != u32::MAX).then_some(best)
     }
 
+    /// Marks the edge from state `i`'s parent to `i` as not yet proven valid (lazy collision
+    /// checking: it passed a screening check only; see `RrtConnectSettings::lazy`).
+    #[inline]
+    pub fn mark_unproven(&mut self, i: u32) {
+        self.unproven[i as usize] = true;
+    }
+
+    /// Marks the edge into state `i` as proven valid.
+    #[inline]
+    pub fn mark_proven(&mut self, i: u32) {
+        self.unproven[i as usize] = false;
+    }
+
+    /// Whether the edge into state `i` is still unproven ([`Tree::mark_unproven`]).
+    #[inline]
+    pub fn is_unproven(&self, i: u32) -> bool {
+        self.unproven[i as usize]
+    }
+
+    /// Removes state `i` (not a root) and every state below it, keeping the other states in
+    /// their order (indices shift down past removed ones; state 0 and the roots keep theirs,
+    /// since a state's parent always precedes it) with their parents, radii and proof marks.
+    /// The nearest-neighbour structure is rebuilt: lazy planners call this only when an edge
+    /// fails its certification, far less often than they add states. Returns how many states
+    /// were removed.
+    pub fn remove_subtree(&mut self, i: u32) -> usize {
+        let n = self.len();
+        assert!((i as usize) < n && self.parents[i as usize] != NO_PARENT);
+        let mut removed = vec![false; n];
+        for k in i as usize..n {
+            let p = self.parents[k];
+            removed[k] = k == i as usize || (p != NO_PARENT && removed[p as usize]);
+        }
+        let states = std::mem::take(&mut self.states);
+        let parents = std::mem::take(&mut self.parents);
+        let radii = std::mem::take(&mut self.radii);
+        let unproven = std::mem::take(&mut self.unproven);
+        self.clear();
+        let mut new_index = vec![NO_PARENT; n];
+        for k in 0..n {
+            if removed[k] {
+                continue;
+            }
+            let p = parents[k];
+            let p = if p == NO_PARENT {
+                NO_PARENT
+            } else {
+                new_index[p as usize]
+            };
+            let j = self.add(&states[k * self.dim..(k + 1) * self.dim], p);
+            new_index[k] = j;
+            if radii[k] != f64::INFINITY {
+                self.set_radius(j, radii[k]);
+            }
+            self.unproven[j as usize] = unproven[k];
+        }
+        n - self.len()
+    }
+
     /// Indices from the root down to `i` (into `out`, cleared first).
     pub fn path_from_root(&self, i: u32, out: &mut Vec<u32>) {
         out.clear();
@@ -633,6 +698,61 @@ impl Tree {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn remove_subtree_keeps_the_rest_and_its_nearest_neighbours() {
+        let w = [1.0, 2.0, 0.5];
+        let mut t = Tree::new(&w);
+        let mut x = 0.377f64;
+        let mut next = || {
+            x = (x * 3.7 + 0.11).fract();
+            x * 4.0 - 2.0
+        };
+        t.add(&[0.0, 0.0, 0.0], NO_PARENT);
+        t.add(&[1.0, 1.0, 1.0], NO_PARENT);
+        // Enough states for the k-d tree (beyond the linear scan).
+        for k in 2..(LINEAR_SCAN_MAX + 90) as u32 {
+            let q = [next(), next(), next()];
+            let i = t.add(&q, (k * 7919 + 13) % k);
+            if k % 5 == 0 {
+                t.mark_unproven(i);
+                t.set_radius(i, 0.5 + k as f64 * 1e-3);
+            }
+        }
+        let before = t.clone();
+        let cut = 3u32;
+        let removed = t.remove_subtree(cut);
+        assert!(removed >= 1);
+        assert_eq!(t.len() + removed, before.len());
+        // The kept states, in order, below the same parents (by state), with their radii and marks.
+        let mut gone = vec![false; before.len()];
+        let mut kept = Vec::new();
+        for k in 0..before.len() {
+            let p = before.parents[k];
+            gone[k] = k == cut as usize || (p != NO_PARENT && gone[p as usize]);
+            if !gone[k] {
+                kept.push(k as u32);
+            }
+        }
+        assert_eq!(kept.len(), t.len());
+        for (j, &k) in kept.iter().enumerate() {
+            let j = j as u32;
+            assert_eq!(t.state(j), before.state(k));
+            assert_eq!(
+                t.parent(j).map(|p| t.state(p).to_vec()),
+                before.parent(k).map(|p| before.state(p).to_vec())
+            );
+            assert_eq!(t.radius(j), before.radius(k));
+            assert_eq!(t.is_unproven(j), before.is_unproven(k));
+        }
+        for _ in 0..200 {
+            let q = [next(), next(), next()];
+            let (a, da) = t.nearest(&q).expect("not empty");
+            let (_, dl) = t.nearest_linear(&q).expect("not empty");
+            assert_eq!(da, dl);
+            assert!(!gone[kept[a as usize] as usize]);
+        }
+    }
 
     #[test]
     fn nearest_and_paths() {

@@ -9,7 +9,7 @@
 use super::JointSpace;
 use crate::collision::{
     AutoChecker, CertifyStats, CollisionChecker, CollisionWorld, Contact, ExactChecker,
-    FastChecker, MotionValidator, SphereChecker,
+    FastChecker, MotionValidator, SegmentScreen, SphereChecker,
 };
 
 /// A collision checker that may check a whole straight segment itself (e.g. several states per
@@ -28,6 +28,19 @@ pub trait SegmentChecker: CollisionChecker {
     /// [`SphereChecker::segment_certified`]); `None` when this checker cannot certify.
     #[inline]
     fn segment_certified(&mut self, _a: &[f64], _b: &[f64], _max_inflation: f64) -> Option<bool> {
+        None
+    }
+
+    /// The first pass of [`Self::segment_certified`] alone (see
+    /// [`SphereChecker::segment_screened`]); `None` when this checker has no such pass (lazy
+    /// planners then certify every segment at once).
+    #[inline]
+    fn segment_screened(
+        &mut self,
+        _a: &[f64],
+        _b: &[f64],
+        _max_inflation: f64,
+    ) -> Option<SegmentScreen> {
         None
     }
 
@@ -77,6 +90,17 @@ impl SegmentChecker for SphereChecker {
         self.certifiable()
             .then(|| SphereChecker::segment_certified(self, a, b, max_inflation))
     }
+
+    #[inline]
+    fn segment_screened(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+    ) -> Option<SegmentScreen> {
+        self.certifiable()
+            .then(|| SphereChecker::segment_screened(self, a, b, max_inflation))
+    }
 }
 
 impl SegmentChecker for AutoChecker {
@@ -90,6 +114,19 @@ impl SegmentChecker for AutoChecker {
         match self {
             AutoChecker::Spheres(s) => SegmentChecker::segment_certified(s, a, b, max_inflation),
             AutoChecker::Fast(f) => SegmentChecker::segment_certified(f, a, b, max_inflation),
+        }
+    }
+
+    #[inline]
+    fn segment_screened(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+    ) -> Option<SegmentScreen> {
+        match self {
+            AutoChecker::Spheres(s) => SegmentChecker::segment_screened(s, a, b, max_inflation),
+            AutoChecker::Fast(f) => SegmentChecker::segment_screened(f, a, b, max_inflation),
         }
     }
 
@@ -240,6 +277,28 @@ impl<C: SegmentChecker> SpaceValidator<C> {
                 ok
             }
             None => self.motion.is_valid(&self.wa, &self.wb),
+        }
+    }
+
+    /// The segment `a → b` screened for a lazy planner: with certification on and a checker
+    /// that has a screening pass ([`SegmentChecker::segment_screened`]),
+    /// [`SegmentScreen::Tight`] marks a segment whose checked states are free but which is not
+    /// yet proven free (certify it with [`Self::is_motion_valid`] before returning it);
+    /// otherwise the full check of [`Self::is_motion_valid`] as `Certified` or `Collides`.
+    #[inline]
+    pub fn screen_motion(&mut self, a: &[f64], b: &[f64]) -> SegmentScreen {
+        if let Some(d) = self.certify {
+            self.space.write_world(a, &mut self.wa);
+            self.space.write_world(b, &mut self.wb);
+            if let Some(s) = self.motion.checker.segment_screened(&self.wa, &self.wb, d) {
+                self.own_segments += 1;
+                return s;
+            }
+        }
+        if self.is_motion_valid(a, b) {
+            SegmentScreen::Certified
+        } else {
+            SegmentScreen::Collides
         }
     }
 

@@ -6,6 +6,18 @@
 
 use super::{SphereChecker, LANES, NO_FOCUS};
 
+/// The verdict of the first pass of a certified motion check
+/// ([`SphereChecker::segment_screened`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SegmentScreen {
+    /// A checked state collides: the segment is not free.
+    Collides,
+    /// The whole continuous segment is proven free.
+    Certified,
+    /// The checked states are free; the certificate needs refinement (undecided).
+    Tight,
+}
+
 /// [`SphereChecker::load_lanes`] with AVX: per variable, the 8 states as two 4-lane f64
 /// products and sums (the same IEEE operations as the scalar code, no fused multiply-add, so
 /// the same values), rounded to f32 together.
@@ -143,6 +155,43 @@ impl SphereChecker {
     /// colliding with plain spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
     /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
+        let n = self.begin_segment(a, b, max_inflation);
+        let ok = self.certify(a, b, n);
+        self.end_segment();
+        ok
+    }
+
+    /// The first, uniform pass of [`Self::segment_certified`] alone (no refinement):
+    /// [`SegmentScreen::Collides`] when a checked state collides with the plain spheres (the
+    /// segment is certainly not free), [`SegmentScreen::Certified`] when every state is free
+    /// with the inflated spheres (the whole segment is proven free, exactly as
+    /// `segment_certified` would prove it), [`SegmentScreen::Tight`] otherwise: the checked
+    /// states are free but the certificate needs refinement, which
+    /// [`Self::segment_certified`] does. Lazy planners (see
+    /// `planning::RrtConnectSettings::lazy`) accept tight segments provisionally and certify
+    /// them only when they lie on a solution.
+    pub fn segment_screened(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> SegmentScreen {
+        let n = self.begin_segment(a, b, max_inflation);
+        let r = if !self.first_pass(a, b, n) {
+            SegmentScreen::Collides
+        } else if self.tight_states.is_empty() {
+            SegmentScreen::Certified
+        } else {
+            SegmentScreen::Tight
+        };
+        self.end_segment();
+        r
+    }
+
+    /// Ends a certified check: no inflation outside it.
+    fn end_segment(&mut self) {
+        self.infl.iter_mut().for_each(|i| *i = 0.0);
+        self.pair_scale = 0.0;
+    }
+
+    /// Sets up the speed bounds of segment `a → b` and returns the number of sub-intervals of
+    /// the first pass (see [`Self::segment_certified`]).
+    fn begin_segment(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> usize {
         debug_assert!(self.certifiable && max_inflation > 0.0);
         for ((d, &x), &y) in self.seg_dq.iter_mut().zip(a).zip(b) {
             *d = (y - x).abs();
@@ -166,14 +215,13 @@ impl SphereChecker {
         let n = ((lmax / (2.0 * max_inflation)).ceil() as usize).clamp(1, Self::CERTIFY_MAX_STATES);
         // The n + 1 states fill whole 8-lane calls: the spare lanes make sub-intervals shorter
         // (smaller inflations) at no cost.
-        let n = (n + 1).div_ceil(LANES) * LANES - 1;
-        let ok = self.certify(a, b, n);
-        self.infl.iter_mut().for_each(|i| *i = 0.0);
-        self.pair_scale = 0.0;
-        ok
+        (n + 1).div_ceil(LANES) * LANES - 1
     }
 
-    pub(super) fn certify(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
+    /// The first pass over the `n + 1` uniform states (inflated for sub-intervals of `1/n`):
+    /// false when one collides with the plain spheres; the tight (state, id) entries in
+    /// `tight_states` (unsorted).
+    fn first_pass(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
         let h = 1.0 / n as f64;
         self.set_inflation(h);
         // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches).
@@ -208,9 +256,17 @@ impl SphereChecker {
                 }
             }
         }
+        true
+    }
+
+    pub(super) fn certify(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
+        if !self.first_pass(a, b, n) {
+            return false;
+        }
         if self.tight_states.is_empty() {
             return true;
         }
+        let h = 1.0 / n as f64;
         // Sub-intervals [i, i+1] with a tight end, each once, in pairs ([`pair_runs`]). A
         // body (against all its obstacles) or self pair free with the inflation at both ends
         // is free over the whole sub-interval (the certificate above, applied to it alone),
