@@ -54,6 +54,10 @@ pub enum BenchCmd {
     /// Single-grasp lists (paper 003 §IV-A): one list per hand from scratch, median seconds
     /// over seeded builds beside the ≤ 1 s target [paper: about 1 min].
     GraspList(Box<super::bench_grasp_list::GraspListBenchArgs>),
+    /// The super graph (003 §V-A/B): offline build time beside the ≤ 10 s target, then seeded
+    /// queries with the scene's object resting and carried (connection, search, lazy
+    /// revalidation, RRT repair and shortcut times).
+    Roadmap(Box<super::roadmap::BenchArgs>),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -73,6 +77,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
         BenchCmd::Timing(a) => super::bench_timing::run(ctx, a)?,
         BenchCmd::GraspList(a) => super::bench_grasp_list::run(ctx, a)?,
+        BenchCmd::Roadmap(a) => super::roadmap::bench(ctx, a)?,
     }
     Ok(())
 }
