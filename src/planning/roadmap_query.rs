@@ -256,8 +256,7 @@ pub fn query_super_graph(
             }
             let tv = Instant::now();
             let mut all_ok = true;
-            for k in 0..p.len() {
-                let a = p[k];
+            for &a in &p {
                 if node_ok[a as usize] == Known::Unknown {
                     st.nodes_validated += 1;
                     node_ok[a as usize] = if v.is_state_valid(state(a)) {
