@@ -58,6 +58,10 @@ pub enum BenchCmd {
     /// exchange position and grasp/exchange/place configurations), median ms over seeded runs
     /// beside the ≤ 50 ms target [paper: 4.2 s + 2.6 s].
     Exchange(Box<super::exchange::ExchangeBenchArgs>),
+    /// The super graph (003 §V-A/B): offline build time beside the ≤ 10 s target, then seeded
+    /// queries with the scene's object resting and carried (connection, search, lazy
+    /// revalidation, RRT repair and shortcut times).
+    Roadmap(Box<super::roadmap::BenchArgs>),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -78,6 +82,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         BenchCmd::Timing(a) => super::bench_timing::run(ctx, a)?,
         BenchCmd::GraspList(a) => super::bench_grasp_list::run(ctx, a)?,
         BenchCmd::Exchange(a) => super::exchange::bench(ctx, a)?,
+        BenchCmd::Roadmap(a) => super::roadmap::bench(ctx, a)?,
     }
     Ok(())
 }

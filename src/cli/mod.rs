@@ -16,6 +16,7 @@ mod multi_robot;
 mod plan;
 mod query;
 mod reach;
+mod roadmap;
 mod serve;
 mod time;
 
@@ -71,6 +72,12 @@ pub enum Command {
     Reach {
         #[command(subcommand)]
         cmd: reach::ReachCmd,
+    },
+    /// Roadmaps (003 §V-A): `roadmap build` composes the super graph of a scene's humanoid
+    /// (Visibility-PRM of torso + each arm) offline and keeps it in a file.
+    Roadmap {
+        #[command(subcommand)]
+        cmd: RoadmapCmd,
     },
     /// Grasp planning on a scene: reach (IK-RRT), regrasp / hand-off, the kitchen task, bimanual.
     Plan {
@@ -129,6 +136,13 @@ pub enum RobotCmd {
 }
 
 #[derive(Subcommand, Debug)]
+pub enum RoadmapCmd {
+    /// Builds (or loads, when a file with the same robot, scene and parameter keys exists) the
+    /// super graph of a scene's robot and prints its sizes and build times.
+    Build(roadmap::BuildArgs),
+}
+
+#[derive(Subcommand, Debug)]
 pub enum SceneCmd {
     /// List the scenes found.
     List,
@@ -170,6 +184,9 @@ pub fn run() -> Result<()> {
         } => commands::panda_four(a),
         Command::Grasp { cmd } => grasp::run(&ctx, cmd),
         Command::Reach { cmd } => reach::run(&ctx, cmd),
+        Command::Roadmap {
+            cmd: RoadmapCmd::Build(a),
+        } => roadmap::build(&ctx, a),
         Command::Serve(a) => serve::run(&ctx, a),
         Command::Loadtest(a) => loadtest::run(&ctx, a),
         Command::Bench { cmd } => bench::run(&ctx, cmd),

@@ -5,6 +5,9 @@
 //! on them: [`IkRrt`] (000 Alg. 3), [`JPlusRrt`] and [`DualArmJPlusRrt`] (000 Alg. 1–2, 4–5),
 //! the problems they solve in [`grasping`] (grasp, place, dual-arm re-grasp, two-robot hand-off),
 //! [`bimanual_ik_rrt`] (002 Alg. 2) and the chained tasks in [`task`] (000 §VI-C kitchen task).
+//! [`visibility_prm`] builds compact roadmaps, [`super_graph`] composes those of torso + each arm
+//! into one roadmap of a humanoid (003 §V-A), kept on disk by [`roadmap_cache`] and queried with
+//! lazy revalidation by [`roadmap_query`] (003 §V-B).
 //!
 //! This module owns planning. It uses `collision`, `kinematics` and `model`, and must not depend on
 //! the server (no tokio, no axum, no HTTP types): a planner is a function of (problem, settings,
@@ -26,15 +29,19 @@ pub mod pick_place;
 pub mod range;
 mod result;
 mod rng;
+pub mod roadmap_cache;
+pub mod roadmap_query;
 mod rrt_connect;
 pub mod shortcut;
 mod space;
+pub mod super_graph;
 pub mod task;
 mod termination;
 pub mod timing;
 pub mod trajectory;
 mod tree;
 mod validity;
+pub mod visibility_prm;
 
 pub use ik_rrt::{GoalSampler, IkRrt, IkRrtSettings};
 pub use j_plus_rrt::{DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings};

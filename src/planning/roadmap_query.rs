@@ -1,0 +1,452 @@
+//! Online queries in a [`SuperGraph`] with lazy revalidation (paper 003 §V-B; Bohlin &
+//! Kavraki's Lazy PRM, ref. \[22\]).
+//!
+//! 1. The start and the goal are connected to their nearest super nodes by certified straight
+//!    motions in the query world (object included: resting in the scene, or attached to a hand
+//!    while carried).
+//! 2. The shortest path (A*, the super space's weighted Euclidean distance) is searched in the
+//!    graph *as built*, disregarding the object.
+//! 3. Every node and edge of the path is then revalidated in the query world — a certified
+//!    continuous motion check of every pair, so fingers closed on the object and the object
+//!    itself are all covered; invalid ones are marked and the graph searched again, until a path
+//!    is valid or none is left (or [`RoadmapQuerySettings::max_searches`] is reached).
+//! 4. Each stretch of the last path still invalid, between the free configurations bounding it,
+//!    is reconnected by RRT-Connect in the query world ("if no solution is found, local
+//!    reconnections are computed using RRT-like planners").
+//! 5. The path is shortcut with the same certified validator (optional) and re-validated as a
+//!    whole.
+
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap};
+use std::time::Instant;
+
+use rand::SeedableRng;
+use serde::Serialize;
+
+use super::shortcut::{simplify, ShortcutSettings};
+use super::super_graph::{SuperGraph, ANGULAR, LINEAR};
+use super::{
+    space_checker, JointSpace, PlanError, PlannerRng, RrtConnect, RrtConnectSettings,
+    SpaceValidator, Termination,
+};
+use crate::collision::{CollisionWorld, FastChecker};
+
+/// Settings of [`query_super_graph`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RoadmapQuerySettings {
+    /// Nearest super nodes tried for the start and goal connections.
+    pub connect_nearest: usize,
+    /// Graph searches at most before the RRT reconnection.
+    pub max_searches: usize,
+    /// Settings of the RRT-Connect reconnection (its shortcutting included).
+    pub rrt: RrtConnectSettings,
+    /// Shortcut the final path (`None`: as found).
+    pub shortcut: Option<ShortcutSettings>,
+}
+
+impl Default for RoadmapQuerySettings {
+    fn default() -> Self {
+        RoadmapQuerySettings {
+            connect_nearest: 10,
+            max_searches: 20,
+            rrt: RrtConnectSettings {
+                certify: Some(FastChecker::CERTIFY_INFLATION),
+                ..RrtConnectSettings::default()
+            },
+            shortcut: Some(ShortcutSettings::default()),
+        }
+    }
+}
+
+/// What a query did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct RoadmapQueryStats {
+    /// The straight start–goal motion was free: no graph needed.
+    pub direct: bool,
+    pub start_connections: usize,
+    pub goal_connections: usize,
+    /// Graph searches (A*) run.
+    pub searches: usize,
+    /// Super nodes on the first path found.
+    pub first_path_nodes: usize,
+    /// Nodes and edges revalidated with the object, and how many were invalid.
+    pub nodes_validated: usize,
+    pub edges_validated: usize,
+    pub invalid_nodes: usize,
+    pub invalid_edges: usize,
+    /// Stretches reconnected by RRT-Connect.
+    pub rrt_repairs: usize,
+    pub vertices: usize,
+    pub length: f64,
+    pub connect_ms: f64,
+    pub search_ms: f64,
+    pub validation_ms: f64,
+    pub rrt_ms: f64,
+    pub shortcut_ms: f64,
+    pub total_ms: f64,
+}
+
+/// A query's answer: states of the super space, and the same as world configurations.
+#[derive(Debug, Clone)]
+pub struct RoadmapPath {
+    pub space: JointSpace,
+    pub path: Vec<Vec<f64>>,
+    pub world_path: Vec<Vec<f64>>,
+    pub stats: RoadmapQueryStats,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+struct Open {
+    f: f64,
+    node: u32,
+}
+impl Eq for Open {}
+impl Ord for Open {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.f.total_cmp(&self.f).then(o.node.cmp(&self.node))
+    }
+}
+impl PartialOrd for Open {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+/// Lazy validity of a node or edge: unknown, valid or invalid in the query world.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Known {
+    Unknown,
+    Valid,
+    Invalid,
+}
+
+/// Plans from world configuration `start` to `goal` (equal outside the super graph's
+/// variables) in `world` — the super graph's robots with the object resting or attached (module
+/// docs). Every returned segment is a certified continuous motion in `world`.
+pub fn query_super_graph(
+    sg: &SuperGraph,
+    world: &CollisionWorld,
+    start: &[f64],
+    goal: &[f64],
+    settings: &RoadmapQuerySettings,
+    term: &mut Termination,
+    seed: u64,
+) -> Result<RoadmapPath, PlanError> {
+    let t0 = Instant::now();
+    let mut st = RoadmapQueryStats::default();
+    if world.dof() != sg.base.len() {
+        return Err(PlanError::InvalidInput(format!(
+            "the world has {} variables, the roadmap's {}",
+            world.dof(),
+            sg.base.len()
+        )));
+    }
+    if start.len() != world.dof() || goal.len() != world.dof() {
+        return Err(PlanError::InvalidInput(format!(
+            "start and goal need {} values",
+            world.dof()
+        )));
+    }
+    let vars = sg.decomposition.super_vars();
+    if let Some(i) = (0..start.len()).find(|i| !vars.contains(i) && start[*i] != goal[*i]) {
+        return Err(PlanError::InvalidInput(format!(
+            "start and goal differ in variable {i}, outside the roadmap's variables"
+        )));
+    }
+    let space = sg.space(world, start.to_vec())?;
+    let checker = space_checker(world, &space);
+    let mut v = SpaceValidator::new(space.clone(), world, checker, ANGULAR, LINEAR)
+        .with_certification(
+            settings
+                .rrt
+                .certify
+                .or(Some(FastChecker::CERTIFY_INFLATION)),
+        );
+    let s = space.from_world(start);
+    let g = space.from_world(goal);
+    if let Some(reason) = v.invalidity(&s) {
+        return Err(PlanError::InvalidStart { reason });
+    }
+    if let Some(reason) = v.invalidity(&g) {
+        return Err(PlanError::InvalidGoal { count: 1, reason });
+    }
+    let mut rng = PlannerRng::seed_from_u64(seed);
+
+    // 1. Connections (or the straight motion itself).
+    let tc = Instant::now();
+    let n = sg.nodes.len() as u32;
+    let (vs, vg) = (n, n + 1);
+    let mut extra: HashMap<u32, Vec<u32>> = HashMap::new();
+    let mut path: Vec<Vec<f64>>;
+    if v.is_motion_valid(&s, &g) {
+        st.direct = true;
+        path = vec![s.clone(), g.clone()];
+        st.connect_ms = tc.elapsed().as_secs_f64() * 1e3;
+    } else {
+        for (virt, q) in [(vs, &s), (vg, &g)] {
+            let mut near: Vec<(f64, u32)> = sg
+                .nodes
+                .iter()
+                .enumerate()
+                .map(|(i, nd)| (space.distance_sq(q, &nd.q), i as u32))
+                .collect();
+            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(_, i) in near.iter().take(settings.connect_nearest) {
+                if v.is_motion_valid(q, &sg.nodes[i as usize].q) {
+                    extra.entry(virt).or_default().push(i);
+                    extra.entry(i).or_default().push(virt);
+                }
+            }
+        }
+        st.start_connections = extra.get(&vs).map_or(0, |e| e.len());
+        st.goal_connections = extra.get(&vg).map_or(0, |e| e.len());
+        st.connect_ms = tc.elapsed().as_secs_f64() * 1e3;
+        let state = |i: u32| -> &Vec<f64> {
+            if i == vs {
+                &s
+            } else if i == vg {
+                &g
+            } else {
+                &sg.nodes[i as usize].q
+            }
+        };
+
+        // 2–3. Search, revalidate lazily, search again.
+        let neighbours = sg.neighbours();
+        let mut node_ok = vec![Known::Unknown; n as usize + 2];
+        node_ok[vs as usize] = Known::Valid;
+        node_ok[vg as usize] = Known::Valid;
+        let mut edge_ok: HashMap<(u32, u32), Known> = HashMap::new();
+        for (&a, bs) in &extra {
+            for &b in bs {
+                edge_ok.insert((a.min(b), a.max(b)), Known::Valid);
+            }
+        }
+        let mut last: Option<Vec<u32>> = None;
+        let mut graph_path: Option<Vec<u32>> = None;
+        while st.searches < settings.max_searches.max(1) {
+            if term.should_stop_now() {
+                break;
+            }
+            let ts = Instant::now();
+            st.searches += 1;
+            let found = astar(
+                n as usize + 2,
+                vs,
+                vg,
+                |a, out: &mut Vec<u32>| {
+                    out.clear();
+                    if (a as usize) < neighbours.len() {
+                        out.extend(&neighbours[a as usize]);
+                    }
+                    if let Some(e) = extra.get(&a) {
+                        out.extend(e);
+                    }
+                    out.retain(|&b| {
+                        node_ok[b as usize] != Known::Invalid
+                            && edge_ok.get(&(a.min(b), a.max(b))) != Some(&Known::Invalid)
+                    });
+                },
+                |a, b| space.distance(state(a), state(b)),
+            );
+            st.search_ms += ts.elapsed().as_secs_f64() * 1e3;
+            let Some(p) = found else { break };
+            if st.first_path_nodes == 0 {
+                st.first_path_nodes = p.len().saturating_sub(2);
+            }
+            let tv = Instant::now();
+            let mut all_ok = true;
+            for &a in &p {
+                if node_ok[a as usize] == Known::Unknown {
+                    st.nodes_validated += 1;
+                    node_ok[a as usize] = if v.is_state_valid(state(a)) {
+                        Known::Valid
+                    } else {
+                        st.invalid_nodes += 1;
+                        Known::Invalid
+                    };
+                }
+                all_ok &= node_ok[a as usize] == Known::Valid;
+            }
+            for w in p.windows(2) {
+                let key = (w[0].min(w[1]), w[0].max(w[1]));
+                if node_ok[w[0] as usize] != Known::Valid || node_ok[w[1] as usize] != Known::Valid
+                {
+                    continue;
+                }
+                let e = edge_ok.entry(key).or_insert(Known::Unknown);
+                if *e == Known::Unknown {
+                    st.edges_validated += 1;
+                    *e = if v.is_motion_valid(state(w[0]), state(w[1])) {
+                        Known::Valid
+                    } else {
+                        st.invalid_edges += 1;
+                        Known::Invalid
+                    };
+                }
+                all_ok &= *e == Known::Valid;
+            }
+            st.validation_ms += tv.elapsed().as_secs_f64() * 1e3;
+            if all_ok {
+                graph_path = Some(p);
+                break;
+            }
+            last = Some(p);
+        }
+        path = Vec::new();
+        match graph_path {
+            Some(p) => path.extend(p.iter().map(|&i| state(i).clone())),
+            None => {
+                // 4. RRT-Connect over each invalid stretch of the last path (or the whole
+                // query when the graph never joined start and goal).
+                let p = last.unwrap_or_else(|| vec![vs, vg]);
+                let mut rrt = RrtConnect::with_checker(
+                    space.clone(),
+                    world,
+                    space_checker(world, &space),
+                    settings.rrt,
+                )?;
+                let tr = Instant::now();
+                path.push(s.clone());
+                let mut i = 0;
+                while i + 1 < p.len() {
+                    let (a, b) = (p[i], p[i + 1]);
+                    if node_ok[b as usize] == Known::Valid
+                        && edge_ok.get(&(a.min(b), a.max(b))) == Some(&Known::Valid)
+                    {
+                        path.push(state(p[i + 1]).clone());
+                        i += 1;
+                        continue;
+                    }
+                    let j = (i + 1..p.len())
+                        .find(|&j| node_ok[p[j] as usize] == Known::Valid)
+                        .unwrap_or(p.len() - 1);
+                    st.rrt_repairs += 1;
+                    let r = rrt.plan(
+                        state(p[i]),
+                        &[state(p[j]).clone()],
+                        term,
+                        seed.wrapping_add(st.rrt_repairs as u64),
+                    )?;
+                    path.extend(r.path.into_iter().skip(1));
+                    i = j;
+                }
+                st.rrt_ms = tr.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+    }
+
+    // 5. Shortcut and re-validate.
+    if let Some(sc) = &settings.shortcut {
+        let tsc = Instant::now();
+        simplify(&mut v, &mut path, sc, &mut rng, term);
+        st.shortcut_ms = tsc.elapsed().as_secs_f64() * 1e3;
+    }
+    if let Err(k) = v.validate_path(&path) {
+        return Err(PlanError::PathInvalid {
+            segment: k,
+            stats: Box::default(),
+        });
+    }
+    st.vertices = path.len();
+    st.length = space.path_length(&path);
+    st.total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let world_path = space.path_to_world(&path);
+    Ok(RoadmapPath {
+        space,
+        path,
+        world_path,
+        stats: st,
+    })
+}
+
+/// A* from `from` to `to` over nodes `0..n` (`succ` fills the usable neighbours, `cost` is the
+/// edge length and, being a metric, the admissible heuristic). The node sequence, or `None`.
+fn astar(
+    n: usize,
+    from: u32,
+    to: u32,
+    mut succ: impl FnMut(u32, &mut Vec<u32>),
+    cost: impl Fn(u32, u32) -> f64,
+) -> Option<Vec<u32>> {
+    let mut g = vec![f64::INFINITY; n];
+    let mut parent = vec![u32::MAX; n];
+    let mut closed = vec![false; n];
+    let mut open = BinaryHeap::new();
+    g[from as usize] = 0.0;
+    open.push(Open {
+        f: cost(from, to),
+        node: from,
+    });
+    let mut buf = Vec::new();
+    while let Some(Open { node, .. }) = open.pop() {
+        if closed[node as usize] {
+            continue;
+        }
+        if node == to {
+            let mut p = vec![to];
+            let mut c = to;
+            while c != from {
+                c = parent[c as usize];
+                p.push(c);
+            }
+            p.reverse();
+            return Some(p);
+        }
+        closed[node as usize] = true;
+        succ(node, &mut buf);
+        for &b in &buf {
+            if closed[b as usize] {
+                continue;
+            }
+            let ng = g[node as usize] + cost(node, b);
+            if ng < g[b as usize] {
+                g[b as usize] = ng;
+                parent[b as usize] = node;
+                open.push(Open {
+                    f: ng + cost(b, to),
+                    node: b,
+                });
+            }
+        }
+    }
+    None
+}
+
+/// `world` with its free object `object` held by link `link` of robot `robot`: the object's
+/// frame at `grasp` in the link frame at world configuration `q`, the links `touch` allowed to
+/// touch it (what a carry query of 003 §V-B revalidates against: "the CS also changes when the
+/// robot carries the object").
+pub fn attach_at_link(
+    world: &CollisionWorld,
+    object: &str,
+    robot: usize,
+    link: usize,
+    grasp: &crate::geometry::Pose,
+    q: &[f64],
+    touch: Vec<usize>,
+) -> Result<CollisionWorld, PlanError> {
+    let mut w = world.clone();
+    let p = w
+        .robots
+        .get(robot)
+        .ok_or_else(|| PlanError::InvalidInput(format!("robot {robot} is not in the world")))?;
+    if link >= p.robot.links.len() || q.len() != w.dof() {
+        return Err(PlanError::InvalidInput(format!(
+            "link {link} or a configuration of {} values does not fit robot '{}'",
+            q.len(),
+            p.name
+        )));
+    }
+    let mut poses = vec![crate::geometry::Pose::identity(); p.robot.links.len()];
+    crate::kinematics::forward(&p.robot, &p.base, w.robot_config(robot, q), &mut poses);
+    let si = w
+        .statics
+        .iter()
+        .position(|s| s.name == object)
+        .ok_or_else(|| PlanError::InvalidInput(format!("no free object '{object}'")))?;
+    w.statics[si].pose = poses[link] * grasp;
+    w.attach(object, robot, link, q, touch)
+        .ok_or_else(|| PlanError::InvalidInput(format!("cannot attach '{object}'")))?;
+    Ok(w)
+}
