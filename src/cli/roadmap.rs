@@ -101,7 +101,7 @@ pub struct BuildArgs {
     pub roadmap: RoadmapArgs,
     /// Folder of roadmap files: a file with the right keys is loaded, else the roadmap is
     /// built and saved there.
-    #[arg(long, default_value = "roadmaps")]
+    #[arg(long, default_value = "data/roadmaps")]
     pub dir: PathBuf,
     /// Build even when a file exists (and replace it).
     #[arg(long)]
@@ -246,6 +246,7 @@ pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
         let mut checker = manyhands::planning::space_checker(qworld, &space);
         let mut stats: Vec<RoadmapQueryStats> = Vec::new();
         let mut failed = 0;
+        let mut first_error: Option<String> = None;
         for seed in 1..=a.queries.max(1) {
             // A free goal of the super space, drawn with the query's seed.
             let mut rng = PlannerRng::seed_from_u64(seed);
@@ -264,12 +265,16 @@ pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
             }
             let Some(goal) = goal else {
                 failed += 1;
+                first_error.get_or_insert_with(|| "no free goal in 10 000 samples".into());
                 continue;
             };
             let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(10));
             match query_super_graph(&g, qworld, &base, &goal, &settings, &mut term, seed) {
                 Ok(r) => stats.push(r.stats),
-                Err(_) => failed += 1,
+                Err(e) => {
+                    failed += 1;
+                    first_error.get_or_insert_with(|| e.to_string());
+                }
             }
         }
         let col = |f: &dyn Fn(&RoadmapQueryStats) -> f64| {
@@ -291,6 +296,7 @@ pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
             "invalid_edges_total": stats.iter().map(|s| s.invalid_edges).sum::<usize>(),
             "invalid_nodes_total": stats.iter().map(|s| s.invalid_nodes).sum::<usize>(),
             "rrt_repairs_total": stats.iter().map(|s| s.rrt_repairs).sum::<usize>(),
+            "first_error": first_error,
         }));
     }
     let out = json!({
@@ -327,6 +333,11 @@ pub fn bench(ctx: &Ctx, a: &BenchArgs) -> Result<()> {
                 r["invalid_nodes_total"],
                 r["rrt_repairs_total"],
             );
+        }
+        for r in &rows {
+            if let Some(e) = r["first_error"].as_str() {
+                s += &format!("{}: first failure: {e}\n", r["queries"].as_str().unwrap_or_default());
+            }
         }
         s += "medians over the solved queries; validation = lazy revalidation of the graph path with the object";
         s
