@@ -25,7 +25,7 @@ use std::sync::Arc;
 use nalgebra::Vector3;
 use thiserror::Error;
 
-use crate::collision::{StaticBody, StaticKind};
+use crate::collision::{CollisionWorld, StaticBody, StaticKind};
 use crate::geometry::{Geometry, Pose};
 use crate::grasp::{object_centre, Hand, HandError, WorkspaceParams};
 use crate::kinematics::{link_pose, SrsArm};
@@ -251,27 +251,11 @@ impl PickPlaceProblem {
             l = j.parent;
         }
         torso.reverse();
-        let obstacles = scene
-            .obstacles
-            .iter()
-            .map(|b| StaticBody {
-                name: b.name.clone(),
-                kind: StaticKind::Obstacle,
-                pose: b.pose,
-                shapes: b.shapes.clone(),
-            })
-            .chain(
-                scene
-                    .objects
-                    .iter()
-                    .filter(|o| o.body.name != object)
-                    .map(|o| StaticBody {
-                        name: o.body.name.clone(),
-                        kind: StaticKind::Object,
-                        pose: o.body.pose,
-                        shapes: o.body.shapes.clone(),
-                    }),
-            )
+        // The scene's fixed bodies as the collision world builds them, less the object moved.
+        let obstacles: Vec<StaticBody> = CollisionWorld::from_scene(scene)
+            .statics
+            .into_iter()
+            .filter(|b| !(b.kind == StaticKind::Object && b.name == object))
             .collect();
         let (centre, radius) = object_centre(&obj.body.shapes);
         Ok(PickPlaceProblem {
