@@ -353,3 +353,202 @@ fn a_pose_out_of_both_hands_reach_fails_clearly() {
         assert!(secs < 10.0, "{which}: {secs} s");
     }
 }
+
+// ---------------------------------------------------------------- the whole task (003 Fig. 2)
+
+mod common;
+
+use manyhands::collision::MotionValidator;
+use manyhands::planning::pick_place::task::{decomposition, OfflineStats};
+use manyhands::planning::pick_place::{
+    plan_pick_place, task_world, PickPlaceOffline, PickPlacePlan, PickPlaceSettings,
+    PickPlaceTaskError,
+};
+use manyhands::planning::roadmap_cache::load_or_build;
+use manyhands::planning::task::EventKind;
+use manyhands::planning::Termination;
+
+/// The task's offline data: the lists above and the super graph (default parameters), built
+/// once per test binary.
+fn offline() -> &'static PickPlaceOffline {
+    static O: OnceLock<PickPlaceOffline> = OnceLock::new();
+    O.get_or_init(|| {
+        let p = problem();
+        let (r, l) = lists();
+        let world = task_world(p);
+        let dec = decomposition(p, &world).expect("decomposition");
+        let settings = PickPlaceSettings::default();
+        let (g, _, _) = load_or_build(
+            None,
+            &world,
+            &dec,
+            &p.rest,
+            &settings.roadmap,
+            &mut Termination::new(),
+        )
+        .expect("super graph");
+        PickPlaceOffline {
+            pick_list: std::sync::Arc::new(r.clone()),
+            place_list: std::sync::Arc::new(l.clone()),
+            graph: std::sync::Arc::new(g),
+            object: std::sync::Arc::new(
+                GraspObject::new(&p.object_name, p.object.clone()).expect("object"),
+            ),
+            world,
+            stats: OfflineStats::default(),
+        }
+    })
+}
+
+fn task(seed: u64) -> Result<PickPlacePlan, PickPlaceTaskError> {
+    let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(30));
+    plan_pick_place(
+        problem(),
+        offline(),
+        &PickPlaceSettings::default(),
+        seed,
+        &mut term,
+        &mut |_| {},
+    )
+}
+
+#[test]
+fn the_task_is_solved_exactly_free_with_its_events_in_order_and_deterministic() {
+    let p = problem();
+    let r = task(1).expect("the shipped task is solved");
+    let plan = &r.plan;
+    assert_eq!(plan.waypoints.first(), Some(&p.rest));
+    assert_eq!(plan.waypoints.last(), Some(&p.rest));
+    let names: Vec<&str> = r.queries.iter().map(|q| q.name.as_str()).collect();
+    assert_eq!(names, ["grasp", "carry", "place", "rest"]);
+    // Events: pick hand grasps, place hand grasps, pick hand releases (same waypoint), place
+    // hand releases.
+    let ev: Vec<(EventKind, &str)> = plan
+        .events
+        .iter()
+        .map(|e| (e.kind, e.end_effector.as_str()))
+        .collect();
+    let (ph, lh) = (p.pick.hand.group.as_str(), p.place.hand.group.as_str());
+    assert_eq!(
+        ev,
+        [
+            (EventKind::Grasp, ph),
+            (EventKind::Grasp, lh),
+            (EventKind::Release, ph),
+            (EventKind::Release, lh)
+        ]
+    );
+    let w: Vec<usize> = plan.events.iter().map(|e| e.waypoint).collect();
+    assert!(w[0] < w[1] && w[1] == w[2] && w[2] < w[3], "{w:?}");
+    // Phases tile the plan; each is exactly free at 5 mm / 0.5° in its world, the object
+    // attached to the holding palm while carried (fingers included), and within limits.
+    let mut next = 0;
+    for ph in &plan.phases {
+        assert_eq!(
+            ph.first, next,
+            "phase {} does not continue the plan",
+            ph.name
+        );
+        next = ph.last;
+        let carried_by = ph.world.attached.iter().find(|a| a.name == p.object_name);
+        match ph.name.as_str() {
+            "carry" => assert_eq!(carried_by.map(|a| a.link), Some(p.pick.hand.palm)),
+            "place" => assert_eq!(carried_by.map(|a| a.link), Some(p.place.hand.palm)),
+            "grasp" | "rest" => assert!(carried_by.is_none(), "{}: object must rest", ph.name),
+            _ => {}
+        }
+        let mut mv = MotionValidator::new(
+            &ph.world,
+            ExactChecker::new(&ph.world),
+            0.5f64.to_radians(),
+            0.005,
+        );
+        assert!(
+            mv.is_path_valid(&plan.waypoints[ph.first..=ph.last]),
+            "phase {} not free under the exact checker",
+            ph.name
+        );
+    }
+    assert_eq!(next, plan.waypoints.len() - 1);
+    assert!(plan.waypoints.iter().all(|q| within_limits(p, q)));
+    // Carrying moves the object: it leaves q_o^i and arrives at q_o^f.
+    let carry = plan.phases.iter().find(|ph| ph.name == "carry").unwrap();
+    let place = plan.phases.iter().find(|ph| ph.name == "place").unwrap();
+    let obj_at = |world: &CollisionWorld, q: &[f64]| {
+        let a = world
+            .attached
+            .iter()
+            .find(|a| a.name == p.object_name)
+            .unwrap();
+        link_pose(&p.robot, q, a.link) * a.rel
+    };
+    let start = obj_at(&carry.world, &plan.waypoints[carry.first]);
+    let end = obj_at(&place.world, &plan.waypoints[place.last]);
+    assert!((start.translation.vector - p.initial.translation.vector).norm() < 1e-6);
+    assert!((end.translation.vector - p.final_pose.translation.vector).norm() < 1e-6);
+    // Same seed, same plan.
+    let again = task(1).expect("again");
+    assert_eq!(again.plan.waypoints, plan.waypoints);
+    assert_eq!(again.plan.events, plan.events);
+}
+
+#[test]
+fn the_task_with_an_unreachable_goal_fails_clearly_and_fast() {
+    let p = problem();
+    let far = Pose::from_parts(Translation3::new(3.0, 3.0, 0.9), UnitQuaternion::identity());
+    let q = p.with_poses(p.initial, far);
+    let t0 = Instant::now();
+    let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(30));
+    let e = plan_pick_place(
+        &q,
+        offline(),
+        &PickPlaceSettings::default(),
+        1,
+        &mut term,
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            &e,
+            PickPlaceTaskError::Problem(PickPlaceError::Unreachable { pose, .. }) if pose == "final"
+        ),
+        "{e}"
+    );
+    assert!(t0.elapsed().as_secs_f64() < 5.0, "{:?}", t0.elapsed());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_pick_place_job_over_http() {
+    use common::server::{field, start};
+    use serde_json::json;
+    let h = start("pick-place").await;
+    let body = json!({"kind": "pick_place", "scene": "pick_place", "robot": "justin",
+        "object": "statuette", "pick_hand": "right_hand", "place_hand": "left_hand",
+        "seed": 1, "time_limit": 60});
+    let mut bad = body.clone();
+    bad["pick_hand"] = json!("no_hand");
+    let (s, e) = h.post("/v1/plans", &bad).await;
+    assert_eq!(s.as_u16(), 422, "{e}");
+    assert_eq!(field(&e), "pick_hand", "{e}");
+    let mut bad = body.clone();
+    bad["attempts"] = json!(0);
+    let (s, e) = h.post("/v1/plans", &bad).await;
+    assert_eq!(s.as_u16(), 422, "{e}");
+    assert_eq!(field(&e), "attempts", "{e}");
+    let (s, job) = h.post("/v1/plans?wait=120", &body).await;
+    assert_eq!(s.as_u16(), 200, "{job}");
+    assert_eq!(job["state"], "succeeded", "{job}");
+    let r = &job["result"];
+    let kinds: Vec<&str> = r["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["grasp", "grasp", "release", "release"]);
+    assert_eq!(r["queries"].as_array().map(Vec::len), Some(4));
+    assert!(r["trajectory"]["points"]
+        .as_array()
+        .is_some_and(|p| p.len() > 2));
+}

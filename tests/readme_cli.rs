@@ -1,8 +1,12 @@
 //! Every CLI example of README.md runs as printed: each `manyhands …` line of the "Commands"
 //! block (continuation lines joined, `[…]` optional parts included) and the `cargo run --release
 //! -- …` query example of the server section, run through `sh` with `manyhands` being this
-//! build's binary, in one scratch folder (in order: `reach plot` reads what `reach build` wrote).
-//! Each must exit 0. `../shared/…` paths are taken relative to the repository as in the README.
+//! build's binary. Each must exit 0. `../shared/…` paths are taken relative to the repository as
+//! in the README. The examples run in two groups, each in order in its own scratch folder, the
+//! two groups side by side (two tests): the reachability grids (`reach build` writes what `reach
+//! plot` and `bench ik` read: every line naming a `.reach` file) and all the others (`time
+//! reach.json` reads what `plan reach … > reach.json` wrote; the caches under the folder are
+//! shared between the examples of one group only).
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -54,8 +58,8 @@ fn with_options(cmd: &str) -> String {
     cmd.replace(['[', ']'], "")
 }
 
-#[test]
-fn every_readme_cli_example_runs_as_printed() {
+/// The examples of one group: those naming a reachability grid file, or all the others.
+fn group(reach_grids: bool) -> Vec<String> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
     let list = examples(&readme);
@@ -64,11 +68,37 @@ fn every_readme_cli_example_runs_as_printed() {
         "found only {} examples: {list:?}",
         list.len()
     );
+    list.into_iter()
+        .filter(|ex| ex.contains(".reach") == reach_grids)
+        .collect()
+}
+
+#[test]
+fn the_readme_reachability_examples_run_as_printed() {
+    let list = group(true);
+    assert!(
+        list.len() >= 3,
+        "the README's reach build / reach plot / bench ik examples: {list:?}"
+    );
+    run_in_order(&list, "reach");
+}
+
+#[test]
+fn every_other_readme_cli_example_runs_as_printed() {
+    run_in_order(&group(false), "rest");
+}
+
+/// Runs the examples one after the other in a fresh scratch folder; every failure is reported.
+fn run_in_order(list: &[String], tag: &str) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let dir = std::env::temp_dir().join(format!("manyhands-readme-{}-{nanos}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!(
+        "manyhands-readme-{tag}-{}-{nanos}",
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).expect("scratch dir");
     // The contacts file of `grasp quality --contacts grasp.json` (format given in the README).
     std::fs::write(
@@ -84,7 +114,7 @@ fn every_readme_cli_example_runs_as_printed() {
     // The MotionBenchMaker examples need the outside data: found once here (a SKIPPED line,
     // or a failure under MANYHANDS_REQUIRE_MBM=1, without it) and handed to the examples.
     let mbm = manyhands::planning::mbm_data::data_for_test().map(|d| d.canonicalize().unwrap_or(d));
-    for ex in &list {
+    for ex in list {
         if ex.contains(" mbm") && mbm.is_none() {
             continue;
         }

@@ -62,6 +62,10 @@ pub enum BenchCmd {
     /// queries with the scene's object resting and carried (connection, search, lazy
     /// revalidation, RRT repair and shortcut times).
     Roadmap(Box<super::roadmap::BenchArgs>),
+    /// The whole two-hand pick-and-place task (003 Table I's shape): per query nodes, planning
+    /// and validation time over seeded runs, the single-query baseline (RRT-Connect) beside
+    /// it, and the offline costs; targets ≤ 100 ms online, ≤ 50 ms configurations.
+    PickPlace(Box<super::pick_place::PickPlaceBenchArgs>),
 }
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
@@ -83,6 +87,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         BenchCmd::GraspList(a) => super::bench_grasp_list::run(ctx, a)?,
         BenchCmd::Exchange(a) => super::exchange::bench(ctx, a)?,
         BenchCmd::Roadmap(a) => super::roadmap::bench(ctx, a)?,
+        BenchCmd::PickPlace(a) => super::pick_place::bench(ctx, a)?,
     }
     Ok(())
 }

@@ -13,6 +13,7 @@ mod load_http;
 mod loadtest;
 mod mbm;
 mod multi_robot;
+mod pick_place;
 mod plan;
 mod query;
 mod reach;

@@ -158,6 +158,10 @@ pub enum PlanCmd {
     /// The exchange position and the grasp, exchange and place configurations of a two-hand
     /// pick-and-place (003 §V-C) for a scene object and its goal pose.
     Exchange(Box<super::exchange::ExchangeArgs>),
+    /// The whole two-hand pick-and-place task (003 Fig. 2, §V-B): key configurations, the four
+    /// super-graph queries with lazy revalidation, one certified plan with grasp and release
+    /// events.
+    PickPlace(Box<super::pick_place::PickPlaceArgs>),
     Bimanual {
         #[arg(long, default_value = "kitchen")]
         scene: String,
@@ -271,7 +275,9 @@ pub(super) fn termination(c: &Common) -> Result<Termination> {
 
 pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
     let opts = match cmd {
-        PlanCmd::MultiRobot(_) | PlanCmd::Exchange(_) => TimingOptions::default(),
+        PlanCmd::MultiRobot(_) | PlanCmd::Exchange(_) | PlanCmd::PickPlace(_) => {
+            TimingOptions::default()
+        }
         PlanCmd::Reach { common, .. }
         | PlanCmd::Regrasp { common, .. }
         | PlanCmd::Kitchen { common, .. }
@@ -280,6 +286,7 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
     let (scene, plan, extra): (Scene, TaskPlan, String) = match cmd {
         PlanCmd::MultiRobot(a) => return super::multi_robot::plan(ctx, a),
         PlanCmd::Exchange(a) => return super::exchange::plan(ctx, a),
+        PlanCmd::PickPlace(a) => return super::pick_place::plan(ctx, a),
         PlanCmd::Reach {
             scene,
             robot,

@@ -646,12 +646,13 @@ impl FastChecker {
                              mount: Mount,
                              rel: Option<Frame>,
                              shapes: &[crate::geometry::Geometry],
+                             coarse: bool,
                              moving: &mut Vec<MovingBody>| {
             // Primitives in the mount link's frame (the body's offset folded in), so a check
             // needs only the link frames.
             let mut local: Vec<Prim> = Vec::with_capacity(shapes.len());
             for g in shapes {
-                Prim::from_shape(&g.origin, &g.shape, settings.padding, true, &mut local);
+                Prim::from_shape(&g.origin, &g.shape, settings.padding, coarse, &mut local);
             }
             if let Some(f) = &rel {
                 for p in &mut local {
@@ -684,6 +685,7 @@ impl FastChecker {
                         mount,
                         rel,
                         &link.collision,
+                        true,
                         &mut moving,
                     );
                 }
@@ -692,7 +694,16 @@ impl FastChecker {
         for (a, at) in world.attached.iter().enumerate() {
             if !at.shapes.is_empty() {
                 let (mount, rel) = mount_of(at.robot, at.link, Some(Frame::from_pose(&at.rel)));
-                push_body(BodyId::Attached(a), mount, rel, &at.shapes, &mut moving);
+                // A held object keeps its fine cover: a hand comes to within millimetres of it
+                // (the other hand at a hand-over), which the coarse cover would refuse.
+                push_body(
+                    BodyId::Attached(a),
+                    mount,
+                    rel,
+                    &at.shapes,
+                    false,
+                    &mut moving,
+                );
             }
         }
         let mut statics = Vec::new();
@@ -727,17 +738,20 @@ impl FastChecker {
             });
         }
         // Meshes are over-approximated by their cover (a solid's boxes: at most a cell diagonal,
-        // on both bodies of a pair; the coarse cover on moving bodies) or the box around their
+        // on both bodies of a pair; the coarse cover on robot links) or the box around their
         // vertices (unbounded against the exact checker's hull).
-        let moving_shapes = world
+        let link_shapes = world
             .robots
             .iter()
-            .flat_map(|p| p.robot.links.iter().flat_map(|l| l.collision.iter()))
-            .chain(world.attached.iter().flat_map(|a| a.shapes.iter()));
-        let static_shapes = world.statics.iter().flat_map(|s| s.shapes.iter());
-        let shapes = moving_shapes
+            .flat_map(|p| p.robot.links.iter().flat_map(|l| l.collision.iter()));
+        let fine_shapes = world
+            .attached
+            .iter()
+            .flat_map(|a| a.shapes.iter())
+            .chain(world.statics.iter().flat_map(|s| s.shapes.iter()));
+        let shapes = link_shapes
             .map(|g| (g, true))
-            .chain(static_shapes.map(|g| (g, false)));
+            .chain(fine_shapes.map(|g| (g, false)));
         for (g, moving) in shapes {
             let o = match &g.shape {
                 Shape::Mesh(m) if moving => 2.0 * (m.moving_cover().1 + EPS),

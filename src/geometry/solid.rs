@@ -19,9 +19,10 @@
 //! triangle meets lies wholly inside or wholly outside, and face neighbours of that kind lie on
 //! the same side); the kept cells are merged greedily into boxes. Every point of the cover is in
 //! a cell that meets the solid, so the cover protrudes at most one cell diagonal
-//! ([`Solid::cover_protrusion`]) beyond it. Moving bodies (robot links, held objects) get a
-//! coarser cover of at most [`MAX_MOVING_COVER_BOXES`] boxes, since their boxes are paired with
-//! other moving bodies' and swept by the certified checks. Meshes that are not closed have no solid: checkers
+//! ([`Solid::cover_protrusion`]) beyond it. Robot links get a coarser cover of at most
+//! [`MAX_MOVING_COVER_BOXES`] boxes, since their boxes are paired with other moving bodies' and
+//! swept by the certified checks; held objects keep the fine cover in the fast checker (a hand
+//! comes to within millimetres of them at a hand-over, `src/collision/fast.rs`). Meshes that are not closed have no solid: checkers
 //! keep their convex hull (exact) and the box around them (fast), both conservative.
 
 use std::collections::HashMap;

@@ -12,9 +12,9 @@ pub use manyhands_api::{
     GraspIkRequest, GraspIkResponse, GraspListParamsBody, GraspListPlan, GraspPlannerName,
     GraspQualityRequest, GraspQualityResponse, GraspQualityScore, GroupInfo, HandRef, Health,
     IkFrame, IkOrder, IkRequest, IkResponse, IkSolver, Job, JobList, JobState, JobSummary,
-    JointInfo, JointSpacePlan, KitchenTaskPlan, LinkPose, MultiRobotRequest, PlanRequest,
-    PlanRobot, PoseBody, PoseOut, ReachPlan, RegionJson, RegraspPlan, RobotDetail, RobotSummary,
-    RobotUpload, SceneRobotConfig, SceneRobotInfo, SceneSummary, ScheduleRequest,
+    JointInfo, JointSpacePlan, KitchenTaskPlan, LinkPose, MultiRobotRequest, PickPlaceTaskPlan,
+    PlanRequest, PlanRobot, PoseBody, PoseOut, ReachPlan, RegionJson, RegraspPlan, RobotDetail,
+    RobotSummary, RobotUpload, SceneRobotConfig, SceneRobotInfo, SceneSummary, ScheduleRequest,
     ScheduleTrajectory, Source, TwoHandIkResponse,
 };
 pub use manyhands_api::{

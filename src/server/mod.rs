@@ -24,6 +24,7 @@ pub mod kinds;
 pub mod metrics;
 pub mod multi_robot;
 pub mod openapi;
+pub mod pick_place;
 pub mod plans;
 pub mod pool;
 pub mod queries;

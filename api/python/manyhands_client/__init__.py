@@ -22,7 +22,7 @@ __all__ = ["ApiError", "WaitTimeout", "Client", "AsyncClient", "Event", "FINAL_S
 # tests/python_sdk.rs, as is every request body the test suite sends and every answer it gets.
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled", "interrupted"})
 JOB_KINDS = ("joint_space", "collision_sweep", "reach", "regrasp", "kitchen_task", "bimanual",
-             "multi_robot", "schedule", "grasp_list")
+             "multi_robot", "schedule", "grasp_list", "pick_place")
 Json = Dict[str, Any]
 
 

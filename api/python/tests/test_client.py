@@ -67,6 +67,8 @@ EVERY_KIND = [
         {"robot": "armar_b", "joints": ["base_x", "base_y"], "path": [[-1.2, -0.7], [1.2, -0.7]]}]},
     {"kind": "grasp_list", "robot": "justin", "hand": "left_hand", "mesh": "statuette",
      "params": {"positions": 8}},
+    {"kind": "pick_place", "scene": "pick_place", "robot": "justin", "object": "statuette",
+     "pick_hand": "right_hand", "place_hand": "left_hand", "seed": 1},
 ]
 
 

@@ -477,6 +477,50 @@ pub struct ScheduleRequest {
     pub acceleration_scaling: Option<f64>,
 }
 
+/// `kind: pick_place` — the two-hand pick-and-place task of paper 003 (Fig. 2, §V-B): the
+/// object of `scene` is picked at its pose by `pick_hand`, handed over to `place_hand` at an
+/// exchange pose near the torso and put down at its goal pose (`objects[].goal`). Offline data
+/// (both hands' grasp lists, the super graph of torso + arms) come from the data folder and are
+/// built there on first use; online: the key configurations (single and double grasps,
+/// exchange), the four queries (grasp, carry, place, rest) in the super graph with lazy
+/// revalidation against the object, and one certified plan with grasp and release events. SSE
+/// `progress` names the phase (`grasp_lists`, `roadmap`, `exchange`, `double_grasps`,
+/// `query_grasp`, `query_carry`, `query_place`, `query_rest`, `certification`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct PickPlaceTaskPlan {
+    pub scene: String,
+    /// Robot instance of the scene.
+    pub robot: String,
+    /// The free object moved (it needs a `goal` pose in the scene).
+    pub object: String,
+    /// Hand group (SRDF) that picks the object up; its arm is the end effector's parent group.
+    pub pick_hand: String,
+    /// Hand group that places it (another arm on the same torso).
+    pub place_hand: String,
+    /// `roadmap` (default, 003 §V-B) or `rrt_connect` (plain single-query planner).
+    #[serde(default)]
+    pub planner: Option<String>,
+    /// Key-configuration searches (each a new seed) tried at most (1..=100, default 4).
+    #[serde(default)]
+    pub attempts: Option<usize>,
+    /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
+    #[serde(default)]
+    pub sample_period: Option<f64>,
+    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
+}
+
 /// `POST /v1/plans`: a problem, selected by `kind`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
@@ -491,11 +535,12 @@ pub enum PlanRequest {
     MultiRobot(MultiRobotRequest),
     Schedule(ScheduleRequest),
     GraspList(GraspListPlan),
+    PickPlace(PickPlaceTaskPlan),
 }
 
 impl PlanRequest {
     /// Every `kind` tag, in the order of the variants.
-    pub const KINDS: [&'static str; 9] = [
+    pub const KINDS: [&'static str; 10] = [
         "joint_space",
         "collision_sweep",
         "reach",
@@ -505,6 +550,7 @@ impl PlanRequest {
         "multi_robot",
         "schedule",
         "grasp_list",
+        "pick_place",
     ];
 
     /// The `kind` tag of this request.
@@ -519,6 +565,7 @@ impl PlanRequest {
             PlanRequest::MultiRobot(_) => "multi_robot",
             PlanRequest::Schedule(_) => "schedule",
             PlanRequest::GraspList(_) => "grasp_list",
+            PlanRequest::PickPlace(_) => "pick_place",
         }
     }
 }

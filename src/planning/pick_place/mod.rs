@@ -13,12 +13,16 @@
 //!   arms' reach, and the object poses sampled around it;
 //! - [`configurations`]: the grasp, exchange and place configurations q_r^g, q_r^e, q_r^p (003
 //!   §V-C) by sampling the torso and solving the arms' analytic S-R-S IK, every one
-//!   collision-free under the exact checker with the object attached to the holding hand.
+//!   collision-free under the exact checker with the object attached to the holding hand;
+//! - [`task`]: the whole task (003 Fig. 2, §V-B): offline grasp lists and super graph, the key
+//!   configurations, the four roadmap queries and one certified plan with its grasp and
+//!   release events.
 //!
 //! Planning core: no server, no tokio.
 
 pub mod configurations;
 pub mod exchange;
+pub mod task;
 
 use std::sync::Arc;
 
@@ -36,6 +40,10 @@ pub use configurations::{
     ConfigStats, Holder, KeyConfigurations, SingleConfiguration,
 };
 pub use exchange::{exchange_grid, exchange_poses, ExchangeGrid, ExchangeParams};
+pub use task::{
+    plan_pick_place, prepare_pick_place, task_world, MotionPlanner, PickPlaceOffline,
+    PickPlacePlan, PickPlaceSettings, PickPlaceTaskError, QueryRecord, TaskProgress,
+};
 
 /// Why a pick-and-place problem cannot be set up or its configurations not be found.
 #[derive(Debug, Clone, PartialEq, Error)]

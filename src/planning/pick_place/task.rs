@@ -1,0 +1,959 @@
+//! The whole pick-and-place task of paper 003 (Fig. 2, §V-B): offline data, key
+//! configurations, the four roadmap queries, and one trajectory with its grasp and release
+//! events.
+//!
+//! **Offline** ([`prepare_pick_place`]): the single-grasp lists of both hands (003 §IV-A, from
+//! the grasp-list cache, built when absent — "each one computed in about 1 minute" in 003 §VI,
+//! an offline cost) and the super graph of torso + both arms (003 §V-A, from its roadmap file,
+//! built when absent; [`crate::planning::roadmap_cache`]).
+//!
+//! **Online** ([`plan_pick_place`]):
+//! 1. the exchange grid (003 §V-C, Fig. 6) and the key configurations q_r^g, q_r^e, q_r^p of the
+//!    best double grasp ([`super::key_configurations`]: single-grasp configurations, double
+//!    grasps, exchange poses);
+//! 2. the four queries of 003 §V-B — *grasp* (q_r^i → q_r^g, object resting at q_o^i),
+//!    *carry* (q_r^g → q_r^e, object attached to the pick hand), *place* (q_r^e → q_r^p, attached
+//!    to the place hand) and *rest* (q_r^p → q_r^i, object resting at q_o^f) — each answered in
+//!    the super graph and lazily revalidated with the object, repaired by RRT-Connect where the
+//!    object invalidates it ([`query_super_graph`]); or, with [`MotionPlanner::RrtConnect`],
+//!    by plain RRT-Connect in the same space with the same certified checks (003 §VI's
+//!    single-query comparison);
+//! 3. the hands: the super graph moves torso and arms, so the fingers move in straight joint
+//!    segments of their own, the arms still. A hand travels *pre-shaped*: its fingers at
+//!    `closed + s · (rest − closed)` for the first fraction `s` of
+//!    [`PickPlaceSettings::finger_fractions`] (1 = the rest values) whose configuration is free
+//!    of the object (the hand may not touch what it does not hold) and whose closing motion is
+//!    certified. Closing (grasp) and opening (release) are checked with the object attached and
+//!    the hand's links allowed to touch it (the grasp list validated those contacts, 003 §IV-A).
+//!
+//! The plan's motions, in order: pick hand pre-shape at q_r^i; *grasp*; pick hand closes
+//! (event: pick grasp); place hand pre-shape; *carry*; place hand closes (events: place grasp,
+//! pick release); pick hand opens; *place* (event: place release); place hand opens; *rest*;
+//! both hands back to their rest values.
+//!
+//! Bounded: the configuration search is bounded by its sample counts; the motion chain is tried
+//! for at most [`PickPlaceSettings::attempts`] key-configuration searches (each with its own
+//! seed, so another double grasp / exchange pose), within the task's [`Termination`]. A pose
+//! out of reach ends at once in [`PickPlaceError::Unreachable`]. Every motion of the returned
+//! plan is re-certified as a continuous motion ([`FastChecker::motion_certified`]) in the world
+//! it was planned in (object resting or attached, fingers included) and every waypoint is within
+//! the joint limits before the plan is returned. Deterministic per seed (unless the time limit
+//! cuts a search).
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use thiserror::Error;
+
+use super::configurations::{within_limits, ConfigParams, KeyConfigurations};
+use super::{exchange_grid, key_configurations, ArmHand, PickPlaceError, PickPlaceProblem};
+use crate::collision::{
+    CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
+};
+use crate::geometry::Pose;
+use crate::grasp::{GraspList, GraspListCache, GraspListParams, GraspObject};
+use crate::planning::roadmap_cache::{load_or_build, RoadmapSource};
+use crate::planning::roadmap_query::{attach_at_link, query_super_graph, RoadmapQuerySettings};
+use crate::planning::super_graph::{Decomposition, SuperGraph, SuperGraphParams};
+use crate::planning::task::{EventKind, TaskEvent, TaskPhase, TaskPlan};
+use crate::planning::{space_checker, PlanError, PlanStats, RrtConnect, Termination};
+
+/// Why a pick-and-place task failed.
+#[derive(Debug, Clone, Error)]
+pub enum PickPlaceTaskError {
+    /// The problem or its key configurations (request-caused: see [`PickPlaceError::field`]).
+    #[error(transparent)]
+    Problem(#[from] PickPlaceError),
+    #[error("grasp list of '{hand}': {reason}")]
+    GraspList { hand: String, reason: String },
+    #[error("roadmap: {0}")]
+    Roadmap(String),
+    /// A query or a hand motion of one attempt.
+    #[error("{phase}: {error}")]
+    Phase { phase: String, error: PlanError },
+    #[error("{0}")]
+    Hand(String),
+    #[error("no plan in {attempts} attempts; last failure: {last}")]
+    Failed {
+        attempts: usize,
+        last: Box<PickPlaceTaskError>,
+    },
+    #[error("stopped ({0})")]
+    Stopped(String),
+    /// The final re-certification refused a motion (a bug if it happens).
+    #[error("phase '{phase}' segment {segment}: {reason}")]
+    NotCertified {
+        phase: String,
+        segment: usize,
+        reason: String,
+    },
+}
+
+impl PickPlaceTaskError {
+    /// The request field a request-caused error is about (`None`: a planning failure).
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            PickPlaceTaskError::Problem(e) => match e {
+                PickPlaceError::Unreachable { .. } | PickPlaceError::NoExchange(_) => None,
+                e => Some(e.field()),
+            },
+            _ => None,
+        }
+    }
+
+    /// True when the task ended by its time limit or stop flag.
+    pub fn stopped(&self) -> bool {
+        match self {
+            PickPlaceTaskError::Stopped(_) => true,
+            PickPlaceTaskError::Phase { error, .. } => matches!(
+                error.root(),
+                PlanError::Stopped { .. } | PlanError::Timeout { .. }
+            ),
+            PickPlaceTaskError::Failed { last, .. } => last.stopped(),
+            _ => false,
+        }
+    }
+}
+
+/// How the four queries are answered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionPlanner {
+    /// The super graph with lazy revalidation and repair (003 §V-B).
+    #[default]
+    Roadmap,
+    /// Plain RRT-Connect per query (003 §VI's single-query planner, the baseline).
+    RrtConnect,
+}
+
+/// Settings of the task.
+#[derive(Debug, Clone)]
+pub struct PickPlaceSettings {
+    /// Parameters of both hands' grasp lists.
+    pub lists: GraspListParams,
+    /// The key-configuration search (its seed is set per attempt from the task's seed).
+    pub config: ConfigParams,
+    /// The super graph (its file is keyed by these).
+    pub roadmap: SuperGraphParams,
+    /// The queries (their RRT settings also serve [`MotionPlanner::RrtConnect`]).
+    pub query: RoadmapQuerySettings,
+    pub planner: MotionPlanner,
+    /// Key-configuration searches (each a new seed) tried at most.
+    pub attempts: usize,
+    /// Pre-shape fractions tried, in order (module docs), each in (0, 1].
+    pub finger_fractions: Vec<f64>,
+}
+
+impl Default for PickPlaceSettings {
+    /// Default lists, search, roadmap (50 nodes per elementary roadmap as in 003 §VI) and
+    /// queries; 4 attempts; pre-shapes at 100, 60, 30 and 15 % open.
+    fn default() -> Self {
+        PickPlaceSettings {
+            lists: GraspListParams::default(),
+            config: ConfigParams::default(),
+            roadmap: SuperGraphParams::default(),
+            query: RoadmapQuerySettings::default(),
+            planner: MotionPlanner::Roadmap,
+            attempts: 4,
+            finger_fractions: vec![1.0, 0.6, 0.3, 0.15],
+        }
+    }
+}
+
+impl PickPlaceSettings {
+    pub fn validate(&self) -> Result<(), PickPlaceError> {
+        self.config.validate()?;
+        let bad = |f: &str, r: String| {
+            Err(PickPlaceError::Invalid {
+                field: f.into(),
+                reason: r,
+            })
+        };
+        if !(1..=100).contains(&self.attempts) {
+            return bad(
+                "attempts",
+                format!("must be in 1..=100, got {}", self.attempts),
+            );
+        }
+        if self.finger_fractions.is_empty()
+            || self
+                .finger_fractions
+                .iter()
+                .any(|s| !(s.is_finite() && *s > 0.0 && *s <= 1.0))
+        {
+            return bad(
+                "finger_fractions",
+                "give at least one fraction, each in (0, 1]".into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A progress report of the task (the server's SSE `progress`).
+#[derive(Debug, Clone, Serialize)]
+pub struct TaskProgress {
+    /// `grasp_lists`, `roadmap`, `exchange`, `double_grasps`, `query_grasp`, `query_carry`,
+    /// `query_place`, `query_rest`, `certification`.
+    pub phase: &'static str,
+    /// Attempt (0-based) of the online part.
+    pub attempt: usize,
+    pub elapsed_ms: f64,
+}
+
+/// Offline costs.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct OfflineStats {
+    pub pick_list_ms: f64,
+    pub place_list_ms: f64,
+    /// The lists were built now (not found in the cache).
+    pub pick_list_built: bool,
+    pub place_list_built: bool,
+    pub pick_grasps: usize,
+    pub place_grasps: usize,
+    pub roadmap_ms: f64,
+    pub roadmap_built: bool,
+    pub roadmap_file: Option<String>,
+    pub roadmap_nodes: usize,
+    pub roadmap_edges: usize,
+    /// The roadmap's own build time (as recorded in it).
+    pub roadmap_build_ms: f64,
+}
+
+/// The offline data of a task.
+#[derive(Debug, Clone)]
+pub struct PickPlaceOffline {
+    pub pick_list: Arc<GraspList>,
+    pub place_list: Arc<GraspList>,
+    pub graph: Arc<SuperGraph>,
+    /// The object as the grasp lists see it (the finger pre-shapes are checked against it).
+    pub object: Arc<GraspObject>,
+    /// Robot, obstacles and the object resting at q_o^i ([`task_world`]).
+    pub world: CollisionWorld,
+    pub stats: OfflineStats,
+}
+
+/// Robot, obstacles and the object resting at its initial pose: the world of the task (its
+/// roadmap is built in it, the object left out).
+pub fn task_world(p: &PickPlaceProblem) -> CollisionWorld {
+    let mut w = CollisionWorld::single(p.robot.clone(), p.base);
+    w.statics = p.obstacles.clone();
+    w.statics.push(StaticBody {
+        name: p.object_name.clone(),
+        kind: StaticKind::Object,
+        pose: p.initial,
+        shapes: p.object.clone(),
+    });
+    w
+}
+
+/// The decomposition of the robot for the super graph: the SRDF group whose variables are the
+/// problem's torso (common part), the pick and place arms (independent parts).
+pub fn decomposition(
+    p: &PickPlaceProblem,
+    world: &CollisionWorld,
+) -> Result<Decomposition, PickPlaceTaskError> {
+    let mut torso = p.torso.clone();
+    torso.sort_unstable();
+    let common = p
+        .robot
+        .groups
+        .iter()
+        .find(|g| {
+            let mut v = g.vars.clone();
+            v.sort_unstable();
+            !v.is_empty() && v == torso
+        })
+        .map(|g| g.name.clone())
+        .ok_or_else(|| {
+            PickPlaceTaskError::Roadmap(format!(
+                "robot '{}' has no SRDF group of exactly its torso variables",
+                p.robot.name
+            ))
+        })?;
+    Decomposition::from_groups(world, 0, &common, [&p.pick.arm_group, &p.place.arm_group])
+        .map_err(|e| PickPlaceTaskError::Roadmap(e.to_string()))
+}
+
+/// The offline part (module docs): grasp lists from `lists` (built when absent; `stop` ends a
+/// build) and the super graph from `roadmap_dir` (built when absent, saved there).
+pub fn prepare_pick_place(
+    p: &PickPlaceProblem,
+    settings: &PickPlaceSettings,
+    lists: &GraspListCache,
+    roadmap_dir: Option<&Path>,
+    stop: &(dyn Fn() -> bool + Sync),
+    term: &mut Termination,
+    progress: &mut dyn FnMut(TaskProgress),
+) -> Result<PickPlaceOffline, PickPlaceTaskError> {
+    settings.validate()?;
+    let t0 = Instant::now();
+    let report = |phase, progress: &mut dyn FnMut(TaskProgress)| {
+        progress(TaskProgress {
+            phase,
+            attempt: 0,
+            elapsed_ms: t0.elapsed().as_secs_f64() * 1e3,
+        })
+    };
+    let mut stats = OfflineStats::default();
+    report("grasp_lists", progress);
+    let object = GraspObject::new(&p.object_name, p.object.clone()).map_err(|e| {
+        PickPlaceTaskError::Problem(PickPlaceError::Invalid {
+            field: "object".into(),
+            reason: e.to_string(),
+        })
+    })?;
+    let list = |ah: &ArmHand| {
+        let t = Instant::now();
+        lists
+            .get_or_build(&ah.hand, &object, &settings.lists, &|_, _| {}, stop)
+            .map(|(l, built)| (l, built, t.elapsed().as_secs_f64() * 1e3))
+            .map_err(|e| PickPlaceTaskError::GraspList {
+                hand: ah.hand.group.clone(),
+                reason: e.to_string(),
+            })
+    };
+    let (pick_list, b0, ms0) = list(&p.pick)?;
+    let (place_list, b1, ms1) = list(&p.place)?;
+    stats.pick_list_ms = ms0;
+    stats.place_list_ms = ms1;
+    stats.pick_list_built = b0;
+    stats.place_list_built = b1;
+    stats.pick_grasps = pick_list.grasps.len();
+    stats.place_grasps = place_list.grasps.len();
+    report("roadmap", progress);
+    let world = task_world(p);
+    let dec = decomposition(p, &world)?;
+    let t = Instant::now();
+    let (graph, file, src) =
+        load_or_build(roadmap_dir, &world, &dec, &p.rest, &settings.roadmap, term)
+            .map_err(|e| PickPlaceTaskError::Roadmap(e.to_string()))?;
+    stats.roadmap_ms = t.elapsed().as_secs_f64() * 1e3;
+    stats.roadmap_built = src == RoadmapSource::Built;
+    stats.roadmap_file = file.map(|f| f.display().to_string());
+    stats.roadmap_nodes = graph.nodes.len();
+    stats.roadmap_edges = graph.edges.len();
+    stats.roadmap_build_ms = graph.stats.total_millis;
+    Ok(PickPlaceOffline {
+        pick_list,
+        place_list,
+        graph: Arc::new(graph),
+        object: Arc::new(object),
+        world,
+        stats,
+    })
+}
+
+/// One of the four queries (003 Table I's columns).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct QueryRecord {
+    /// `grasp`, `carry`, `place`, `rest`.
+    pub name: String,
+    pub planner: MotionPlanner,
+    /// Online planning: super nodes on the first graph path (roadmap) or tree nodes (RRT).
+    pub nodes: usize,
+    pub planning_ms: f64,
+    /// Path validation: nodes and edges revalidated with the object (roadmap only).
+    pub validated: usize,
+    pub invalid: usize,
+    pub validation_ms: f64,
+    pub rrt_repairs: usize,
+    pub direct: bool,
+    pub vertices: usize,
+    pub total_ms: f64,
+}
+
+/// Online timings (ms).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct OnlineTimings {
+    pub exchange_grid_ms: f64,
+    /// Single and double grasp configurations (all attempts).
+    pub configurations_ms: f64,
+    /// Queries and hand motions (all attempts).
+    pub motions_ms: f64,
+    pub certification_ms: f64,
+    pub total_ms: f64,
+}
+
+/// The task's answer.
+#[derive(Debug, Clone, Serialize)]
+pub struct PickPlacePlan {
+    /// World configurations (the task world: one robot), phases (the four queries and the hand
+    /// motions, each with the world it was checked in) and events.
+    pub plan: TaskPlan,
+    pub keys: KeyConfigurations,
+    /// The four queries of the successful attempt.
+    pub queries: Vec<QueryRecord>,
+    /// Attempts made (1 = the first key configurations were planned through).
+    pub attempts: usize,
+    /// Segments re-certified before the plan was returned.
+    pub certified_segments: usize,
+    pub timings: OnlineTimings,
+}
+
+fn fingers_of(ah: &ArmHand, q: &[f64]) -> Vec<f64> {
+    ah.hand.vars.iter().map(|&v| q[v]).collect()
+}
+
+fn with_fingers(ah: &ArmHand, q: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut q = q.to_vec();
+    for (&v, &x) in ah.hand.vars.iter().zip(values) {
+        q[v] = x;
+    }
+    q
+}
+
+/// The finger-wise pre-shape of a grasp (module docs): `q` with each finger of `ah`'s hand
+/// opened from its values in `q` by the first of `fractions` at which that finger's links are
+/// free of `object`, the palm at `palm` in the object frame. Opened towards the finger's
+/// stretched values ([`crate::grasp::Finger::rest`]), or with `extended` towards the joint
+/// limits beyond them (each IK variable to the limit on the side of its stretched value from
+/// mid-range; one whose stretched value is mid-range, a spread, to that value): the most
+/// clearance on the palm side, what the fast checker's conservative model of the object needs.
+/// `None` when some finger has no such fraction: the grasp wraps the object so that the hand
+/// cannot come to it open (a finger hooked around a leg).
+pub fn finger_preshape(
+    ah: &ArmHand,
+    object: &GraspObject,
+    palm: &Pose,
+    q: &[f64],
+    fractions: &[f64],
+    extended: bool,
+) -> Option<Vec<f64>> {
+    let h = &ah.hand;
+    let mut out = q.to_vec();
+    for f in &h.fingers {
+        let target: Vec<f64> = (0..f.ik_vars.len().min(3))
+            .map(|k| {
+                let (v, r, m) = (f.ik_vars[k], f.rest[k], f.mid[k]);
+                let l = h.robot.var_limits(v);
+                match (extended, (r - m).abs() > 1e-9) {
+                    (true, true) if r < m => l.lower,
+                    (true, true) => l.upper,
+                    (_, _) => r,
+                }
+            })
+            .collect();
+        let opened = fractions.iter().find_map(|&s| {
+            let mut qq = out.clone();
+            for (&v, &r) in f.ik_vars.iter().zip(&target) {
+                // Clamped: `q + 1 · (limit − q)` may round past the limit.
+                let l = h.robot.var_limits(v);
+                let x = q[v] + s * (r - q[v]);
+                qq[v] = if l.bounded {
+                    x.clamp(l.lower, l.upper)
+                } else {
+                    x
+                };
+            }
+            let hit = f.links.iter().any(|&l| {
+                let lp = palm * h.link_in_palm(l, &qq);
+                h.shapes.get(&l).is_some_and(|shapes| {
+                    shapes
+                        .iter()
+                        .any(|(sh, local)| object.hits(sh, &(lp * local), f64::INFINITY))
+                })
+            });
+            (!hit).then_some(qq)
+        })?;
+        out = opened;
+    }
+    Some(out)
+}
+
+/// The grasps of `list` that admit a [`finger_preshape`] (a copy of the list with only those)
+/// and their indices in `list`.
+fn approachable(
+    ah: &ArmHand,
+    object: &GraspObject,
+    list: &GraspList,
+    rest: &[f64],
+    fractions: &[f64],
+) -> (GraspList, Vec<usize>) {
+    let idx: Vec<usize> = list
+        .grasps
+        .iter()
+        .enumerate()
+        .filter(|(_, g)| {
+            let q = with_fingers(ah, rest, &g.config);
+            [true, false].into_iter().any(|ext| {
+                finger_preshape(ah, object, &g.palm_pose(), &q, fractions, ext).is_some()
+            })
+        })
+        .map(|(i, _)| i)
+        .collect();
+    let mut out = list.clone();
+    out.grasps = idx.iter().map(|&i| list.grasps[i].clone()).collect();
+    (out, idx)
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// The motion chain of one attempt (module docs).
+struct Chain<'a> {
+    p: &'a PickPlaceProblem,
+    off: &'a PickPlaceOffline,
+    settings: &'a PickPlaceSettings,
+    /// The approachable grasps of both lists ([`approachable`]) and their indices in the
+    /// offline lists.
+    pick_list: &'a GraspList,
+    place_list: &'a GraspList,
+    pick_index: &'a [usize],
+    place_index: &'a [usize],
+    plan: TaskPlan,
+    queries: Vec<QueryRecord>,
+    seed: u64,
+    attempt: usize,
+    t0: Instant,
+}
+
+impl Chain<'_> {
+    fn append(&mut self, name: &str, planner: &str, path: Vec<Vec<f64>>, world: &CollisionWorld) {
+        let first = self.plan.waypoints.len().saturating_sub(1);
+        let skip = usize::from(!self.plan.waypoints.is_empty());
+        let vertices = path.len();
+        self.plan.waypoints.extend(path.into_iter().skip(skip));
+        self.plan.phases.push(TaskPhase {
+            name: name.into(),
+            planner: planner.into(),
+            first,
+            last: self.plan.waypoints.len() - 1,
+            stats: PlanStats {
+                vertices_raw: vertices,
+                vertices_simplified: vertices,
+                ..PlanStats::default()
+            },
+            world: world.clone(),
+        });
+    }
+
+    fn event(&mut self, kind: EventKind, ah: &ArmHand, grasp: String) {
+        self.plan.events.push(TaskEvent {
+            waypoint: self.plan.waypoints.len() - 1,
+            kind,
+            robot: self.off.world.robots[0].name.clone(),
+            end_effector: ah.hand.group.clone(),
+            object: self.p.object_name.clone(),
+            grasp,
+        });
+    }
+
+    fn last(&self) -> Vec<f64> {
+        self.plan.waypoints.last().cloned().unwrap_or_default()
+    }
+
+    /// A straight finger motion from the last waypoint to `q`, certified in `world`.
+    fn fingers(
+        &mut self,
+        name: &str,
+        q: Vec<f64>,
+        world: &CollisionWorld,
+    ) -> Result<(), PickPlaceTaskError> {
+        let a = self.last();
+        if a == q {
+            return Ok(());
+        }
+        if !FastChecker::new(world).motion_certified(&a, &q) {
+            return Err(PickPlaceTaskError::Hand(format!(
+                "{name}: the hand motion is not certified free"
+            )));
+        }
+        self.append(name, "fingers", vec![a, q], world);
+        Ok(())
+    }
+
+    /// The pre-shaped hand (module docs): `q` (the hand closed on grasp `palm`, the palm pose
+    /// in the object frame) with `ah`'s fingers opened — finger by finger ([`finger_preshape`]),
+    /// else all together towards their rest values by the first fraction — to a configuration
+    /// free in `state_world` (exact and fast checker) whose motion from `q` is certified in
+    /// `motion_world`.
+    fn open_hand(
+        &self,
+        ah: &ArmHand,
+        palm: &Pose,
+        q: &[f64],
+        state_world: &CollisionWorld,
+        motion_world: &CollisionWorld,
+        what: &str,
+    ) -> Result<Vec<f64>, PickPlaceTaskError> {
+        let closed = fingers_of(ah, q);
+        let open = fingers_of(ah, &self.p.rest);
+        let mut exact = ExactChecker::new(state_world);
+        let mut fast = FastChecker::new(state_world);
+        let mut motion = FastChecker::new(motion_world);
+        let fractions = &self.settings.finger_fractions;
+        let uniform = fractions.iter().map(|&s| {
+            let f: Vec<f64> = closed
+                .iter()
+                .zip(&open)
+                .map(|(c, o)| c + s * (o - c))
+                .collect();
+            with_fingers(ah, q, &f)
+        });
+        let object = &self.off.object;
+        let candidates = [true, false]
+            .into_iter()
+            .filter_map(|ext| finger_preshape(ah, object, palm, q, fractions, ext))
+            .chain(uniform);
+        for qq in candidates {
+            if exact.is_free(&qq) && fast.is_free(&qq) && motion.motion_certified(q, &qq) {
+                return Ok(qq);
+            }
+        }
+        Err(PickPlaceTaskError::Hand(format!(
+            "{what}: no pre-shape of '{}' ({} fractions, finger-wise and together) is free there",
+            ah.hand.group,
+            fractions.len()
+        )))
+    }
+
+    /// Query `name` from the last waypoint to `goal` in `world`, appended.
+    fn query(
+        &mut self,
+        name: &'static str,
+        goal: Vec<f64>,
+        world: &CollisionWorld,
+        term: &mut Termination,
+        progress: &mut dyn FnMut(TaskProgress),
+    ) -> Result<(), PickPlaceTaskError> {
+        progress(TaskProgress {
+            phase: match name {
+                "grasp" => "query_grasp",
+                "carry" => "query_carry",
+                "place" => "query_place",
+                _ => "query_rest",
+            },
+            attempt: self.attempt,
+            elapsed_ms: ms(self.t0),
+        });
+        let start = self.last();
+        let seed = self.seed.wrapping_add(self.queries.len() as u64 + 1);
+        let sg = &self.off.graph;
+        let tagged = |error: PlanError| PickPlaceTaskError::Phase {
+            phase: name.into(),
+            error,
+        };
+        let t = Instant::now();
+        let (path, rec) = match self.settings.planner {
+            MotionPlanner::Roadmap => {
+                let r =
+                    query_super_graph(sg, world, &start, &goal, &self.settings.query, term, seed)
+                        .map_err(tagged)?;
+                let s = r.stats;
+                let rec = QueryRecord {
+                    name: name.into(),
+                    planner: MotionPlanner::Roadmap,
+                    nodes: s.first_path_nodes,
+                    planning_ms: s.total_ms - s.validation_ms,
+                    validated: s.nodes_validated + s.edges_validated,
+                    invalid: s.invalid_nodes + s.invalid_edges,
+                    validation_ms: s.validation_ms,
+                    rrt_repairs: s.rrt_repairs,
+                    direct: s.direct,
+                    vertices: s.vertices,
+                    total_ms: s.total_ms,
+                };
+                (r.world_path, rec)
+            }
+            MotionPlanner::RrtConnect => {
+                let space = sg.space(world, start.clone()).map_err(tagged)?;
+                let mut rrt = RrtConnect::with_checker(
+                    space.clone(),
+                    world,
+                    space_checker(world, &space),
+                    self.settings.query.rrt,
+                )
+                .map_err(tagged)?;
+                let r = rrt
+                    .plan(
+                        &space.from_world(&start),
+                        &[space.from_world(&goal)],
+                        term,
+                        seed,
+                    )
+                    .map_err(tagged)?;
+                let total = ms(t);
+                let rec = QueryRecord {
+                    name: name.into(),
+                    planner: MotionPlanner::RrtConnect,
+                    nodes: r.stats.start_tree_size + r.stats.goal_tree_size,
+                    planning_ms: total,
+                    vertices: r.path.len(),
+                    total_ms: total,
+                    ..QueryRecord::default()
+                };
+                (space.path_to_world(&r.path), rec)
+            }
+        };
+        let planner = match self.settings.planner {
+            MotionPlanner::Roadmap => "super_graph",
+            MotionPlanner::RrtConnect => "rrt_connect",
+        };
+        self.append(name, planner, path, world);
+        if let Some(ph) = self.plan.phases.last_mut() {
+            ph.stats.time = Duration::from_secs_f64(rec.total_ms.max(0.0) / 1e3);
+        }
+        self.queries.push(rec);
+        Ok(())
+    }
+}
+
+/// The motion chain for key configurations `keys` (module docs).
+fn chain(
+    c: &mut Chain,
+    keys: &KeyConfigurations,
+    term: &mut Termination,
+    progress: &mut dyn FnMut(TaskProgress),
+) -> Result<(), PickPlaceTaskError> {
+    let (p, off) = (c.p, c.off);
+    let (pick, place) = (&p.pick, &p.place);
+    let a = &c.pick_list.grasps[keys.double.pick];
+    let b = &c.place_list.grasps[keys.double.place];
+    let (name_a, name_b) = (
+        format!("{}#{}", pick.hand.group, c.pick_index[keys.double.pick]),
+        format!("{}#{}", place.hand.group, c.place_index[keys.double.place]),
+    );
+    let (palm_a, palm_b) = (a.palm_pose(), b.palm_pose());
+    let plan_err = |e: PlanError| PickPlaceTaskError::Phase {
+        phase: "attach".into(),
+        error: e,
+    };
+    let w_i = &off.world;
+    let rel_a = a.palm_pose().inverse();
+    let rel_b = b.palm_pose().inverse();
+    let mut both = pick.links.clone();
+    both.extend(place.links.iter().copied());
+    let qg = keys.grasp.q.clone();
+    let qe = keys.exchange.clone();
+    let h_a = attach_at_link(
+        w_i,
+        &p.object_name,
+        0,
+        pick.hand.palm,
+        &rel_a,
+        &qg,
+        pick.links.clone(),
+    )
+    .map_err(plan_err)?;
+    let h_ab = attach_at_link(w_i, &p.object_name, 0, pick.hand.palm, &rel_a, &qe, both)
+        .map_err(plan_err)?;
+    let h_b = attach_at_link(
+        w_i,
+        &p.object_name,
+        0,
+        place.hand.palm,
+        &rel_b,
+        &qe,
+        place.links.clone(),
+    )
+    .map_err(plan_err)?;
+    let mut w_f = w_i.clone();
+    if let Some(s) = w_f.statics.iter_mut().find(|s| s.name == p.object_name) {
+        s.pose = p.final_pose;
+    }
+
+    // Grasp: pre-shape the pick hand at rest, reach q_r^g pre-shaped, close.
+    let qg_open = c.open_hand(pick, &palm_a, &qg, w_i, &h_a, "grasp")?;
+    c.plan.waypoints = vec![p.rest.clone()];
+    c.fingers(
+        "pick_preshape",
+        with_fingers(pick, &p.rest, &fingers_of(pick, &qg_open)),
+        w_i,
+    )?;
+    c.query("grasp", qg_open, w_i, term, progress)?;
+    c.fingers("pick_close", qg.clone(), &h_a)?;
+    c.event(EventKind::Grasp, pick, name_a.clone());
+
+    // Carry: pre-shape the place hand, bring the object to q_o^e, close the place hand.
+    let qe_open = c.open_hand(place, &palm_b, &qe, &h_a, &h_ab, "exchange")?;
+    let place_pre = fingers_of(place, &qe_open);
+    c.fingers("place_preshape", with_fingers(place, &qg, &place_pre), &h_a)?;
+    c.query("carry", qe_open, &h_a, term, progress)?;
+    c.fingers("place_close", qe.clone(), &h_ab)?;
+    c.event(EventKind::Grasp, place, name_b.clone());
+    c.event(EventKind::Release, pick, name_a);
+
+    // Place: open the pick hand, bring the object to q_o^f.
+    let qe_free = c.open_hand(pick, &palm_a, &qe, &h_b, &h_ab, "exchange")?;
+    c.fingers("pick_open", qe_free.clone(), &h_ab)?;
+    let qp = with_fingers(pick, &keys.place.q, &fingers_of(pick, &qe_free));
+    c.query("place", qp.clone(), &h_b, term, progress)?;
+    c.event(EventKind::Release, place, name_b);
+
+    // Rest: open the place hand, back to q_r^i, fingers to their rest values.
+    let qp_open = c.open_hand(place, &palm_b, &qp, &w_f, &h_b, "place")?;
+    c.fingers("place_open", qp_open.clone(), &h_b)?;
+    let mut q_end = p.rest.clone();
+    q_end = with_fingers(pick, &q_end, &fingers_of(pick, &qp_open));
+    q_end = with_fingers(place, &q_end, &fingers_of(place, &qp_open));
+    c.query("rest", q_end, &w_f, term, progress)?;
+    c.fingers("fingers_rest", p.rest.clone(), &w_f)?;
+    Ok(())
+}
+
+/// Re-certifies every motion of `plan` in its phase's world and every waypoint's limits; the
+/// number of segments checked.
+fn certify(p: &PickPlaceProblem, plan: &TaskPlan) -> Result<usize, PickPlaceTaskError> {
+    if let Some(k) = plan.waypoints.iter().position(|q| !within_limits(p, q)) {
+        return Err(PickPlaceTaskError::NotCertified {
+            phase: "plan".into(),
+            segment: k,
+            reason: "waypoint outside the joint limits".into(),
+        });
+    }
+    let mut n = 0;
+    for ph in &plan.phases {
+        let mut fast = FastChecker::new(&ph.world);
+        for k in ph.first..ph.last {
+            n += 1;
+            if !fast.motion_certified(&plan.waypoints[k], &plan.waypoints[k + 1]) {
+                return Err(PickPlaceTaskError::NotCertified {
+                    phase: ph.name.clone(),
+                    segment: k,
+                    reason: "the motion is not certified free".into(),
+                });
+            }
+        }
+    }
+    Ok(n)
+}
+
+/// The online part of the task (module docs) with the offline data `off`.
+pub fn plan_pick_place(
+    p: &PickPlaceProblem,
+    off: &PickPlaceOffline,
+    settings: &PickPlaceSettings,
+    seed: u64,
+    term: &mut Termination,
+    progress: &mut dyn FnMut(TaskProgress),
+) -> Result<PickPlacePlan, PickPlaceTaskError> {
+    settings.validate()?;
+    let t0 = Instant::now();
+    let mut timings = OnlineTimings::default();
+    progress(TaskProgress {
+        phase: "exchange",
+        attempt: 0,
+        elapsed_ms: 0.0,
+    });
+    let t = Instant::now();
+    let grid = exchange_grid(p, &settings.config.exchange)?;
+    timings.exchange_grid_ms = ms(t);
+    // Only grasps the hand can come to open (003 does not say how a hand reaches its grasp;
+    // a wrapping grasp whose fingers cannot open free of the object is not executable).
+    let fr = &settings.finger_fractions;
+    let (pick_list, pick_index) = approachable(&p.pick, &off.object, &off.pick_list, &p.rest, fr);
+    let (place_list, place_index) =
+        approachable(&p.place, &off.object, &off.place_list, &p.rest, fr);
+    for (ah, l, full) in [
+        (&p.pick, &pick_list, &off.pick_list),
+        (&p.place, &place_list, &off.place_list),
+    ] {
+        if l.grasps.is_empty() {
+            return Err(PickPlaceTaskError::GraspList {
+                hand: ah.hand.group.clone(),
+                reason: format!(
+                    "none of its {} grasps can be approached with the hand open (some finger \
+                     enters the object at every pre-shape)",
+                    full.grasps.len()
+                ),
+            });
+        }
+    }
+    let mut last: Option<PickPlaceTaskError> = None;
+    for attempt in 0..settings.attempts {
+        if term.should_stop_now() {
+            last = Some(PickPlaceTaskError::Stopped(format!(
+                "time limit or stop request after {attempt} attempts"
+            )));
+            break;
+        }
+        let aseed = seed.wrapping_add(0x9E37_79B9u64.wrapping_mul(attempt as u64));
+        progress(TaskProgress {
+            phase: "double_grasps",
+            attempt,
+            elapsed_ms: ms(t0),
+        });
+        let t = Instant::now();
+        let params = ConfigParams {
+            seed: aseed,
+            ..settings.config
+        };
+        let keys = key_configurations(p, &pick_list, &place_list, &grid, &params);
+        timings.configurations_ms += ms(t);
+        let keys = match keys {
+            Ok(k) => k,
+            // Out of reach of a hand: no other seed helps in the same bounds.
+            Err(e @ PickPlaceError::Unreachable { .. }) => return Err(e.into()),
+            Err(e) => {
+                last = Some(e.into());
+                continue;
+            }
+        };
+        let t = Instant::now();
+        let mut c = Chain {
+            p,
+            off,
+            settings,
+            pick_list: &pick_list,
+            place_list: &place_list,
+            pick_index: &pick_index,
+            place_index: &place_index,
+            plan: TaskPlan {
+                waypoints: Vec::new(),
+                phases: Vec::new(),
+                events: Vec::new(),
+                time: Duration::ZERO,
+            },
+            queries: Vec::new(),
+            seed: aseed,
+            attempt,
+            t0,
+        };
+        let r = chain(&mut c, &keys, term, progress);
+        timings.motions_ms += ms(t);
+        match r {
+            Ok(()) => {
+                progress(TaskProgress {
+                    phase: "certification",
+                    attempt,
+                    elapsed_ms: ms(t0),
+                });
+                let t = Instant::now();
+                let n = certify(p, &c.plan)?;
+                timings.certification_ms = ms(t);
+                timings.total_ms = ms(t0);
+                let mut plan = c.plan;
+                plan.time = t0.elapsed();
+                // Indices into the offline lists, as the events name them.
+                let mut keys = keys;
+                keys.double.pick = pick_index[keys.double.pick];
+                keys.double.place = place_index[keys.double.place];
+                keys.grasp.grasp = pick_index[keys.grasp.grasp];
+                keys.place.grasp = place_index[keys.place.grasp];
+                return Ok(PickPlacePlan {
+                    plan,
+                    keys,
+                    queries: c.queries,
+                    attempts: attempt + 1,
+                    certified_segments: n,
+                    timings,
+                });
+            }
+            Err(e) => {
+                let stop = e.stopped();
+                last = Some(e);
+                if stop {
+                    break;
+                }
+            }
+        }
+    }
+    Err(PickPlaceTaskError::Failed {
+        attempts: settings.attempts,
+        last: Box::new(last.unwrap_or_else(|| PickPlaceTaskError::Stopped("no attempt".into()))),
+    })
+}
