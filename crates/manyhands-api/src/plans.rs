@@ -676,6 +676,8 @@ mod tests {
             json!({"kind": "multi_robot", "scene": "s", "object": "o"}),
             json!({"kind": "schedule", "scene": "s", "trajectories": []}),
             json!({"kind": "grasp_list", "robot": "r", "hand": "h", "mesh": "m"}),
+            json!({"kind": "pick_place", "scene": "s", "robot": "r", "object": "o",
+                "pick_hand": "a", "place_hand": "b"}),
         ];
         assert_eq!(bodies.len(), PlanRequest::KINDS.len());
         for (body, kind) in bodies.iter().zip(PlanRequest::KINDS) {
