@@ -18,9 +18,10 @@ use manyhands::planning::pick_place::{
 
 use super::commands::Ctx;
 
-/// The problem and the search bounds.
+/// A two-hand pick-and-place problem of a scene (`plan exchange`, `plan pick-place` and their
+/// benchmarks).
 #[derive(Args, Debug, Clone)]
-pub struct ExchangeArgs {
+pub struct TaskArgs {
     #[arg(long, default_value = "pick_place")]
     pub scene: String,
     /// Robot instance of the scene.
@@ -36,6 +37,29 @@ pub struct ExchangeArgs {
     /// Hand group that places it at its goal pose.
     #[arg(long, default_value = "left_hand")]
     pub place_hand: String,
+}
+
+impl TaskArgs {
+    /// The problem (003 §V-C) with the grasp lists' default workspace; errors name the flag.
+    pub fn problem(&self, ctx: &Ctx) -> Result<PickPlaceProblem> {
+        let scene = ctx.scene(&self.scene)?;
+        PickPlaceProblem::from_scene(
+            &scene,
+            &self.robot,
+            &self.object,
+            &self.pick_hand,
+            &self.place_hand,
+            &workspace_params(&GraspListParams::default()),
+        )
+        .map_err(|e| anyhow!("{e} (flag --{})", e.field().replace('_', "-")))
+    }
+}
+
+/// The problem and the search bounds.
+#[derive(Args, Debug, Clone)]
+pub struct ExchangeArgs {
+    #[command(flatten)]
+    pub task: TaskArgs,
     /// Seed of the torso and exchange-pose samples.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -88,17 +112,8 @@ struct Setup {
 }
 
 fn setup(ctx: &Ctx, a: &ExchangeArgs) -> Result<Setup> {
-    let scene = ctx.scene(&a.scene)?;
     let lp = GraspListParams::default();
-    let problem = PickPlaceProblem::from_scene(
-        &scene,
-        &a.robot,
-        &a.object,
-        &a.pick_hand,
-        &a.place_hand,
-        &workspace_params(&lp),
-    )
-    .map_err(|e| anyhow!("{e} (flag --{})", e.field().replace('_', "-")))?;
+    let problem = a.task.problem(ctx)?;
     let object = GraspObject::new(&problem.object_name, problem.object.clone())
         .map_err(|e| anyhow!("{e} (flag --object)"))?;
     let cache = GraspListCache::new(Some(a.cache.clone()));
@@ -142,7 +157,7 @@ pub fn plan(ctx: &Ctx, a: &ExchangeArgs) -> Result<()> {
     };
     let e = grid.position();
     let v = json!({
-        "scene": a.scene, "object": p.object_name, "seed": a.seed,
+        "scene": a.task.scene, "object": p.object_name, "seed": a.seed,
         "pick_hand": p.pick.hand.group, "place_hand": p.place.hand.group,
         "grasp_lists": {"pick": s.pick_list.grasps.len(), "place": s.place_list.grasps.len()},
         "exchange": {"position": grid.nodes[grid.best].position, "cost": grid.nodes[grid.best].cost,
@@ -171,7 +186,7 @@ pub fn plan(ctx: &Ctx, a: &ExchangeArgs) -> Result<()> {
              exchange q_r^e: {}\n\
              place    q_r^p: {}  score {:.3}\n\
              {} double grasps tried, {} IK calls, {} IK solutions, {} exact collision checks, {} exchange poses; {:.1} ms",
-            p.object_name, a.scene, s.pick_list.grasps.len(), p.pick.hand.group,
+            p.object_name, a.task.scene, s.pick_list.grasps.len(), p.pick.hand.group,
             s.place_list.grasps.len(), p.place.hand.group,
             keys.stats.single_pick, keys.stats.single_place, keys.stats.double_grasps,
             e.x, e.y, e.z, grid.nodes[grid.best].cost, grid.nodes.len(),
@@ -241,7 +256,7 @@ pub fn bench(ctx: &Ctx, a: &ExchangeBenchArgs) -> Result<()> {
         median(&mut total),
     );
     let mchecks = median(&mut checks);
-    let v = json!({"scene": a.problem.scene, "runs": runs, "solved": solved,
+    let v = json!({"scene": a.problem.task.scene, "runs": runs, "solved": solved,
         "median_ms": {"exchange_grid": md, "configurations": mc, "total": mt},
         "median_collision_checks": mchecks, "target_ms": 50.0, "paper_s": 6.8});
     ctx.print(&v, || {
@@ -250,7 +265,7 @@ pub fn bench(ctx: &Ctx, a: &ExchangeBenchArgs) -> Result<()> {
              \x20 exchange grid                       {md:>9.2} ms\n\
              \x20 single + double grasp configs      {mc:>9.2} ms   ({mchecks:.0} exact collision checks)\n\
              \x20 total                               {mt:>9.2} ms   target ≤ 50 ms [paper: 4.2 s + 2.6 s]",
-            a.problem.robot, a.problem.object, a.problem.scene
+            a.problem.task.robot, a.problem.task.object, a.problem.task.scene
         )
     });
     Ok(())

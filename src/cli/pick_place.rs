@@ -11,8 +11,7 @@ use anyhow::{anyhow, Result};
 use clap::Args;
 use serde_json::json;
 
-use manyhands::grasp::list::workspace_params;
-use manyhands::grasp::{GraspListCache, GraspListParams};
+use manyhands::grasp::GraspListCache;
 use manyhands::planning::pick_place::{
     plan_pick_place, prepare_pick_place, MotionPlanner, PickPlaceOffline, PickPlacePlan,
     PickPlaceProblem, PickPlaceSettings, QueryRecord,
@@ -25,20 +24,8 @@ use super::commands::Ctx;
 /// The problem, the offline data folders and the bounds.
 #[derive(Args, Debug, Clone)]
 pub struct PickPlaceArgs {
-    #[arg(long, default_value = "pick_place")]
-    pub scene: String,
-    /// Robot instance of the scene.
-    #[arg(long, default_value = "justin")]
-    pub robot: String,
-    /// The object (its `goal` is the final pose).
-    #[arg(long, default_value = "statuette")]
-    pub object: String,
-    /// Hand group that picks the object at its initial pose.
-    #[arg(long, default_value = "right_hand")]
-    pub pick_hand: String,
-    /// Hand group that places it at its goal pose.
-    #[arg(long, default_value = "left_hand")]
-    pub place_hand: String,
+    #[command(flatten)]
+    pub task: super::exchange::TaskArgs,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// `roadmap` (003 §V-B) or `rrt-connect` (the single-query baseline).
@@ -73,7 +60,6 @@ struct Setup {
 }
 
 fn setup(ctx: &Ctx, a: &PickPlaceArgs) -> Result<Setup> {
-    let scene = ctx.scene(&a.scene)?;
     let settings = PickPlaceSettings {
         planner: planner(&a.planner)?,
         attempts: a.attempts,
@@ -83,15 +69,7 @@ fn setup(ctx: &Ctx, a: &PickPlaceArgs) -> Result<Setup> {
     settings
         .validate()
         .map_err(|e| anyhow!("{e} (flag {})", flag(e.field())))?;
-    let problem = PickPlaceProblem::from_scene(
-        &scene,
-        &a.robot,
-        &a.object,
-        &a.pick_hand,
-        &a.place_hand,
-        &workspace_params(&GraspListParams::default()),
-    )
-    .map_err(|e| anyhow!("{e} (flag {})", flag(e.field())))?;
+    let problem = a.task.problem(ctx)?;
     let cache = GraspListCache::new(Some(a.cache.clone()));
     let offline = prepare_pick_place(
         &problem,
@@ -132,7 +110,7 @@ pub fn plan(ctx: &Ctx, a: &PickPlaceArgs) -> Result<()> {
         .plan
         .to_json(&s.offline.world, &TimingOptions::default())?;
     let v = json!({
-        "scene": a.scene, "object": s.problem.object_name, "seed": a.seed,
+        "scene": a.task.scene, "object": s.problem.object_name, "seed": a.seed,
         "planner": s.settings.planner,
         "plan": plan,
         "queries": r.queries,
@@ -146,7 +124,7 @@ pub fn plan(ctx: &Ctx, a: &PickPlaceArgs) -> Result<()> {
         let mut t = format!(
             "{} in {} ({:?}, seed {}): {} waypoints, {} phases, {} events, {} segments re-certified; attempt {}\n",
             s.problem.object_name,
-            a.scene,
+            a.task.scene,
             s.settings.planner,
             a.seed,
             r.plan.waypoints.len(),
