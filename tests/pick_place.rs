@@ -532,6 +532,11 @@ async fn the_pick_place_job_over_http() {
     assert_eq!(s.as_u16(), 422, "{e}");
     assert_eq!(field(&e), "pick_hand", "{e}");
     let mut bad = body.clone();
+    bad["planner"] = json!("prm");
+    let (s, e) = h.post("/v1/plans", &bad).await;
+    assert_eq!(s.as_u16(), 422, "{e}");
+    assert_eq!(field(&e), "planner", "{e}");
+    let mut bad = body.clone();
     bad["attempts"] = json!(0);
     let (s, e) = h.post("/v1/plans", &bad).await;
     assert_eq!(s.as_u16(), 422, "{e}");

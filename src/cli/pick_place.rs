@@ -46,11 +46,8 @@ pub struct PickPlaceArgs {
 }
 
 fn planner(s: &str) -> Result<MotionPlanner> {
-    match s.replace('-', "_").as_str() {
-        "roadmap" => Ok(MotionPlanner::Roadmap),
-        "rrt_connect" => Ok(MotionPlanner::RrtConnect),
-        _ => Err(anyhow!("--planner: '{s}' is not roadmap or rrt-connect")),
-    }
+    MotionPlanner::from_name(s)
+        .ok_or_else(|| anyhow!("--planner: '{s}' is not roadmap or rrt-connect"))
 }
 
 struct Setup {

@@ -76,16 +76,14 @@ pub(super) fn prepare_pick_place(
 ) -> ApiResult<Prepared> {
     let time_limit = time_limit(r.time_limit, max)?;
     let timing = timing_options(r.sample_period, r.velocity_scaling, r.acceleration_scaling)?;
-    let planner = match r.planner.as_deref().map(|s| s.replace('-', "_")) {
+    let planner = match r.planner.as_deref() {
         None => MotionPlanner::Roadmap,
-        Some(s) if s == "roadmap" => MotionPlanner::Roadmap,
-        Some(s) if s == "rrt_connect" => MotionPlanner::RrtConnect,
-        Some(s) => {
-            return Err(ApiError::invalid(
+        Some(s) => MotionPlanner::from_name(s).ok_or_else(|| {
+            ApiError::invalid(
                 "planner",
                 format!("'{s}' is not one of roadmap, rrt_connect"),
-            ))
-        }
+            )
+        })?,
     };
     let mut settings = PickPlaceSettings {
         planner,

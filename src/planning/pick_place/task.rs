@@ -128,6 +128,18 @@ pub enum MotionPlanner {
     RrtConnect,
 }
 
+impl MotionPlanner {
+    /// The planner named `name` (`roadmap`, `rrt_connect`; `-` may stand for `_`), the one
+    /// parser of the CLI flag and the request field.
+    pub fn from_name(name: &str) -> Option<MotionPlanner> {
+        match name.replace('-', "_").as_str() {
+            "roadmap" => Some(MotionPlanner::Roadmap),
+            "rrt_connect" => Some(MotionPlanner::RrtConnect),
+            _ => None,
+        }
+    }
+}
+
 /// Settings of the task.
 #[derive(Debug, Clone)]
 pub struct PickPlaceSettings {
