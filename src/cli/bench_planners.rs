@@ -32,7 +32,8 @@ pub struct PlannersBenchArgs {
     /// Time limit of one run (s); a run that hits it counts as a failure.
     #[arg(long, default_value_t = 10.0)]
     pub time_limit: f64,
-    /// Only rows whose name contains this.
+    /// Only the rows whose full name contains this (e.g. `IK-RRT reach wok, obstacle`,
+    /// `kitchen task`, `Bimanual`); none matching is an error.
     #[arg(long)]
     pub only: Option<String>,
     /// Folder caching the reachability grids: ARMAR's arm grids (the randomized IK's filter,
@@ -251,6 +252,11 @@ fn regrasp_row(
     })
 }
 
+/// Names of the two rows that are not grasp rows (`--only` matches them too).
+const KITCHEN_ROW: &str = "kitchen task complete (grasp, regrasp, retreat, place)";
+const BIMANUAL_ROW: &str =
+    "Bimanual IK-RRT, armar grasps the kitchen table (20 DoF, maps included)";
+
 fn kitchen_row(s: &Scene, grids: &ArmGrids, a: &PlannersBenchArgs) -> Result<Row> {
     let task = KitchenTask {
         grids: grids.clone(),
@@ -261,7 +267,7 @@ fn kitchen_row(s: &Scene, grids: &ArmGrids, a: &PlannersBenchArgs) -> Result<Row
         Ok(plan.phases.into_iter().map(|ph| ph.stats).collect())
     });
     Ok(Row {
-        name: "kitchen task complete (grasp, regrasp, retreat, place)".into(),
+        name: KITCHEN_ROW.into(),
         paper: "803 ms IK + 6 310 ms planning",
         target: "≤ 50 ms",
         runs,
@@ -301,7 +307,7 @@ fn bimanual_row(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<Row> {
         Ok(vec![r.stats])
     });
     Ok(Row {
-        name: "Bimanual IK-RRT, armar grasps the kitchen table (20 DoF, maps included)".into(),
+        name: BIMANUAL_ROW.into(),
         paper: "002: no single-robot figure",
         target: "≤ 20 ms",
         runs,
@@ -402,21 +408,29 @@ pub fn run(ctx: &Ctx, a: &PlannersBenchArgs) -> Result<()> {
         ),
     ];
     for (row, alg, label, paper, target) in grasp_rows {
-        if want(label) {
-            for (k, (scene, what)) in [(&kitchen, "no obstacle"), (&obstacle, "obstacle")]
-                .into_iter()
-                .enumerate()
-            {
-                let name = format!("{label}, {what}");
+        for (k, (scene, what)) in [(&kitchen, "no obstacle"), (&obstacle, "obstacle")]
+            .into_iter()
+            .enumerate()
+        {
+            let name = format!("{label}, {what}");
+            if want(&name) {
                 add(row(scene, (alg, &grids), &name, paper[k], target[k], a))?;
             }
         }
     }
-    if want("kitchen task") {
+    if want(KITCHEN_ROW) {
         add(kitchen_row(&kitchen, &grids, a))?;
     }
-    if want("Bimanual") {
+    if want(BIMANUAL_ROW) {
         add(bimanual_row(ctx, a))?;
+    }
+    if rows.is_empty() {
+        return Err(anyhow!(
+            "only: no row's name contains {:?} (rows: IK-RRT reach wok, J+-RRT reach wok, \
+             dual-arm IK-RRT regrasp, dual-arm J+-RRT regrasp — each ', no obstacle' or \
+             ', obstacle' —, {KITCHEN_ROW}, {BIMANUAL_ROW})",
+            a.only.as_deref().unwrap_or("")
+        ));
     }
     if ctx.json {
         let v: Vec<serde_json::Value> = rows.iter().map(Row::summary).collect();
