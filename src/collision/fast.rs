@@ -26,6 +26,7 @@ use crate::geometry::Shape;
 
 use crate::kinematics::{FkModel, Frame};
 
+mod groups;
 mod prim;
 mod sweep;
 
@@ -67,6 +68,10 @@ struct MovingBody {
     br: f64,
     /// Range of this body's primitives in the per-check world buffer.
     start: usize,
+    /// Groups of `local` (empty: not grouped; `groups.rs`) and the first of them in the
+    /// per-check group buffers.
+    groups: Vec<groups::Group>,
+    gstart: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -74,6 +79,8 @@ struct StaticBodyModel {
     id: BodyId,
     /// Primitives in the world with their world-aligned boxes `(prim, lo, hi)`.
     prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)>,
+    /// Groups of `prims` (empty: not grouped; `groups.rs`).
+    groups: Vec<groups::StaticGroup>,
     lo: Vector3<f64>,
     hi: Vector3<f64>,
 }
@@ -112,6 +119,13 @@ pub struct FastChecker {
     /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
     prim_radius: Vec<f64>,
     prims_ready: Vec<u32>,
+    /// Grouped bodies (`groups.rs`): the group boxes in the world (made with the body's
+    /// primitives' epoch, `prims_ready`), their bounding radii, the epoch of each group's
+    /// members in `world_prims`, and a scratch list of unit pairs.
+    world_groups: Vec<Prim>,
+    group_radius: Vec<f64>,
+    group_ready: Vec<u32>,
+    unit_pairs: Vec<(u32, u32)>,
     /// Bodies whose frames each check recomputes (all, except those no active variable moves);
     /// the box around the moving bodies covers these.
     dynamic: Vec<u32>,
@@ -297,6 +311,7 @@ impl FastChecker {
             .collect();
         let mut attached_index: Vec<Option<usize>> = vec![None; world.attached.len()];
         let mut start = 0;
+        let mut gstart = 0;
         let mut overapprox: f64 = 0.0;
         let mut push_body = |id: BodyId,
                              mount: Mount,
@@ -307,21 +322,26 @@ impl FastChecker {
             // Primitives in the mount link's frame (the body's offset folded in), so a check
             // needs only the link frames.
             let mut local: Vec<Prim> = Vec::with_capacity(shapes.len());
+            let mut covers = Vec::new();
             for g in shapes {
-                Prim::from_shape(&g.origin, &g.shape, settings.padding, coarse, &mut local);
+                let first = local.len();
+                if Prim::from_shape(&g.origin, &g.shape, settings.padding, coarse, &mut local) {
+                    covers.push(first..local.len());
+                }
             }
             if let Some(f) = &rel {
                 for p in &mut local {
                     *p = p.transformed(&f.rot, &f.t);
                 }
             }
+            let groups = groups::group_moving(&mut local, &covers);
             let (bc, br) = bounding_of(&local);
             match id {
                 BodyId::Link { robot, link } => link_index[robot][link] = Some(moving.len()),
                 BodyId::Attached(a) => attached_index[a] = Some(moving.len()),
                 BodyId::Static(_) => {}
             }
-            let n = local.len();
+            let (n, ng) = (local.len(), groups.len());
             moving.push(MovingBody {
                 id,
                 mount,
@@ -329,8 +349,11 @@ impl FastChecker {
                 bc,
                 br,
                 start,
+                groups,
+                gstart,
             });
             start += n;
+            gstart += ng;
         };
         for (r, p) in world.robots.iter().enumerate() {
             for (l, link) in p.robot.links.iter().enumerate() {
@@ -372,13 +395,14 @@ impl FastChecker {
             for g in &st.shapes {
                 Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0, false, &mut plain);
             }
-            let prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = plain
+            let mut prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = plain
                 .into_iter()
                 .map(|p| {
                     let (lo, hi) = aabb(&p);
                     (p, lo, hi)
                 })
                 .collect();
+            let groups = groups::group_static(&mut prims);
             let lo = prims
                 .iter()
                 .fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(&p.1));
@@ -389,6 +413,7 @@ impl FastChecker {
             statics.push(StaticBodyModel {
                 id: BodyId::Static(s),
                 prims,
+                groups,
                 lo,
                 hi,
             });
@@ -478,6 +503,11 @@ impl FastChecker {
             .iter()
             .flat_map(|b| b.local.iter().map(|p| p.bounding().1))
             .collect();
+        let group_radius: Vec<f64> = moving
+            .iter()
+            .flat_map(|b| b.groups.iter().map(|g| g.bound.bounding().1))
+            .collect();
+        let ng = group_radius.len();
         let mut checker = FastChecker {
             world: world.clone(),
             moving,
@@ -500,6 +530,16 @@ impl FastChecker {
             ],
             prim_radius,
             prims_ready: vec![0; nb],
+            world_groups: vec![
+                Prim::Sphere {
+                    c: Vector3::zeros(),
+                    r: 0.0
+                };
+                ng
+            ],
+            group_radius,
+            group_ready: vec![0; ng],
+            unit_pairs: Vec::new(),
             dynamic: (0..nb as u32).collect(),
             epoch: 0,
             checks: 0,
@@ -551,6 +591,7 @@ impl FastChecker {
         for i in 0..self.moving.len() {
             if still(&self.moving[i]) {
                 self.ensure_prims(i);
+                self.make_groups_permanent(i);
                 self.prims_ready[i] = PERMANENT;
             } else {
                 dynamic.push(i as u32);
@@ -763,14 +804,7 @@ impl FastChecker {
         }
         self.moving_lo = lo;
         self.moving_hi = hi;
-        self.epoch = self.epoch.wrapping_add(1);
-        if self.epoch == 0 || self.epoch == PERMANENT {
-            self.prims_ready
-                .iter_mut()
-                .filter(|e| **e != PERMANENT)
-                .for_each(|e| *e = 0);
-            self.epoch = 1;
-        }
+        self.next_epoch();
     }
 
     /// [`Self::prepare`] for a test of the pairs `focus` only (indices into the pair list):
@@ -807,16 +841,25 @@ impl FastChecker {
                 }
             }
         }
+        self.next_epoch();
+    }
+
+    /// A new epoch of the world primitives (a new prepared configuration).
+    #[inline]
+    fn next_epoch(&mut self) {
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 || self.epoch == PERMANENT {
             self.prims_ready
                 .iter_mut()
+                .chain(self.group_ready.iter_mut())
                 .filter(|e| **e != PERMANENT)
                 .for_each(|e| *e = 0);
             self.epoch = 1;
         }
     }
 
+    /// The world primitives of moving body `i` for the prepared configuration; of a grouped
+    /// body its group boxes only (the members on demand, [`Self::ensure_group`]).
     #[inline]
     fn ensure_prims(&mut self, i: usize) {
         if self.prims_ready[i] == self.epoch || self.prims_ready[i] == PERMANENT {
@@ -825,8 +868,14 @@ impl FastChecker {
         self.prims_ready[i] = self.epoch;
         let b = &self.moving[i];
         let f = &self.link_poses[b.mount.robot][b.mount.link];
-        for (k, p) in b.local.iter().enumerate() {
-            self.world_prims[b.start + k] = p.transformed(&f.rot, &f.t);
+        if b.groups.is_empty() {
+            for (k, p) in b.local.iter().enumerate() {
+                self.world_prims[b.start + k] = p.transformed(&f.rot, &f.t);
+            }
+        } else {
+            for (k, g) in b.groups.iter().enumerate() {
+                self.world_groups[b.gstart + k] = g.bound.transformed(&f.rot, &f.t);
+            }
         }
     }
 
@@ -893,6 +942,9 @@ impl FastChecker {
         self.ensure_prims(a);
         self.ensure_prims(b);
         let (ma, mb) = (&self.moving[a], &self.moving[b]);
+        if !(ma.groups.is_empty() && mb.groups.is_empty()) {
+            return self.grouped_moving_hit_by(a, b, d);
+        }
         let (ra, rb) = (
             ma.start..ma.start + ma.local.len(),
             mb.start..mb.start + mb.local.len(),
@@ -929,19 +981,15 @@ impl FastChecker {
     fn static_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
         self.ensure_prims(a);
         let ma = &self.moving[a];
+        if !ma.groups.is_empty() {
+            return self.grouped_static_hit_by(a, b, d);
+        }
         let range = ma.start..ma.start + ma.local.len();
         let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
         let s = &self.statics[b];
-        for (x, &xr) in pa.iter().zip(rad) {
-            let (xc, r) = (x.centre(), xr + d);
-            let mut grown = None;
-            for (y, lo, hi) in &s.prims {
-                if dist2_point_aabb(xc, lo, hi) <= r * r && prims_hit(x.grown(d, &mut grown), y) {
-                    return true;
-                }
-            }
-        }
-        false
+        pa.iter()
+            .zip(rad)
+            .any(|(x, &xr)| groups::static_body_hits(s, x, xr, d))
     }
 }
 

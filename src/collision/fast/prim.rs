@@ -36,14 +36,15 @@ pub(crate) enum Prim {
 
 impl Prim {
     /// The primitives of one shape (one, but a mesh gives its cover's boxes: the coarse one on
-    /// a `moving` body), padded.
+    /// a `moving` body), padded, appended to `out`; true when they are a mesh's cover (boxes
+    /// of one rotation).
     pub(super) fn from_shape(
         origin: &Pose,
         shape: &Shape,
         pad: f64,
         moving: bool,
         out: &mut Vec<Prim>,
-    ) {
+    ) -> bool {
         let c = origin.translation.vector;
         let rot = *origin.rotation.to_rotation_matrix().matrix();
         let p = match shape {
@@ -85,10 +86,11 @@ impl Prim {
                     rot,
                     half: half.add_scalar(pad + EPS),
                 }));
-                return;
+                return true;
             }
         };
         out.push(p);
+        false
     }
 
     /// The primitive moved by a body pose `(rot, t)`.
