@@ -828,10 +828,13 @@ impl Ctx<'_> {
             }
             let cl = f.contact_link;
             let pose = palm * self.hand.link_in_palm(cl, &w.q);
-            if self.link_blocked(cl, &pose, true, &w.placed) {
+            // The contact link may enter the object by the tolerance ([`Self::link_blocked`]
+            // with `contact`, its depth computed once: it also sets the retry's target).
+            let depth = self.link_depth(cl, &pose);
+            let hand_free = self.hand_free(cl, &pose, &w.placed);
+            if depth > tol || !hand_free {
                 // Deeper than the tolerance or hitting the hand: only depth is worth a retry.
-                let depth = self.link_depth(cl, &pose);
-                if depth.is_finite() && depth > tol && self.hand_free(cl, &pose, &w.placed) {
+                if depth.is_finite() && depth > tol && hand_free {
                     target_p += n * (depth - tol / 2.0);
                     continue;
                 }
