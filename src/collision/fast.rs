@@ -126,6 +126,8 @@ pub struct FastChecker {
     group_radius: Vec<f64>,
     group_ready: Vec<u32>,
     unit_pairs: Vec<(u32, u32)>,
+    /// World centres of the sweep's mount spheres (per inflated check, `sweep.rs`).
+    mount_c: Vec<Vector3<f64>>,
     /// Bodies whose frames each check recomputes (all, except those no active variable moves);
     /// the box around the moving bodies covers these.
     dynamic: Vec<u32>,
@@ -540,6 +542,7 @@ impl FastChecker {
             group_radius,
             group_ready: vec![0; ng],
             unit_pairs: Vec::new(),
+            mount_c: Vec::new(),
             dynamic: (0..nb as u32).collect(),
             epoch: 0,
             checks: 0,
@@ -557,6 +560,7 @@ impl FastChecker {
             checker.split_constant_pairs(active, q0);
         }
         checker.sweep = sweep::Sweep::new(&checker);
+        checker.mount_c = vec![Vector3::zeros(); checker.sweep.mount_count()];
         checker
     }
 
@@ -756,6 +760,12 @@ impl FastChecker {
             Certification::Unproven => st.unproven += 1,
         }
         r
+    }
+
+    /// Forgets the motions proven so far ([`Self::certify_motion`] remembers the last 64): the
+    /// next check of any motion proves it again, as a new checker of the same world would.
+    pub fn forget_proven(&mut self) {
+        self.proven = ProvenMotions::default();
     }
 
     /// Starts the counts of [`Self::certify_stats`] again.
