@@ -743,13 +743,15 @@ fn chain(
 }
 
 /// Re-certifies every motion of `plan` in its phase's world and every waypoint's limits; the
-/// number of segments checked. The phases' worlds are `worlds[phase_world[i]]`: one new
-/// checker per world (not the chain's: every motion is proven again).
+/// number of segments checked. The phases' worlds are `worlds[phase_world[i]]`, checked with
+/// the chain's checker of that world (`checkers`, built where missing) after it forgot the
+/// motions it proved ([`FastChecker::forget_proven`]): every motion is proven again.
 fn certify(
     p: &PickPlaceProblem,
     plan: &TaskPlan,
     worlds: &[CollisionWorld],
     phase_world: &[usize],
+    checkers: &mut [Option<FastChecker>],
 ) -> Result<usize, PickPlaceTaskError> {
     if let Some(k) = plan.waypoints.iter().position(|q| !within_limits(p, q)) {
         return Err(PickPlaceTaskError::NotCertified {
@@ -759,10 +761,15 @@ fn certify(
         });
     }
     let mut n = 0;
-    let mut checkers: Vec<Option<FastChecker>> = vec![None; worlds.len()];
+    for c in checkers.iter_mut().flatten() {
+        c.forget_proven();
+    }
     for (i, ph) in plan.phases.iter().enumerate() {
-        let fast = match phase_world.get(i).and_then(|&w| Some((w, worlds.get(w)?))) {
-            Some((w, world)) => checkers[w].get_or_insert_with(|| FastChecker::new(world)),
+        let world = phase_world
+            .get(i)
+            .and_then(|&w| Some((worlds.get(w)?, checkers.get_mut(w)?)));
+        let fast = match world {
+            Some((world, c)) => c.get_or_insert_with(|| FastChecker::new(world)),
             None => {
                 return Err(PickPlaceTaskError::NotCertified {
                     phase: ph.name.clone(),
@@ -890,7 +897,7 @@ pub fn plan_pick_place(
                     elapsed_ms: ms(t0),
                 });
                 let t = Instant::now();
-                let n = certify(p, &c.plan, &c.worlds, &c.phase_world)?;
+                let n = certify(p, &c.plan, &c.worlds, &c.phase_world, &mut c.fast)?;
                 timings.certification_ms = ms(t);
                 timings.total_ms = ms(t0);
                 let mut plan = c.plan;
