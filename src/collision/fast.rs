@@ -2,8 +2,11 @@
 //!
 //! Every shape becomes one primitive with an exact, closed-form or support-function test:
 //! spheres, oriented boxes (separating axes), cylinders and capsules (closed form against
-//! spheres, boolean GJK against boxes and each other); meshes become the box around their
-//! vertices (a conservative superset). Each body (link, attached object, fixed body) has a
+//! spheres, boolean GJK against boxes and each other); a solid mesh becomes its box cover
+//! (`src/geometry/solid.rs`; the coarse one on robot links), another mesh the box around its
+//! vertices (conservative supersets). A body of many primitives (a fine cover: the statuette of
+//! paper 003 resting or held) is tested in two levels, group boxes first (`groups.rs`). Each body
+//! (link, attached object, fixed body) has a
 //! bounding sphere, fixed bodies a world-aligned box; these are tested first, and the pair list
 //! is precomputed from [`CollisionWorld::pairs`], without the pairs that no configuration within
 //! the joint limits brings together (reach balls about their first common ancestor, see

@@ -83,9 +83,9 @@ pub(super) struct Sweep {
     /// against a moving body) and, for the current inflation, squared with the largest growth
     /// of its pairs. A run whose mount sphere cannot reach `a` (or the fixed body's box) holds
     /// no pair that the pairs' own culls would let through: a body's sphere lies in its mount's.
-    static_runs: Vec<(u32, u32, u32, u32)>,
-    runs: Vec<(u32, u32, u32, u32)>,
-    mounts: Vec<(usize, usize, nalgebra::Vector3<f64>, f64)>,
+    static_runs: Vec<Run>,
+    runs: Vec<Run>,
+    mounts: Vec<MountSphere>,
     static_run_reach0: Vec<f64>,
     static_run_reach2: Vec<f64>,
     run_reach0: Vec<f64>,
@@ -112,6 +112,14 @@ pub(super) struct Sweep {
     next: Vec<Refine>,
     focus: Vec<u32>,
 }
+
+/// A run of pairs ([`Sweep::runs`]): first pair, end pair, the body all its pairs share, the
+/// mount link (index into [`Sweep::mounts`]) of the other bodies.
+type Run = (u32, u32, u32, u32);
+
+/// The sphere around the bodies riding on one link ([`Sweep::mounts`]): robot, link, centre in
+/// the link frame, radius.
+type MountSphere = (usize, usize, nalgebra::Vector3<f64>, f64);
 
 /// A run `[t0, t1]` of a certified check still to prove: the pairs tight at each end with the
 /// inflation of a run of its length (ranges into the pool). Every other pair is already proven
@@ -550,16 +558,9 @@ impl FastChecker {
 /// and over its moving–moving pairs (its pair list final) with each run's reach without growth.
 /// A mount sphere holds every body sphere of its link (grown by a relative 1e-12 and 1e-9 m
 /// against round-off).
-#[allow(clippy::type_complexity)]
-fn mount_runs(
-    c: &FastChecker,
-) -> (
-    Vec<(usize, usize, nalgebra::Vector3<f64>, f64)>,
-    (Vec<(u32, u32, u32, u32)>, Vec<f64>),
-    (Vec<(u32, u32, u32, u32)>, Vec<f64>),
-) {
+fn mount_runs(c: &FastChecker) -> (Vec<MountSphere>, (Vec<Run>, Vec<f64>), (Vec<Run>, Vec<f64>)) {
     use nalgebra::Vector3;
-    let mut mounts: Vec<(usize, usize, Vector3<f64>, f64)> = Vec::new();
+    let mut mounts: Vec<MountSphere> = Vec::new();
     let mut body_mount = Vec::with_capacity(c.moving.len());
     for b in &c.moving {
         let key = (b.mount.robot, b.mount.link);
@@ -595,7 +596,7 @@ fn mount_runs(
     }
     // Against a fixed body `b`, runs of the moving bodies `a` on one mount; moving pairs `(a,
     // b)`, runs of the bodies `b` on one mount.
-    let (mut static_runs, mut runs): (Vec<(u32, u32, u32, u32)>, Vec<_>) = (Vec::new(), Vec::new());
+    let (mut static_runs, mut runs): (Vec<Run>, Vec<Run>) = (Vec::new(), Vec::new());
     for (pi, p) in c.pairs.iter().enumerate() {
         let (runs, body, m) = if p.b_static {
             (&mut static_runs, p.b, body_mount[p.a as usize] as u32)
