@@ -121,6 +121,9 @@ type Run = (u32, u32, u32, u32);
 /// the link frame, radius.
 type MountSphere = (usize, usize, nalgebra::Vector3<f64>, f64);
 
+/// Runs and the reach of each without growth ([`Sweep::run_reach0`]).
+type RunsReach = (Vec<Run>, Vec<f64>);
+
 /// A run `[t0, t1]` of a certified check still to prove: the pairs tight at each end with the
 /// inflation of a run of its length (ranges into the pool). Every other pair is already proven
 /// free along the run.
@@ -558,7 +561,7 @@ impl FastChecker {
 /// and over its moving–moving pairs (its pair list final) with each run's reach without growth.
 /// A mount sphere holds every body sphere of its link (grown by a relative 1e-12 and 1e-9 m
 /// against round-off).
-fn mount_runs(c: &FastChecker) -> (Vec<MountSphere>, (Vec<Run>, Vec<f64>), (Vec<Run>, Vec<f64>)) {
+fn mount_runs(c: &FastChecker) -> (Vec<MountSphere>, RunsReach, RunsReach) {
     use nalgebra::Vector3;
     let mut mounts: Vec<MountSphere> = Vec::new();
     let mut body_mount = Vec::with_capacity(c.moving.len());
