@@ -86,6 +86,8 @@ pub(super) struct Sweep {
     static_runs: Vec<Run>,
     runs: Vec<Run>,
     mounts: Vec<MountSphere>,
+    /// The mounts of the runs of more than one pair (the others are not culled by run).
+    used_mounts: Vec<u32>,
     static_run_reach0: Vec<f64>,
     static_run_reach2: Vec<f64>,
     run_reach0: Vec<f64>,
@@ -223,7 +225,16 @@ impl Sweep {
             }
         }
         let (mounts, (static_runs, static_run_reach0), (runs, run_reach0)) = mount_runs(c);
+        let mut used_mounts: Vec<u32> = static_runs
+            .iter()
+            .chain(&runs)
+            .filter(|r| r.1 - r.0 > 1)
+            .map(|r| r.3)
+            .collect();
+        used_mounts.sort_unstable();
+        used_mounts.dedup();
         Sweep {
+            used_mounts,
             static_run_reach2: vec![0.0; static_runs.len()],
             static_runs,
             static_run_reach0,
@@ -479,16 +490,19 @@ impl FastChecker {
         let d = s.scale * s.lmax;
         let (lo, hi) = (self.moving_lo.add_scalar(-d), self.moving_hi.add_scalar(d));
         let mut tight = false;
-        for (m, &(robot, link, c, _)) in s.mounts.iter().enumerate() {
+        // Runs of one pair are culled by the pair itself (no mount centre needed).
+        for &m in &s.used_mounts {
+            let (robot, link, c, _) = s.mounts[m as usize];
             let f = &self.link_poses[robot][link];
-            self.mount_c[m] = f.rot * c + f.t;
+            self.mount_c[m as usize] = f.rot * c + f.t;
         }
         for ri in 0..s.static_runs.len() {
             let (first, end, sb, m) = s.static_runs[ri];
             let st = &self.statics[sb as usize];
             if (0..3).any(|k| st.lo[k] > hi[k] || st.hi[k] < lo[k])
-                || dist2_point_aabb(&self.mount_c[m as usize], &st.lo, &st.hi)
-                    > s.static_run_reach2[ri]
+                || (end - first > 1
+                    && dist2_point_aabb(&self.mount_c[m as usize], &st.lo, &st.hi)
+                        > s.static_run_reach2[ri])
             {
                 continue;
             }
@@ -520,8 +534,9 @@ impl FastChecker {
         }
         for ri in 0..s.runs.len() {
             let (first, end, a, m) = s.runs[ri];
-            if (self.body_bc[a as usize] - self.mount_c[m as usize]).norm_squared()
-                > s.run_reach2[ri]
+            if end - first > 1
+                && (self.body_bc[a as usize] - self.mount_c[m as usize]).norm_squared()
+                    > s.run_reach2[ri]
             {
                 continue;
             }
