@@ -2,8 +2,11 @@
 //!
 //! Every shape becomes one primitive with an exact, closed-form or support-function test:
 //! spheres, oriented boxes (separating axes), cylinders and capsules (closed form against
-//! spheres, boolean GJK against boxes and each other); meshes become the box around their
-//! vertices (a conservative superset). Each body (link, attached object, fixed body) has a
+//! spheres, boolean GJK against boxes and each other); a solid mesh becomes its box cover
+//! (`src/geometry/solid.rs`; the coarse one on robot links), another mesh the box around its
+//! vertices (conservative supersets). A body of many primitives (a fine cover: the statuette of
+//! paper 003 resting or held) is tested in two levels, group boxes first (`groups.rs`). Each body
+//! (link, attached object, fixed body) has a
 //! bounding sphere, fixed bodies a world-aligned box; these are tested first, and the pair list
 //! is precomputed from [`CollisionWorld::pairs`], without the pairs that no configuration within
 //! the joint limits brings together (reach balls about their first common ancestor, see
@@ -18,15 +21,20 @@
 //! prove are refused. What is proven and under which bound: `sweep.rs`. The discrete verdict of
 //! the states at the resolution remains as [`FastChecker::segment_free_skipping`] (tests).
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use super::world::{BodyId, CollisionWorld, PlacedRobot};
 use super::{CollisionChecker, Contact};
-use crate::geometry::{Pose, Shape};
+use crate::geometry::Shape;
 
 use crate::kinematics::{FkModel, Frame};
 
+mod groups;
+mod prim;
 mod sweep;
+
+pub(crate) use prim::Prim;
+use prim::{aabb, bounding_of, dist2_point_aabb, prims_hit, EPS};
 
 /// Settings of the fast model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,336 +49,9 @@ impl Default for FastModelSettings {
     }
 }
 
-/// Tolerance added to every primitive so rounding can never turn a touching pair free.
-const EPS: f64 = 1e-9;
-
 /// `prims_ready` mark of a body whose world primitives never change (a body that no active
 /// variable moves, see [`FastChecker::for_active`]).
 const PERMANENT: u32 = u32::MAX;
-
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum Prim {
-    Sphere {
-        c: Vector3<f64>,
-        r: f64,
-    },
-    Obb {
-        c: Vector3<f64>,
-        rot: Matrix3<f64>,
-        half: Vector3<f64>,
-    },
-    /// Exact against spheres; `half` is the enclosing box used against boxes.
-    Cylinder {
-        c: Vector3<f64>,
-        rot: Matrix3<f64>,
-        r: f64,
-        h: f64,
-    },
-    Capsule {
-        c: Vector3<f64>,
-        rot: Matrix3<f64>,
-        r: f64,
-        h: f64,
-    },
-}
-
-impl Prim {
-    /// The primitives of one shape (one, but a mesh gives its cover's boxes: the coarse one on
-    /// a `moving` body), padded.
-    fn from_shape(origin: &Pose, shape: &Shape, pad: f64, moving: bool, out: &mut Vec<Prim>) {
-        let c = origin.translation.vector;
-        let rot = *origin.rotation.to_rotation_matrix().matrix();
-        let p = match shape {
-            Shape::Sphere { radius } => Prim::Sphere {
-                c,
-                r: radius + pad + EPS,
-            },
-            Shape::Box { half_extents } => Prim::Obb {
-                c,
-                rot,
-                half: half_extents.add_scalar(pad + EPS),
-            },
-            Shape::Cylinder {
-                radius,
-                half_length,
-            } => Prim::Cylinder {
-                c,
-                rot,
-                r: radius + pad + EPS,
-                h: half_length + pad + EPS,
-            },
-            Shape::Capsule {
-                radius,
-                half_length,
-            } => Prim::Capsule {
-                c,
-                rot,
-                r: radius + pad + EPS,
-                h: *half_length,
-            },
-            Shape::Mesh(m) => {
-                let cover = if moving {
-                    m.moving_cover().0
-                } else {
-                    m.cover()
-                };
-                out.extend(cover.into_iter().map(|(mid, half)| Prim::Obb {
-                    c: c + rot * mid,
-                    rot,
-                    half: half.add_scalar(pad + EPS),
-                }));
-                return;
-            }
-        };
-        out.push(p);
-    }
-
-    /// The primitive moved by a body pose `(rot, t)`.
-    #[inline]
-    fn transformed(&self, r: &Matrix3<f64>, t: &Vector3<f64>) -> Prim {
-        match *self {
-            Prim::Sphere { c, r: rad } => Prim::Sphere {
-                c: r * c + t,
-                r: rad,
-            },
-            Prim::Obb { c, rot, half } => Prim::Obb {
-                c: r * c + t,
-                rot: r * rot,
-                half,
-            },
-            Prim::Cylinder { c, rot, r: rad, h } => Prim::Cylinder {
-                c: r * c + t,
-                rot: r * rot,
-                r: rad,
-                h,
-            },
-            Prim::Capsule { c, rot, r: rad, h } => Prim::Capsule {
-                c: r * c + t,
-                rot: r * rot,
-                r: rad,
-                h,
-            },
-        }
-    }
-
-    /// The primitive grown by `d` (radii and half extents): it contains every point within
-    /// `d` of the original.
-    #[inline]
-    fn inflated(&self, d: f64) -> Prim {
-        match *self {
-            Prim::Sphere { c, r } => Prim::Sphere { c, r: r + d },
-            Prim::Obb { c, rot, half } => Prim::Obb {
-                c,
-                rot,
-                half: half.add_scalar(d),
-            },
-            Prim::Cylinder { c, rot, r, h } => Prim::Cylinder {
-                c,
-                rot,
-                r: r + d,
-                h: h + d,
-            },
-            Prim::Capsule { c, rot, r, h } => Prim::Capsule {
-                c,
-                rot,
-                r: r + d,
-                h,
-            },
-        }
-    }
-
-    /// This primitive when `d` is 0, else it grown by `d` (made once, kept in `cache`).
-    #[inline(always)]
-    fn grown<'a>(&'a self, d: f64, cache: &'a mut Option<Prim>) -> &'a Prim {
-        if d > 0.0 {
-            cache.get_or_insert_with(|| self.inflated(d))
-        } else {
-            self
-        }
-    }
-
-    /// Centre of the primitive (of its bounding sphere).
-    #[inline]
-    fn centre(&self) -> &Vector3<f64> {
-        match self {
-            Prim::Sphere { c, .. }
-            | Prim::Obb { c, .. }
-            | Prim::Cylinder { c, .. }
-            | Prim::Capsule { c, .. } => c,
-        }
-    }
-
-    fn bounding(&self) -> (Vector3<f64>, f64) {
-        match *self {
-            Prim::Sphere { c, r } => (c, r),
-            Prim::Obb { c, half, .. } => (c, half.norm()),
-            Prim::Cylinder { c, r, h, .. } => (c, (r * r + h * h).sqrt()),
-            Prim::Capsule { c, r, h, .. } => (c, r + h),
-        }
-    }
-
-    /// Farthest point of the primitive in direction `d` (for GJK).
-    #[inline]
-    pub(crate) fn support(&self, d: &Vector3<f64>) -> Vector3<f64> {
-        match *self {
-            Prim::Sphere { c, r } => {
-                let n = d.norm();
-                if n > 0.0 {
-                    c + d * (r / n)
-                } else {
-                    c
-                }
-            }
-            Prim::Obb { c, rot, half } => {
-                let l = rot.tr_mul(d);
-                c + rot
-                    * Vector3::new(
-                        half.x.copysign(l.x),
-                        half.y.copysign(l.y),
-                        half.z.copysign(l.z),
-                    )
-            }
-            Prim::Cylinder { c, rot, r, h } => {
-                let l = rot.tr_mul(d);
-                let rad = (l.x * l.x + l.y * l.y).sqrt();
-                let (x, y) = if rad > 0.0 {
-                    (l.x * r / rad, l.y * r / rad)
-                } else {
-                    (0.0, 0.0)
-                };
-                c + rot * Vector3::new(x, y, h.copysign(l.z))
-            }
-            Prim::Capsule { c, rot, r, h } => {
-                let n = d.norm();
-                let ax = rot.column(2).into_owned();
-                let end = if ax.dot(d) >= 0.0 { ax * h } else { -ax * h };
-                if n > 0.0 {
-                    c + end + d * (r / n)
-                } else {
-                    c + end
-                }
-            }
-        }
-    }
-
-    /// Enclosing box (for tests against boxes).
-    #[inline]
-    fn as_obb(&self) -> (Vector3<f64>, Matrix3<f64>, Vector3<f64>) {
-        match *self {
-            Prim::Sphere { c, r } => (c, Matrix3::identity(), Vector3::repeat(r)),
-            Prim::Obb { c, rot, half } => (c, rot, half),
-            Prim::Cylinder { c, rot, r, h } => (c, rot, Vector3::new(r, r, h)),
-            Prim::Capsule { c, rot, r, h } => (c, rot, Vector3::new(r, r, h + r)),
-        }
-    }
-}
-
-#[inline]
-fn sphere_hits(c: &Vector3<f64>, r: f64, other: &Prim) -> bool {
-    match *other {
-        Prim::Sphere { c: c2, r: r2 } => (c - c2).norm_squared() <= (r + r2) * (r + r2),
-        Prim::Obb { c: c2, rot, half } => {
-            let p = rot.tr_mul(&(c - c2));
-            let d = Vector3::new(
-                (p.x.abs() - half.x).max(0.0),
-                (p.y.abs() - half.y).max(0.0),
-                (p.z.abs() - half.z).max(0.0),
-            );
-            d.norm_squared() <= r * r
-        }
-        Prim::Cylinder {
-            c: c2,
-            rot,
-            r: rc,
-            h,
-        } => {
-            let p = rot.tr_mul(&(c - c2));
-            let radial = (p.x * p.x + p.y * p.y).sqrt();
-            let dr = (radial - rc).max(0.0);
-            let dz = (p.z.abs() - h).max(0.0);
-            dr * dr + dz * dz <= r * r
-        }
-        Prim::Capsule {
-            c: c2,
-            rot,
-            r: rc,
-            h,
-        } => {
-            let p = rot.tr_mul(&(c - c2));
-            let z = p.z.clamp(-h, h);
-            let d2 = p.x * p.x + p.y * p.y + (p.z - z) * (p.z - z);
-            d2 <= (r + rc) * (r + rc)
-        }
-    }
-}
-
-/// Separating-axis test of two oriented boxes (Gottschalk et al.).
-#[inline]
-fn obb_obb(
-    ca: &Vector3<f64>,
-    ra: &Matrix3<f64>,
-    ha: &Vector3<f64>,
-    cb: &Vector3<f64>,
-    rb: &Matrix3<f64>,
-    hb: &Vector3<f64>,
-) -> bool {
-    let r = ra.tr_mul(rb);
-    let t = ra.tr_mul(&(cb - ca));
-    let mut abs_r = Matrix3::zeros();
-    for i in 0..3 {
-        for j in 0..3 {
-            abs_r[(i, j)] = r[(i, j)].abs() + 1e-12;
-        }
-    }
-    for i in 0..3 {
-        let rb_proj = hb.x * abs_r[(i, 0)] + hb.y * abs_r[(i, 1)] + hb.z * abs_r[(i, 2)];
-        if t[i].abs() > ha[i] + rb_proj {
-            return false;
-        }
-    }
-    for j in 0..3 {
-        let ra_proj = ha.x * abs_r[(0, j)] + ha.y * abs_r[(1, j)] + ha.z * abs_r[(2, j)];
-        let tp = t.x * r[(0, j)] + t.y * r[(1, j)] + t.z * r[(2, j)];
-        if tp.abs() > ra_proj + hb[j] {
-            return false;
-        }
-    }
-    for i in 0..3 {
-        let i1 = (i + 1) % 3;
-        let i2 = (i + 2) % 3;
-        for j in 0..3 {
-            let j1 = (j + 1) % 3;
-            let j2 = (j + 2) % 3;
-            let ra_p = ha[i1] * abs_r[(i2, j)] + ha[i2] * abs_r[(i1, j)];
-            let rb_p = hb[j1] * abs_r[(i, j2)] + hb[j2] * abs_r[(i, j1)];
-            let tp = t[i2] * r[(i1, j)] - t[i1] * r[(i2, j)];
-            if tp.abs() > ra_p + rb_p {
-                return false;
-            }
-        }
-    }
-    true
-}
-
-#[inline]
-fn prims_hit(a: &Prim, b: &Prim) -> bool {
-    match (a, b) {
-        (Prim::Sphere { c, r }, other) | (other, Prim::Sphere { c, r }) => {
-            sphere_hits(c, *r, other)
-        }
-        _ => {
-            let (ca, ra, ha) = a.as_obb();
-            let (cb, rb, hb) = b.as_obb();
-            if !obb_obb(&ca, &ra, &ha, &cb, &rb, &hb) {
-                return false;
-            }
-            if matches!((a, b), (Prim::Obb { .. }, Prim::Obb { .. })) {
-                return true;
-            }
-            super::gjk::intersect(|d| a.support(d), |d| b.support(d), cb - ca)
-        }
-    }
-}
 
 /// Where a moving body hangs: robot link or attached object.
 #[derive(Debug, Clone, Copy)]
@@ -390,6 +71,10 @@ struct MovingBody {
     br: f64,
     /// Range of this body's primitives in the per-check world buffer.
     start: usize,
+    /// Groups of `local` (empty: not grouped; `groups.rs`) and the first of them in the
+    /// per-check group buffers.
+    groups: Vec<groups::Group>,
+    gstart: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -397,29 +82,10 @@ struct StaticBodyModel {
     id: BodyId,
     /// Primitives in the world with their world-aligned boxes `(prim, lo, hi)`.
     prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)>,
+    /// Groups of `prims` (empty: not grouped; `groups.rs`).
+    groups: Vec<groups::StaticGroup>,
     lo: Vector3<f64>,
     hi: Vector3<f64>,
-}
-
-/// World-aligned box around a primitive.
-fn aabb(p: &Prim) -> (Vector3<f64>, Vector3<f64>) {
-    match *p {
-        Prim::Sphere { c, r } => (c.add_scalar(-r), c.add_scalar(r)),
-        _ => {
-            let (c, rot, half) = p.as_obb();
-            let ext = rot.abs() * half;
-            (c - ext, c + ext)
-        }
-    }
-}
-
-/// Squared distance from a point to a world-aligned box.
-#[inline]
-fn dist2_point_aabb(c: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> f64 {
-    let dx = (lo.x - c.x).max(0.0).max(c.x - hi.x);
-    let dy = (lo.y - c.y).max(0.0).max(c.y - hi.y);
-    let dz = (lo.z - c.z).max(0.0).max(c.z - hi.z);
-    dx * dx + dy * dy + dz * dz
 }
 
 /// Pair to test: moving body index, and either a static (is_static) or another moving body.
@@ -456,6 +122,15 @@ pub struct FastChecker {
     /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
     prim_radius: Vec<f64>,
     prims_ready: Vec<u32>,
+    /// Grouped bodies (`groups.rs`): the group boxes in the world (made with the body's
+    /// primitives' epoch, `prims_ready`), their bounding radii, the epoch of each group's
+    /// members in `world_prims`, and a scratch list of unit pairs.
+    world_groups: Vec<Prim>,
+    group_radius: Vec<f64>,
+    group_ready: Vec<u32>,
+    unit_pairs: Vec<(u32, u32)>,
+    /// World centres of the sweep's mount spheres (per inflated check, `sweep.rs`).
+    mount_c: Vec<Vector3<f64>>,
     /// Bodies whose frames each check recomputes (all, except those no active variable moves);
     /// the box around the moving bodies covers these.
     dynamic: Vec<u32>,
@@ -641,6 +316,7 @@ impl FastChecker {
             .collect();
         let mut attached_index: Vec<Option<usize>> = vec![None; world.attached.len()];
         let mut start = 0;
+        let mut gstart = 0;
         let mut overapprox: f64 = 0.0;
         let mut push_body = |id: BodyId,
                              mount: Mount,
@@ -651,21 +327,26 @@ impl FastChecker {
             // Primitives in the mount link's frame (the body's offset folded in), so a check
             // needs only the link frames.
             let mut local: Vec<Prim> = Vec::with_capacity(shapes.len());
+            let mut covers = Vec::new();
             for g in shapes {
-                Prim::from_shape(&g.origin, &g.shape, settings.padding, coarse, &mut local);
+                let first = local.len();
+                if Prim::from_shape(&g.origin, &g.shape, settings.padding, coarse, &mut local) {
+                    covers.push(first..local.len());
+                }
             }
             if let Some(f) = &rel {
                 for p in &mut local {
                     *p = p.transformed(&f.rot, &f.t);
                 }
             }
+            let groups = groups::group_moving(&mut local, &covers);
             let (bc, br) = bounding_of(&local);
             match id {
                 BodyId::Link { robot, link } => link_index[robot][link] = Some(moving.len()),
                 BodyId::Attached(a) => attached_index[a] = Some(moving.len()),
                 BodyId::Static(_) => {}
             }
-            let n = local.len();
+            let (n, ng) = (local.len(), groups.len());
             moving.push(MovingBody {
                 id,
                 mount,
@@ -673,8 +354,11 @@ impl FastChecker {
                 bc,
                 br,
                 start,
+                groups,
+                gstart,
             });
             start += n;
+            gstart += ng;
         };
         for (r, p) in world.robots.iter().enumerate() {
             for (l, link) in p.robot.links.iter().enumerate() {
@@ -716,13 +400,14 @@ impl FastChecker {
             for g in &st.shapes {
                 Prim::from_shape(&(st.pose * g.origin), &g.shape, 0.0, false, &mut plain);
             }
-            let prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = plain
+            let mut prims: Vec<(Prim, Vector3<f64>, Vector3<f64>)> = plain
                 .into_iter()
                 .map(|p| {
                     let (lo, hi) = aabb(&p);
                     (p, lo, hi)
                 })
                 .collect();
+            let groups = groups::group_static(&mut prims);
             let lo = prims
                 .iter()
                 .fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(&p.1));
@@ -733,6 +418,7 @@ impl FastChecker {
             statics.push(StaticBodyModel {
                 id: BodyId::Static(s),
                 prims,
+                groups,
                 lo,
                 hi,
             });
@@ -822,6 +508,11 @@ impl FastChecker {
             .iter()
             .flat_map(|b| b.local.iter().map(|p| p.bounding().1))
             .collect();
+        let group_radius: Vec<f64> = moving
+            .iter()
+            .flat_map(|b| b.groups.iter().map(|g| g.bound.bounding().1))
+            .collect();
+        let ng = group_radius.len();
         let mut checker = FastChecker {
             world: world.clone(),
             moving,
@@ -844,6 +535,17 @@ impl FastChecker {
             ],
             prim_radius,
             prims_ready: vec![0; nb],
+            world_groups: vec![
+                Prim::Sphere {
+                    c: Vector3::zeros(),
+                    r: 0.0
+                };
+                ng
+            ],
+            group_radius,
+            group_ready: vec![0; ng],
+            unit_pairs: Vec::new(),
+            mount_c: Vec::new(),
             dynamic: (0..nb as u32).collect(),
             epoch: 0,
             checks: 0,
@@ -861,6 +563,7 @@ impl FastChecker {
             checker.split_constant_pairs(active, q0);
         }
         checker.sweep = sweep::Sweep::new(&checker);
+        checker.mount_c = vec![Vector3::zeros(); checker.sweep.mount_count()];
         checker
     }
 
@@ -895,6 +598,7 @@ impl FastChecker {
         for i in 0..self.moving.len() {
             if still(&self.moving[i]) {
                 self.ensure_prims(i);
+                self.make_groups_permanent(i);
                 self.prims_ready[i] = PERMANENT;
             } else {
                 dynamic.push(i as u32);
@@ -1061,6 +765,12 @@ impl FastChecker {
         r
     }
 
+    /// Forgets the motions proven so far ([`Self::certify_motion`] remembers the last 64): the
+    /// next check of any motion proves it again, as a new checker of the same world would.
+    pub fn forget_proven(&mut self) {
+        self.proven = ProvenMotions::default();
+    }
+
     /// Starts the counts of [`Self::certify_stats`] again.
     pub fn reset_certify_stats(&mut self) {
         self.certify_stats = CertifyStats::default();
@@ -1107,14 +817,7 @@ impl FastChecker {
         }
         self.moving_lo = lo;
         self.moving_hi = hi;
-        self.epoch = self.epoch.wrapping_add(1);
-        if self.epoch == 0 || self.epoch == PERMANENT {
-            self.prims_ready
-                .iter_mut()
-                .filter(|e| **e != PERMANENT)
-                .for_each(|e| *e = 0);
-            self.epoch = 1;
-        }
+        self.next_epoch();
     }
 
     /// [`Self::prepare`] for a test of the pairs `focus` only (indices into the pair list):
@@ -1151,16 +854,25 @@ impl FastChecker {
                 }
             }
         }
+        self.next_epoch();
+    }
+
+    /// A new epoch of the world primitives (a new prepared configuration).
+    #[inline]
+    fn next_epoch(&mut self) {
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 || self.epoch == PERMANENT {
             self.prims_ready
                 .iter_mut()
+                .chain(self.group_ready.iter_mut())
                 .filter(|e| **e != PERMANENT)
                 .for_each(|e| *e = 0);
             self.epoch = 1;
         }
     }
 
+    /// The world primitives of moving body `i` for the prepared configuration; of a grouped
+    /// body its group boxes only (the members on demand, [`Self::ensure_group`]).
     #[inline]
     fn ensure_prims(&mut self, i: usize) {
         if self.prims_ready[i] == self.epoch || self.prims_ready[i] == PERMANENT {
@@ -1169,8 +881,14 @@ impl FastChecker {
         self.prims_ready[i] = self.epoch;
         let b = &self.moving[i];
         let f = &self.link_poses[b.mount.robot][b.mount.link];
-        for (k, p) in b.local.iter().enumerate() {
-            self.world_prims[b.start + k] = p.transformed(&f.rot, &f.t);
+        if b.groups.is_empty() {
+            for (k, p) in b.local.iter().enumerate() {
+                self.world_prims[b.start + k] = p.transformed(&f.rot, &f.t);
+            }
+        } else {
+            for (k, g) in b.groups.iter().enumerate() {
+                self.world_groups[b.gstart + k] = g.bound.transformed(&f.rot, &f.t);
+            }
         }
     }
 
@@ -1237,6 +955,9 @@ impl FastChecker {
         self.ensure_prims(a);
         self.ensure_prims(b);
         let (ma, mb) = (&self.moving[a], &self.moving[b]);
+        if !(ma.groups.is_empty() && mb.groups.is_empty()) {
+            return self.grouped_moving_hit_by(a, b, d);
+        }
         let (ra, rb) = (
             ma.start..ma.start + ma.local.len(),
             mb.start..mb.start + mb.local.len(),
@@ -1273,19 +994,15 @@ impl FastChecker {
     fn static_prims_hit_by(&mut self, a: usize, b: usize, d: f64) -> bool {
         self.ensure_prims(a);
         let ma = &self.moving[a];
+        if !ma.groups.is_empty() {
+            return self.grouped_static_hit_by(a, b, d);
+        }
         let range = ma.start..ma.start + ma.local.len();
         let (pa, rad) = (&self.world_prims[range.clone()], &self.prim_radius[range]);
         let s = &self.statics[b];
-        for (x, &xr) in pa.iter().zip(rad) {
-            let (xc, r) = (x.centre(), xr + d);
-            let mut grown = None;
-            for (y, lo, hi) in &s.prims {
-                if dist2_point_aabb(xc, lo, hi) <= r * r && prims_hit(x.grown(d, &mut grown), y) {
-                    return true;
-                }
-            }
-        }
-        false
+        pa.iter()
+            .zip(rad)
+            .any(|(x, &xr)| groups::static_body_hits(s, x, xr, d))
     }
 }
 
@@ -1354,29 +1071,6 @@ fn group_pairs(pairs: &[Pair]) -> (Vec<(u32, u32, u32)>, usize) {
     (static_groups, self_start)
 }
 
-fn bounding_of(prims: &[Prim]) -> (Vector3<f64>, f64) {
-    if prims.is_empty() {
-        return (Vector3::zeros(), 0.0);
-    }
-    // Centre: middle of the box around the primitive spheres; radius covers them all.
-    let mut lo = Vector3::repeat(f64::INFINITY);
-    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-    for p in prims {
-        let (c, r) = p.bounding();
-        lo = lo.inf(&c.add_scalar(-r));
-        hi = hi.sup(&c.add_scalar(r));
-    }
-    let c = (lo + hi) * 0.5;
-    let r = prims
-        .iter()
-        .map(|p| {
-            let (pc, pr) = p.bounding();
-            (pc - c).norm() + pr
-        })
-        .fold(0.0, f64::max);
-    (c, r * (1.0 + 1e-12) + EPS)
-}
-
 impl CollisionChecker for FastChecker {
     fn is_free(&mut self, q: &[f64]) -> bool {
         self.find(q).is_none()
@@ -1392,67 +1086,5 @@ impl CollisionChecker for FastChecker {
 
     fn checks(&self) -> u64 {
         self.checks
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn obb(c: [f64; 3], yaw: f64, h: [f64; 3]) -> Prim {
-        Prim::Obb {
-            c: Vector3::from(c),
-            rot: *nalgebra::Rotation3::from_euler_angles(0.0, 0.0, yaw).matrix(),
-            half: Vector3::from(h),
-        }
-    }
-
-    #[test]
-    fn obb_separation_on_edge_axes() {
-        // Two unit cubes, one turned 45° about z: corner-to-face distances decide.
-        let a = obb([0.0, 0.0, 0.0], 0.0, [0.5, 0.5, 0.5]);
-        let touching = obb(
-            [0.5 + 0.70, 0.0, 0.0],
-            std::f64::consts::FRAC_PI_4,
-            [0.5, 0.5, 0.5],
-        );
-        let apart = obb(
-            [0.5 + 0.72, 0.0, 0.0],
-            std::f64::consts::FRAC_PI_4,
-            [0.5, 0.5, 0.5],
-        );
-        assert!(prims_hit(&a, &touching));
-        assert!(!prims_hit(&a, &apart));
-    }
-
-    #[test]
-    fn sphere_against_cylinder_is_exact() {
-        let cyl = Prim::Cylinder {
-            c: Vector3::zeros(),
-            rot: Matrix3::identity(),
-            r: 0.1,
-            h: 0.2,
-        };
-        // Beside the mantle.
-        assert!(sphere_hits(&Vector3::new(0.149, 0.0, 0.0), 0.05, &cyl));
-        assert!(!sphere_hits(&Vector3::new(0.151, 0.0, 0.0), 0.05, &cyl));
-        // Diagonal from the rim: distance sqrt(0.03² + 0.04²) = 0.05.
-        assert!(sphere_hits(&Vector3::new(0.13, 0.0, 0.239), 0.05, &cyl));
-        assert!(!sphere_hits(&Vector3::new(0.13, 0.0, 0.241), 0.05, &cyl));
-    }
-
-    #[test]
-    fn sphere_against_capsule_and_box() {
-        let cap = Prim::Capsule {
-            c: Vector3::zeros(),
-            rot: Matrix3::identity(),
-            r: 0.1,
-            h: 0.2,
-        };
-        assert!(sphere_hits(&Vector3::new(0.0, 0.0, 0.349), 0.05, &cap));
-        assert!(!sphere_hits(&Vector3::new(0.0, 0.0, 0.351), 0.05, &cap));
-        let b = obb([0.0, 0.0, 0.0], 0.0, [0.1, 0.2, 0.3]);
-        assert!(sphere_hits(&Vector3::new(0.0, 0.249, 0.0), 0.05, &b));
-        assert!(!sphere_hits(&Vector3::new(0.0, 0.251, 0.0), 0.05, &b));
     }
 }

@@ -61,6 +61,10 @@ pub struct Solid {
     /// on how far it protrudes beyond the solid.
     pub moving_cover: Vec<CoverBox>,
     pub moving_protrusion: f64,
+    /// Per component: the box around its vertices and its triangles (a range of
+    /// `component_triangles`, indices into `triangles`), for [`Solid::winding`].
+    component_boxes: Vec<(Vector3<f64>, Vector3<f64>, std::ops::Range<usize>)>,
+    component_triangles: Vec<u32>,
 }
 
 impl Solid {
@@ -155,6 +159,30 @@ impl Solid {
             return Err("the surface encloses no volume".to_string());
         }
         let components = volume.len();
+        // Triangles by component, with the box around each component's vertices.
+        let mut by_root: Vec<(u32, u32)> = (0..tris.len() as u32)
+            .map(|t| (find(&mut parent, t), t))
+            .collect();
+        by_root.sort_unstable();
+        let component_triangles: Vec<u32> = by_root.iter().map(|&(_, t)| t).collect();
+        let mut component_boxes = Vec::with_capacity(components);
+        let mut first = 0;
+        while first < by_root.len() {
+            let root = by_root[first].0;
+            let end = first + by_root[first..].partition_point(|&(r, _)| r == root);
+            let (mut lo, mut hi) = (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            );
+            for &(_, t) in &by_root[first..end] {
+                for &i in &tris[t as usize] {
+                    lo = lo.inf(&welded[i as usize].coords);
+                    hi = hi.sup(&welded[i as usize].coords);
+                }
+            }
+            component_boxes.push((lo, hi, first..end));
+            first = end;
+        }
         let mut cells = COVER_CELLS;
         let (mut cover, mut cell) = cover(&welded, &tris, cells);
         while cover.len() > MAX_COVER_BOXES && cells > 6 {
@@ -185,15 +213,25 @@ impl Solid {
             cell,
             moving_cover,
             moving_protrusion,
+            component_boxes,
+            component_triangles,
         })
     }
 
     /// The generalized winding number of `p` (module docs): about 1 inside a component, 0
-    /// outside all, summed where components overlap.
+    /// outside all, summed where components overlap. A component whose box does not hold `p`
+    /// is left out: a closed surface's winding number is 0 outside it (exactly; summed over
+    /// its triangles it would add only round-off).
     pub fn winding(&self, p: &Vector3<f64>) -> f64 {
         let mut sum = 0.0;
-        for t in &self.triangles {
-            let [a, b, c] = t.map(|i| self.vertices[i as usize].coords - p);
+        let tris = self
+            .component_boxes
+            .iter()
+            .filter(|(lo, hi, _)| (0..3).all(|k| lo[k] <= p[k] && p[k] <= hi[k]))
+            .flat_map(|(_, _, r)| &self.component_triangles[r.clone()]);
+        for &t in tris {
+            let [a, b, c] =
+                self.triangles[t as usize].map(|i| self.vertices[i as usize].coords - p);
             let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
             // Van Oosterom & Strackee (1983): the solid angle of a triangle.
             let num = a.dot(&b.cross(&c));

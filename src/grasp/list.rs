@@ -55,7 +55,9 @@ use serde::{Deserialize, Serialize};
 use super::hand::{transform_sphere, Hand, HandError, WorkspaceParams};
 use super::so3_grid::{so3_grid, so3_grid_len, MAX_SO3_LEVEL};
 use super::surface::SurfaceSamples;
-use super::wrench_space::{grasp_quality, Contact, WrenchSpaceSettings};
+use super::wrench_space::{
+    forces_one_sided, primitive_wrenches_into, quality_of_wrenches, Contact, WrenchSpaceSettings,
+};
 use super::{object_centre, object_radius};
 use crate::collision::to_parry;
 use crate::geometry::{Geometry, Pose, Shape, Solid};
@@ -828,10 +830,13 @@ impl Ctx<'_> {
             }
             let cl = f.contact_link;
             let pose = palm * self.hand.link_in_palm(cl, &w.q);
-            if self.link_blocked(cl, &pose, true, &w.placed) {
+            // The contact link may enter the object by the tolerance ([`Self::link_blocked`]
+            // with `contact`, its depth computed once: it also sets the retry's target).
+            let depth = self.link_depth(cl, &pose);
+            let hand_free = self.hand_free(cl, &pose, &w.placed);
+            if depth > tol || !hand_free {
                 // Deeper than the tolerance or hitting the hand: only depth is worth a retry.
-                let depth = self.link_depth(cl, &pose);
-                if depth.is_finite() && depth > tol && self.hand_free(cl, &pose, &w.placed) {
+                if depth.is_finite() && depth > tol && hand_free {
                     target_p += n * (depth - tol / 2.0);
                     continue;
                 }
@@ -1066,7 +1071,16 @@ pub fn build_grasp_list(
                         .iter()
                         .map(|k| Contact::new(k.point, k.normal))
                         .collect();
-                    grasp_quality(&contacts, &object.centre, &ws_settings)
+                    // `grasp_quality`, with the hull skipped where the forces alone rule out
+                    // force closure.
+                    let mut w = Vec::new();
+                    let lambda =
+                        primitive_wrenches_into(&contacts, &object.centre, &ws_settings, &mut w)
+                            .ok()?;
+                    if forces_one_sided(&w) {
+                        return None;
+                    }
+                    quality_of_wrenches(&w, lambda)
                         .ok()
                         .filter(|g| g.force_closure && g.epsilon > 0.0)
                         .map(|g| (g.epsilon, contacts))

@@ -273,6 +273,38 @@ pub fn primitive_wrenches_into(
     Ok(lambda)
 }
 
+/// True when the force parts `f` of `wrenches` all lie in one open half-space with a margin —
+/// `v·f ≥ 10⁻⁶ |f|` for a unit `v` among their mean direction and each of their directions —
+/// so the origin lies outside the wrenches' hull by at least that margin and the grasp is not
+/// in force closure: a force-closure grasp's forces push in every direction (its wrench hull
+/// holds a ball about the origin, whose force part is a ball; 003 §IV-A-3). Decides most grasps
+/// without force closure before any hull; `false` decides nothing.
+pub fn forces_one_sided(wrenches: &[Point6]) -> bool {
+    let dir = |w: &Point6| {
+        let f = Vector3::new(w[0], w[1], w[2]);
+        let n = f.norm();
+        (n > 0.0 && n.is_finite()).then(|| f / n)
+    };
+    let mut mean = Vector3::zeros();
+    for w in wrenches {
+        match dir(w) {
+            Some(d) => mean += d,
+            // A wrench of no force (a soft finger's torque) is on every half-space's boundary.
+            None => return false,
+        }
+    }
+    let separates = |v: Vector3<f64>| {
+        let n = v.norm();
+        n > 0.0
+            && n.is_finite()
+            && wrenches.iter().all(|w| {
+                let f = Vector3::new(w[0], w[1], w[2]);
+                v.dot(&f) / n >= 1e-6 * f.norm()
+            })
+    };
+    separates(mean) || wrenches.iter().filter_map(dir).any(separates)
+}
+
 /// The primitive wrenches (see [`primitive_wrenches_into`]).
 pub fn primitive_wrenches(
     contacts: &[Contact],

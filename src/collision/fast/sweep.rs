@@ -75,6 +75,23 @@ pub(super) struct Sweep {
     /// Per pair: the reach of its cull without growth (bounding-sphere radii), contiguous
     /// for `set_inflation` (read from the bodies it measured 5 % slower on IK-RRT).
     pair_reach0: Vec<f64>,
+    /// The pairs in runs `(first pair, end pair, body, mount)` of consecutive pairs: a moving
+    /// body `a` against moving bodies that ride on one link (a hand's links in a checker that
+    /// freezes the fingers), or a fixed body against moving bodies on one link; the spheres
+    /// around the bodies of each mount link `(robot, link, centre in the link frame, radius)`;
+    /// per run, the reach of its cull without growth (the mount sphere's radius, plus `a`'s
+    /// against a moving body) and, for the current inflation, squared with the largest growth
+    /// of its pairs. A run whose mount sphere cannot reach `a` (or the fixed body's box) holds
+    /// no pair that the pairs' own culls would let through: a body's sphere lies in its mount's.
+    static_runs: Vec<Run>,
+    runs: Vec<Run>,
+    mounts: Vec<MountSphere>,
+    /// The mounts of the runs of more than one pair (the others are not culled by run).
+    used_mounts: Vec<u32>,
+    static_run_reach0: Vec<f64>,
+    static_run_reach2: Vec<f64>,
+    run_reach0: Vec<f64>,
+    run_reach2: Vec<f64>,
     /// The farthest any body travels along the current segment, and half the current run's
     /// share of the segment (a body's inflation is `scale` times its travel).
     lmax: f64,
@@ -97,6 +114,17 @@ pub(super) struct Sweep {
     next: Vec<Refine>,
     focus: Vec<u32>,
 }
+
+/// A run of pairs ([`Sweep::runs`]): first pair, end pair, the body all its pairs share, the
+/// mount link (index into [`Sweep::mounts`]) of the other bodies.
+type Run = (u32, u32, u32, u32);
+
+/// The sphere around the bodies riding on one link ([`Sweep::mounts`]): robot, link, centre in
+/// the link frame, radius.
+type MountSphere = (usize, usize, nalgebra::Vector3<f64>, f64);
+
+/// Runs and the reach of each without growth ([`Sweep::run_reach0`]).
+type RunsReach = (Vec<Run>, Vec<f64>);
 
 /// A run `[t0, t1]` of a certified check still to prove: the pairs tight at each end with the
 /// inflation of a run of its length (ranges into the pool). Every other pair is already proven
@@ -196,7 +224,24 @@ impl Sweep {
                 }
             }
         }
+        let (mounts, (static_runs, static_run_reach0), (runs, run_reach0)) = mount_runs(c);
+        let mut used_mounts: Vec<u32> = static_runs
+            .iter()
+            .chain(&runs)
+            .filter(|r| r.1 - r.0 > 1)
+            .map(|r| r.3)
+            .collect();
+        used_mounts.sort_unstable();
+        used_mounts.dedup();
         Sweep {
+            used_mounts,
+            static_run_reach2: vec![0.0; static_runs.len()],
+            static_runs,
+            static_run_reach0,
+            run_reach2: vec![0.0; runs.len()],
+            runs,
+            mounts,
+            run_reach0,
             prismatic,
             state_tight: Vec::new(),
             pool: Vec::new(),
@@ -233,6 +278,11 @@ impl Sweep {
         }
     }
 
+    /// Mount spheres ([`Sweep::runs`]).
+    pub(super) fn mount_count(&self) -> usize {
+        self.mounts.len()
+    }
+
     /// The distance each body's points travel along `a → b` (the running sums `cum`, the
     /// largest in `lmax`).
     fn lengths(&mut self, a: &[f64], b: &[f64]) {
@@ -259,6 +309,22 @@ impl Sweep {
             let reach = self.pair_reach0[pi] + d;
             self.pair_d[pi] = d;
             self.pair_reach2[pi] = reach * reach;
+        }
+        for (runs, reach0, reach2) in [
+            (
+                &self.static_runs,
+                &self.static_run_reach0,
+                &mut self.static_run_reach2,
+            ),
+            (&self.runs, &self.run_reach0, &mut self.run_reach2),
+        ] {
+            for (ri, &(first, end, _, _)) in runs.iter().enumerate() {
+                let d = self.pair_d[first as usize..end as usize]
+                    .iter()
+                    .fold(0.0f64, |m, &d| m.max(d));
+                let reach = reach0[ri] + d;
+                reach2[ri] = reach * reach;
+            }
         }
     }
 
@@ -424,10 +490,20 @@ impl FastChecker {
         let d = s.scale * s.lmax;
         let (lo, hi) = (self.moving_lo.add_scalar(-d), self.moving_hi.add_scalar(d));
         let mut tight = false;
-        for g in 0..self.static_groups.len() {
-            let (sb, first, end) = self.static_groups[g];
+        // Runs of one pair are culled by the pair itself (no mount centre needed).
+        for &m in &s.used_mounts {
+            let (robot, link, c, _) = s.mounts[m as usize];
+            let f = &self.link_poses[robot][link];
+            self.mount_c[m as usize] = f.rot * c + f.t;
+        }
+        for ri in 0..s.static_runs.len() {
+            let (first, end, sb, m) = s.static_runs[ri];
             let st = &self.statics[sb as usize];
-            if (0..3).any(|k| st.lo[k] > hi[k] || st.hi[k] < lo[k]) {
+            if (0..3).any(|k| st.lo[k] > hi[k] || st.hi[k] < lo[k])
+                || (end - first > 1
+                    && dist2_point_aabb(&self.mount_c[m as usize], &st.lo, &st.hi)
+                        > s.static_run_reach2[ri])
+            {
                 continue;
             }
             for pi in first as usize..end as usize {
@@ -456,27 +532,36 @@ impl FastChecker {
                 }
             }
         }
-        for pi in self.self_start..self.pairs.len() {
-            if tight && !logging {
-                if self.moving_pair_hits(self.pairs[pi]) {
-                    return Inflated::Hit;
-                }
-                continue;
-            }
-            let p = self.pairs[pi];
-            let (a, b, d) = (p.a as usize, p.b as usize, s.pair_d[pi]);
-            if (self.body_bc[a] - self.body_bc[b]).norm_squared() > s.pair_reach2[pi]
-                || !self.moving_prims_hit_by(a, b, d)
+        for ri in 0..s.runs.len() {
+            let (first, end, a, m) = s.runs[ri];
+            if end - first > 1
+                && (self.body_bc[a as usize] - self.mount_c[m as usize]).norm_squared()
+                    > s.run_reach2[ri]
             {
                 continue;
             }
-            if d > 0.0 && !self.moving_prims_hit(a, b) {
-                tight = true;
-                if let Some(l) = log.as_deref_mut() {
-                    l.push(pi as u32);
+            for pi in first as usize..end as usize {
+                if tight && !logging {
+                    if self.moving_pair_hits(self.pairs[pi]) {
+                        return Inflated::Hit;
+                    }
+                    continue;
                 }
-            } else {
-                return Inflated::Hit;
+                let p = self.pairs[pi];
+                let (a, b, d) = (p.a as usize, p.b as usize, s.pair_d[pi]);
+                if (self.body_bc[a] - self.body_bc[b]).norm_squared() > s.pair_reach2[pi]
+                    || !self.moving_prims_hit_by(a, b, d)
+                {
+                    continue;
+                }
+                if d > 0.0 && !self.moving_prims_hit(a, b) {
+                    tight = true;
+                    if let Some(l) = log.as_deref_mut() {
+                        l.push(pi as u32);
+                    }
+                } else {
+                    return Inflated::Hit;
+                }
             }
         }
         if tight {
@@ -485,6 +570,71 @@ impl FastChecker {
             Inflated::Free
         }
     }
+}
+
+/// The mount spheres of [`Sweep::runs`], and the runs over `c`'s pairs against fixed bodies
+/// and over its moving–moving pairs (its pair list final) with each run's reach without growth.
+/// A mount sphere holds every body sphere of its link (grown by a relative 1e-12 and 1e-9 m
+/// against round-off).
+fn mount_runs(c: &FastChecker) -> (Vec<MountSphere>, RunsReach, RunsReach) {
+    use nalgebra::Vector3;
+    let mut mounts: Vec<MountSphere> = Vec::new();
+    let mut body_mount = Vec::with_capacity(c.moving.len());
+    for b in &c.moving {
+        let key = (b.mount.robot, b.mount.link);
+        let m = match mounts.iter().position(|m| (m.0, m.1) == key) {
+            Some(m) => m,
+            None => {
+                mounts.push((key.0, key.1, Vector3::zeros(), 0.0));
+                mounts.len() - 1
+            }
+        };
+        body_mount.push(m);
+    }
+    for (m, mount) in mounts.iter_mut().enumerate() {
+        let bodies = || {
+            c.moving
+                .iter()
+                .zip(&body_mount)
+                .filter(move |(_, &bm)| bm == m)
+                .map(|(b, _)| b)
+        };
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for b in bodies() {
+            lo = lo.inf(&b.bc.add_scalar(-b.br));
+            hi = hi.sup(&b.bc.add_scalar(b.br));
+        }
+        let centre = (lo + hi) * 0.5;
+        let r = bodies()
+            .map(|b| (b.bc - centre).norm() + b.br)
+            .fold(0.0f64, f64::max);
+        mount.2 = centre;
+        mount.3 = r * (1.0 + 1e-12) + 1e-9;
+    }
+    // Against a fixed body `b`, runs of the moving bodies `a` on one mount; moving pairs `(a,
+    // b)`, runs of the bodies `b` on one mount.
+    let (mut static_runs, mut runs): (Vec<Run>, Vec<Run>) = (Vec::new(), Vec::new());
+    for (pi, p) in c.pairs.iter().enumerate() {
+        let (runs, body, m) = if p.b_static {
+            (&mut static_runs, p.b, body_mount[p.a as usize] as u32)
+        } else {
+            (&mut runs, p.a, body_mount[p.b as usize] as u32)
+        };
+        match runs.last_mut() {
+            Some(r) if r.1 as usize == pi && r.2 == body && r.3 == m => r.1 += 1,
+            _ => runs.push((pi as u32, pi as u32 + 1, body, m)),
+        }
+    }
+    let static_reach0 = static_runs
+        .iter()
+        .map(|&(_, _, _, m)| mounts[m as usize].3)
+        .collect();
+    let reach0 = runs
+        .iter()
+        .map(|&(_, _, a, m)| c.moving[a as usize].br + mounts[m as usize].3)
+        .collect();
+    (mounts, (static_runs, static_reach0), (runs, reach0))
 }
 
 /// The state `a + (b − a)·t` into `out`.

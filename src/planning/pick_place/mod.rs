@@ -22,6 +22,7 @@
 
 pub mod configurations;
 pub mod exchange;
+mod hands;
 pub mod task;
 
 use std::sync::Arc;

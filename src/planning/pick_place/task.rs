@@ -48,6 +48,8 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::configurations::{within_limits, ConfigParams, KeyConfigurations};
+pub use super::hands::finger_preshape;
+use super::hands::{approachable, fingers_of, with_fingers};
 use super::{exchange_grid, key_configurations, ArmHand, PickPlaceError, PickPlaceProblem};
 use crate::collision::{
     CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
@@ -405,102 +407,6 @@ pub struct PickPlacePlan {
     pub timings: OnlineTimings,
 }
 
-fn fingers_of(ah: &ArmHand, q: &[f64]) -> Vec<f64> {
-    ah.hand.vars.iter().map(|&v| q[v]).collect()
-}
-
-fn with_fingers(ah: &ArmHand, q: &[f64], values: &[f64]) -> Vec<f64> {
-    let mut q = q.to_vec();
-    for (&v, &x) in ah.hand.vars.iter().zip(values) {
-        q[v] = x;
-    }
-    q
-}
-
-/// The finger-wise pre-shape of a grasp (module docs): `q` with each finger of `ah`'s hand
-/// opened from its values in `q` by the first of `fractions` at which that finger's links are
-/// free of `object`, the palm at `palm` in the object frame. Opened towards the finger's
-/// stretched values ([`crate::grasp::Finger::rest`]), or with `extended` towards the joint
-/// limits beyond them (each IK variable to the limit on the side of its stretched value from
-/// mid-range; one whose stretched value is mid-range, a spread, to that value): the most
-/// clearance on the palm side, what the fast checker's conservative model of the object needs.
-/// `None` when some finger has no such fraction: the grasp wraps the object so that the hand
-/// cannot come to it open (a finger hooked around a leg).
-pub fn finger_preshape(
-    ah: &ArmHand,
-    object: &GraspObject,
-    palm: &Pose,
-    q: &[f64],
-    fractions: &[f64],
-    extended: bool,
-) -> Option<Vec<f64>> {
-    let h = &ah.hand;
-    let mut out = q.to_vec();
-    for f in &h.fingers {
-        let target: Vec<f64> = (0..f.ik_vars.len().min(3))
-            .map(|k| {
-                let (v, r, m) = (f.ik_vars[k], f.rest[k], f.mid[k]);
-                let l = h.robot.var_limits(v);
-                match (extended, (r - m).abs() > 1e-9) {
-                    (true, true) if r < m => l.lower,
-                    (true, true) => l.upper,
-                    (_, _) => r,
-                }
-            })
-            .collect();
-        let opened = fractions.iter().find_map(|&s| {
-            let mut qq = out.clone();
-            for (&v, &r) in f.ik_vars.iter().zip(&target) {
-                // Clamped: `q + 1 · (limit − q)` may round past the limit.
-                let l = h.robot.var_limits(v);
-                let x = q[v] + s * (r - q[v]);
-                qq[v] = if l.bounded {
-                    x.clamp(l.lower, l.upper)
-                } else {
-                    x
-                };
-            }
-            let hit = f.links.iter().any(|&l| {
-                let lp = palm * h.link_in_palm(l, &qq);
-                h.shapes.get(&l).is_some_and(|shapes| {
-                    shapes
-                        .iter()
-                        .any(|(sh, local)| object.hits(sh, &(lp * local), f64::INFINITY))
-                })
-            });
-            (!hit).then_some(qq)
-        })?;
-        out = opened;
-    }
-    Some(out)
-}
-
-/// The grasps of `list` that admit a [`finger_preshape`] (a copy of the list with only those)
-/// and their indices in `list`.
-fn approachable(
-    ah: &ArmHand,
-    object: &GraspObject,
-    list: &GraspList,
-    rest: &[f64],
-    fractions: &[f64],
-) -> (GraspList, Vec<usize>) {
-    let idx: Vec<usize> = list
-        .grasps
-        .iter()
-        .enumerate()
-        .filter(|(_, g)| {
-            let q = with_fingers(ah, rest, &g.config);
-            [true, false].into_iter().any(|ext| {
-                finger_preshape(ah, object, &g.palm_pose(), &q, fractions, ext).is_some()
-            })
-        })
-        .map(|(i, _)| i)
-        .collect();
-    let mut out = list.clone();
-    out.grasps = idx.iter().map(|&i| list.grasps[i].clone()).collect();
-    (out, idx)
-}
-
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
@@ -517,14 +423,41 @@ struct Chain<'a> {
     pick_index: &'a [usize],
     place_index: &'a [usize],
     plan: TaskPlan,
+    /// The world of each phase of `plan` (an index into `worlds`).
+    phase_world: Vec<usize>,
     queries: Vec<QueryRecord>,
     seed: u64,
     attempt: usize,
     t0: Instant,
+    /// The worlds of the chain (object resting at q_o^i, held by one hand or both, resting at
+    /// q_o^f) and their checkers, each built once per attempt when first needed.
+    worlds: Vec<CollisionWorld>,
+    fast: Vec<Option<FastChecker>>,
+    exact: Vec<Option<ExactChecker>>,
 }
 
+/// The worlds of [`Chain::worlds`].
+const W_INITIAL: usize = 0;
+const W_PICK_HAND: usize = 1;
+const W_BOTH_HANDS: usize = 2;
+const W_PLACE_HAND: usize = 3;
+const W_FINAL: usize = 4;
+
 impl Chain<'_> {
-    fn append(&mut self, name: &str, planner: &str, path: Vec<Vec<f64>>, world: &CollisionWorld) {
+    /// The fast checker of world `w` (built on first use: one per world and attempt, so a hand
+    /// motion certified while its pre-shape was chosen is not proven again).
+    fn fast(&mut self, w: usize) -> &mut FastChecker {
+        let world = &self.worlds[w];
+        self.fast[w].get_or_insert_with(|| FastChecker::new(world))
+    }
+
+    /// The exact checker of world `w` (built on first use).
+    fn exact(&mut self, w: usize) -> &mut ExactChecker {
+        let world = &self.worlds[w];
+        self.exact[w].get_or_insert_with(|| ExactChecker::new(world))
+    }
+
+    fn append(&mut self, name: &str, planner: &str, path: Vec<Vec<f64>>, w: usize) {
         let first = self.plan.waypoints.len().saturating_sub(1);
         let skip = usize::from(!self.plan.waypoints.is_empty());
         let vertices = path.len();
@@ -539,8 +472,9 @@ impl Chain<'_> {
                 vertices_simplified: vertices,
                 ..PlanStats::default()
             },
-            world: world.clone(),
+            world: self.worlds[w].clone(),
         });
+        self.phase_world.push(w);
     }
 
     fn event(&mut self, kind: EventKind, ah: &ArmHand, grasp: String) {
@@ -558,46 +492,39 @@ impl Chain<'_> {
         self.plan.waypoints.last().cloned().unwrap_or_default()
     }
 
-    /// A straight finger motion from the last waypoint to `q`, certified in `world`.
-    fn fingers(
-        &mut self,
-        name: &str,
-        q: Vec<f64>,
-        world: &CollisionWorld,
-    ) -> Result<(), PickPlaceTaskError> {
+    /// A straight finger motion from the last waypoint to `q`, certified in world `w`.
+    fn fingers(&mut self, name: &str, q: Vec<f64>, w: usize) -> Result<(), PickPlaceTaskError> {
         let a = self.last();
         if a == q {
             return Ok(());
         }
-        if !FastChecker::new(world).motion_certified(&a, &q) {
+        if !self.fast(w).motion_certified(&a, &q) {
             return Err(PickPlaceTaskError::Hand(format!(
                 "{name}: the hand motion is not certified free"
             )));
         }
-        self.append(name, "fingers", vec![a, q], world);
+        self.append(name, "fingers", vec![a, q], w);
         Ok(())
     }
 
     /// The pre-shaped hand (module docs): `q` (the hand closed on grasp `palm`, the palm pose
     /// in the object frame) with `ah`'s fingers opened — finger by finger ([`finger_preshape`]),
     /// else all together towards their rest values by the first fraction — to a configuration
-    /// free in `state_world` (exact and fast checker) whose motion from `q` is certified in
-    /// `motion_world`.
+    /// free in world `state` (exact and fast checker) whose motion from `q` is certified in
+    /// world `motion`.
     fn open_hand(
-        &self,
+        &mut self,
         ah: &ArmHand,
         palm: &Pose,
         q: &[f64],
-        state_world: &CollisionWorld,
-        motion_world: &CollisionWorld,
+        (state, motion): (usize, usize),
         what: &str,
     ) -> Result<Vec<f64>, PickPlaceTaskError> {
         let closed = fingers_of(ah, q);
         let open = fingers_of(ah, &self.p.rest);
-        let mut exact = ExactChecker::new(state_world);
-        let mut fast = FastChecker::new(state_world);
-        let mut motion = FastChecker::new(motion_world);
-        let fractions = &self.settings.finger_fractions;
+        // The task's data outlives the chain: the candidates borrow it, not the chain.
+        let (settings, off) = (self.settings, self.off);
+        let fractions = &settings.finger_fractions;
         let uniform = fractions.iter().map(|&s| {
             let f: Vec<f64> = closed
                 .iter()
@@ -606,13 +533,16 @@ impl Chain<'_> {
                 .collect();
             with_fingers(ah, q, &f)
         });
-        let object = &self.off.object;
+        let object = &off.object;
         let candidates = [true, false]
             .into_iter()
             .filter_map(|ext| finger_preshape(ah, object, palm, q, fractions, ext))
             .chain(uniform);
         for qq in candidates {
-            if exact.is_free(&qq) && fast.is_free(&qq) && motion.motion_certified(q, &qq) {
+            if self.exact(state).is_free(&qq)
+                && self.fast(state).is_free(&qq)
+                && self.fast(motion).motion_certified(q, &qq)
+            {
                 return Ok(qq);
             }
         }
@@ -623,12 +553,12 @@ impl Chain<'_> {
         )))
     }
 
-    /// Query `name` from the last waypoint to `goal` in `world`, appended.
+    /// Query `name` from the last waypoint to `goal` in world `w`, appended.
     fn query(
         &mut self,
         name: &'static str,
         goal: Vec<f64>,
-        world: &CollisionWorld,
+        w: usize,
         term: &mut Termination,
         progress: &mut dyn FnMut(TaskProgress),
     ) -> Result<(), PickPlaceTaskError> {
@@ -645,6 +575,7 @@ impl Chain<'_> {
         let start = self.last();
         let seed = self.seed.wrapping_add(self.queries.len() as u64 + 1);
         let sg = &self.off.graph;
+        let world = &self.worlds[w];
         let tagged = |error: PlanError| PickPlaceTaskError::Phase {
             phase: name.into(),
             error,
@@ -705,7 +636,7 @@ impl Chain<'_> {
             MotionPlanner::Roadmap => "super_graph",
             MotionPlanner::RrtConnect => "rrt_connect",
         };
-        self.append(name, planner, path, world);
+        self.append(name, planner, path, w);
         if let Some(ph) = self.plan.phases.last_mut() {
             ph.stats.time = Duration::from_secs_f64(rec.total_ms.max(0.0) / 1e3);
         }
@@ -767,9 +698,13 @@ fn chain(
     if let Some(s) = w_f.statics.iter_mut().find(|s| s.name == p.object_name) {
         s.pose = p.final_pose;
     }
+    c.worlds = vec![w_i.clone(), h_a, h_ab, h_b, w_f];
+    c.fast = vec![None, None, None, None, None];
+    c.exact = vec![None, None, None, None, None];
+    let (w_i, h_a, h_ab, h_b, w_f) = (W_INITIAL, W_PICK_HAND, W_BOTH_HANDS, W_PLACE_HAND, W_FINAL);
 
     // Grasp: pre-shape the pick hand at rest, reach q_r^g pre-shaped, close.
-    let qg_open = c.open_hand(pick, &palm_a, &qg, w_i, &h_a, "grasp")?;
+    let qg_open = c.open_hand(pick, &palm_a, &qg, (w_i, h_a), "grasp")?;
     c.plan.waypoints = vec![p.rest.clone()];
     c.fingers(
         "pick_preshape",
@@ -777,39 +712,47 @@ fn chain(
         w_i,
     )?;
     c.query("grasp", qg_open, w_i, term, progress)?;
-    c.fingers("pick_close", qg.clone(), &h_a)?;
+    c.fingers("pick_close", qg.clone(), h_a)?;
     c.event(EventKind::Grasp, pick, name_a.clone());
 
     // Carry: pre-shape the place hand, bring the object to q_o^e, close the place hand.
-    let qe_open = c.open_hand(place, &palm_b, &qe, &h_a, &h_ab, "exchange")?;
+    let qe_open = c.open_hand(place, &palm_b, &qe, (h_a, h_ab), "exchange")?;
     let place_pre = fingers_of(place, &qe_open);
-    c.fingers("place_preshape", with_fingers(place, &qg, &place_pre), &h_a)?;
-    c.query("carry", qe_open, &h_a, term, progress)?;
-    c.fingers("place_close", qe.clone(), &h_ab)?;
+    c.fingers("place_preshape", with_fingers(place, &qg, &place_pre), h_a)?;
+    c.query("carry", qe_open, h_a, term, progress)?;
+    c.fingers("place_close", qe.clone(), h_ab)?;
     c.event(EventKind::Grasp, place, name_b.clone());
     c.event(EventKind::Release, pick, name_a);
 
     // Place: open the pick hand, bring the object to q_o^f.
-    let qe_free = c.open_hand(pick, &palm_a, &qe, &h_b, &h_ab, "exchange")?;
-    c.fingers("pick_open", qe_free.clone(), &h_ab)?;
+    let qe_free = c.open_hand(pick, &palm_a, &qe, (h_b, h_ab), "exchange")?;
+    c.fingers("pick_open", qe_free.clone(), h_ab)?;
     let qp = with_fingers(pick, &keys.place.q, &fingers_of(pick, &qe_free));
-    c.query("place", qp.clone(), &h_b, term, progress)?;
+    c.query("place", qp.clone(), h_b, term, progress)?;
     c.event(EventKind::Release, place, name_b);
 
     // Rest: open the place hand, back to q_r^i, fingers to their rest values.
-    let qp_open = c.open_hand(place, &palm_b, &qp, &w_f, &h_b, "place")?;
-    c.fingers("place_open", qp_open.clone(), &h_b)?;
+    let qp_open = c.open_hand(place, &palm_b, &qp, (w_f, h_b), "place")?;
+    c.fingers("place_open", qp_open.clone(), h_b)?;
     let mut q_end = p.rest.clone();
     q_end = with_fingers(pick, &q_end, &fingers_of(pick, &qp_open));
     q_end = with_fingers(place, &q_end, &fingers_of(place, &qp_open));
-    c.query("rest", q_end, &w_f, term, progress)?;
-    c.fingers("fingers_rest", p.rest.clone(), &w_f)?;
+    c.query("rest", q_end, w_f, term, progress)?;
+    c.fingers("fingers_rest", p.rest.clone(), w_f)?;
     Ok(())
 }
 
 /// Re-certifies every motion of `plan` in its phase's world and every waypoint's limits; the
-/// number of segments checked.
-fn certify(p: &PickPlaceProblem, plan: &TaskPlan) -> Result<usize, PickPlaceTaskError> {
+/// number of segments checked. The phases' worlds are `worlds[phase_world[i]]`, checked with
+/// the chain's checker of that world (`checkers`, built where missing) after it forgot the
+/// motions it proved ([`FastChecker::forget_proven`]): every motion is proven again.
+fn certify(
+    p: &PickPlaceProblem,
+    plan: &TaskPlan,
+    worlds: &[CollisionWorld],
+    phase_world: &[usize],
+    checkers: &mut [Option<FastChecker>],
+) -> Result<usize, PickPlaceTaskError> {
     if let Some(k) = plan.waypoints.iter().position(|q| !within_limits(p, q)) {
         return Err(PickPlaceTaskError::NotCertified {
             phase: "plan".into(),
@@ -818,8 +761,23 @@ fn certify(p: &PickPlaceProblem, plan: &TaskPlan) -> Result<usize, PickPlaceTask
         });
     }
     let mut n = 0;
-    for ph in &plan.phases {
-        let mut fast = FastChecker::new(&ph.world);
+    for c in checkers.iter_mut().flatten() {
+        c.forget_proven();
+    }
+    for (i, ph) in plan.phases.iter().enumerate() {
+        let world = phase_world
+            .get(i)
+            .and_then(|&w| Some((worlds.get(w)?, checkers.get_mut(w)?)));
+        let fast = match world {
+            Some((world, c)) => c.get_or_insert_with(|| FastChecker::new(world)),
+            None => {
+                return Err(PickPlaceTaskError::NotCertified {
+                    phase: ph.name.clone(),
+                    segment: ph.first,
+                    reason: "the phase has no world".into(),
+                })
+            }
+        };
         for k in ph.first..ph.last {
             n += 1;
             if !fast.motion_certified(&plan.waypoints[k], &plan.waypoints[k + 1]) {
@@ -920,10 +878,14 @@ pub fn plan_pick_place(
                 events: Vec::new(),
                 time: Duration::ZERO,
             },
+            phase_world: Vec::new(),
             queries: Vec::new(),
             seed: aseed,
             attempt,
             t0,
+            worlds: Vec::new(),
+            fast: Vec::new(),
+            exact: Vec::new(),
         };
         let r = chain(&mut c, &keys, term, progress);
         timings.motions_ms += ms(t);
@@ -935,7 +897,7 @@ pub fn plan_pick_place(
                     elapsed_ms: ms(t0),
                 });
                 let t = Instant::now();
-                let n = certify(p, &c.plan)?;
+                let n = certify(p, &c.plan, &c.worlds, &c.phase_world, &mut c.fast)?;
                 timings.certification_ms = ms(t);
                 timings.total_ms = ms(t0);
                 let mut plan = c.plan;
