@@ -693,3 +693,45 @@ fn wrench_hulls_contain_every_wrench() {
     }
     assert!(inside >= 5, "only {inside} wrench spaces hold the origin");
 }
+
+/// The grasp lists' pre-test (`forces_one_sided`, 003 §IV-A-3) never rules out a grasp the
+/// wrench hull finds in force closure, and rules out the grasps whose forces all push one way.
+#[test]
+fn forces_one_sided_never_rules_out_force_closure() {
+    use manyhands::grasp::wrench_space::forces_one_sided;
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let s = settings(0.5, 6);
+    let (mut one_sided, mut closure) = (0, 0);
+    for i in 0..600 {
+        let n = 3 + i % 3;
+        // Points on the unit sphere, inward normals; every third set on the upper half only.
+        let contacts: Vec<Contact> = (0..n)
+            .map(|_| {
+                let mut p = v(
+                    rng.random::<f64>() - 0.5,
+                    rng.random::<f64>() - 0.5,
+                    rng.random::<f64>() - 0.5,
+                )
+                .normalize();
+                if i % 3 == 0 {
+                    p.z = p.z.abs() + 0.8;
+                    p = p.normalize();
+                }
+                Contact::new(p, -p)
+            })
+            .collect();
+        let w = primitive_wrenches(&contacts, &Vector3::zeros(), &s).expect("wrenches");
+        let q = quality_of_wrenches(&w, 1.0).expect("quality");
+        if forces_one_sided(&w) {
+            one_sided += 1;
+            assert!(
+                !q.force_closure,
+                "set {i}: ruled out, but in force closure (ε = {})",
+                q.epsilon
+            );
+        }
+        closure += usize::from(q.force_closure);
+    }
+    assert!(one_sided >= 200, "{one_sided} sets ruled out");
+    assert!(closure >= 50, "{closure} sets in force closure");
+}
