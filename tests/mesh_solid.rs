@@ -50,6 +50,25 @@ fn statuette_body(mesh: &Arc<Mesh>) -> StaticBody {
     }
 }
 
+/// Dense exact re-check of the probe's straight motion `a → b` (0.5 mm steps at most): asserts
+/// every state free, answers the smallest clearance.
+fn densely_free(exact: &mut ExactChecker, a: &[f64], b: &[f64]) -> f64 {
+    let len = (0..3).map(|k| (b[k] - a[k]).powi(2)).sum::<f64>().sqrt();
+    let n = (len / 0.0005).ceil().max(1.0) as usize;
+    let mut min_d = f64::INFINITY;
+    for s in 0..=n {
+        let t = s as f64 / n as f64;
+        let q: Vec<f64> = (0..3).map(|k| a[k] + (b[k] - a[k]) * t).collect();
+        let d = exact.clearance(&q);
+        assert!(
+            d > 0.0,
+            "certified motion {a:?} → {b:?} collides at t = {t}"
+        );
+        min_d = min_d.min(d);
+    }
+    min_d
+}
+
 const FINGER: &str = r#"<geometry><sphere radius="0.01"/></geometry>"#;
 
 /// Deterministic uniform numbers in [0, 1) (SplitMix64).
@@ -255,20 +274,7 @@ fn certified_motions_past_the_legs_are_free_under_a_dense_exact_check() {
             continue;
         }
         certified += 1;
-        // Dense exact re-check: 0.5 mm steps.
-        let n = 240;
-        let mut min_d = f64::INFINITY;
-        for s in 0..=n {
-            let t = s as f64 / n as f64;
-            let q: Vec<f64> = (0..3).map(|k| a[k] + (b[k] - a[k]) * t).collect();
-            let d = exact.clearance(&q);
-            assert!(
-                d > 0.0,
-                "certified motion {a:?} → {b:?} collides at t = {t}"
-            );
-            min_d = min_d.min(d);
-        }
-        if min_d < 0.02 {
+        if densely_free(&mut exact, &a, &b) < 0.02 {
             grazing += 1;
         }
     }
@@ -401,20 +407,7 @@ fn a_held_statuette_is_checked_conservatively_and_its_motions_certified() {
             continue;
         }
         certified += 1;
-        // Dense exact re-check: 0.5 mm steps.
-        let n = 160;
-        let mut min_d = f64::INFINITY;
-        for s in 0..=n {
-            let t = s as f64 / n as f64;
-            let q: Vec<f64> = (0..3).map(|k| a[k] + (b[k] - a[k]) * t).collect();
-            let d = exact.clearance(&q);
-            assert!(
-                d > 0.0,
-                "certified motion {a:?} → {b:?} collides at t = {t}"
-            );
-            min_d = min_d.min(d);
-        }
-        if min_d < 0.02 {
+        if densely_free(&mut exact, &a, &b) < 0.02 {
             near += 1;
         }
     }

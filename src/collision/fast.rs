@@ -34,7 +34,7 @@ mod prim;
 mod sweep;
 
 pub(crate) use prim::Prim;
-use prim::{aabb, bounding_of, dist2_point_aabb, prims_hit, EPS};
+use prim::{aabb, bounding_of, dist2_point_aabb, prim_sets_hit, EPS};
 
 /// Settings of the fast model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -963,16 +963,7 @@ impl FastChecker {
             mb.start..mb.start + mb.local.len(),
         );
         let (pa, pb) = (&self.world_prims[ra.clone()], &self.world_prims[rb.clone()]);
-        let (rad_a, rad_b) = (&self.prim_radius[ra], &self.prim_radius[rb]);
-        // Primitive bounding spheres first: most primitive pairs of two nearby bodies are apart.
-        pa.iter().zip(rad_a).any(|(x, &xr)| {
-            let mut grown = None;
-            pb.iter().zip(rad_b).any(|(y, &yr)| {
-                let r = xr + yr + d;
-                (x.centre() - y.centre()).norm_squared() <= r * r
-                    && prims_hit(x.grown(d, &mut grown), y)
-            })
-        })
+        prim_sets_hit(pa, &self.prim_radius[ra], pb, &self.prim_radius[rb], d)
     }
 
     /// Whether pair `pi` (a moving body against a fixed one) collides; the box cull is

@@ -20,7 +20,7 @@ use std::ops::Range;
 
 use nalgebra::Vector3;
 
-use super::prim::{dist2_point_aabb, prims_hit, Prim, EPS};
+use super::prim::{dist2_point_aabb, prim_sets_hit, prims_hit, Prim, EPS};
 use super::{FastChecker, StaticBodyModel, PERMANENT};
 
 /// Bodies with more primitives than this are grouped.
@@ -344,15 +344,7 @@ impl FastChecker {
                     self.unit_members(b, j as usize),
                 );
                 let (pa, pb) = (&self.world_prims[ka.clone()], &self.world_prims[kb.clone()]);
-                let (rad_a, rad_b) = (&self.prim_radius[ka], &self.prim_radius[kb]);
-                pa.iter().zip(rad_a).any(|(x, &xr)| {
-                    let mut grown = None;
-                    pb.iter().zip(rad_b).any(|(y, &yr)| {
-                        let r = xr + yr + d;
-                        (x.centre() - y.centre()).norm_squared() <= r * r
-                            && prims_hit(x.grown(d, &mut grown), y)
-                    })
-                })
+                prim_sets_hit(pa, &self.prim_radius[ka], pb, &self.prim_radius[kb], d)
             });
         }
         self.unit_pairs = queue;

@@ -320,6 +320,27 @@ pub(super) fn obb_obb(
     true
 }
 
+/// Whether any primitive of `pa` (grown by `d` ≥ 0) touches any of `pb`, with the primitives'
+/// bounding radii `rad_a`, `rad_b`: bounding spheres first (most primitive pairs of two nearby
+/// bodies are apart), then the exact test.
+#[inline]
+pub(super) fn prim_sets_hit(
+    pa: &[Prim],
+    rad_a: &[f64],
+    pb: &[Prim],
+    rad_b: &[f64],
+    d: f64,
+) -> bool {
+    pa.iter().zip(rad_a).any(|(x, &xr)| {
+        let mut grown = None;
+        pb.iter().zip(rad_b).any(|(y, &yr)| {
+            let r = xr + yr + d;
+            (x.centre() - y.centre()).norm_squared() <= r * r
+                && prims_hit(x.grown(d, &mut grown), y)
+        })
+    })
+}
+
 #[inline]
 pub(super) fn prims_hit(a: &Prim, b: &Prim) -> bool {
     match (a, b) {
