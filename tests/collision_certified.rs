@@ -7,9 +7,12 @@
 //! 1 mm steps, and the fast model itself at a quarter of that); segments far from contact (free
 //! with every moving body padded by 1 cm at those states) must be certified.
 
+mod common;
+
 use std::path::Path;
 use std::sync::Arc;
 
+use common::obstacle;
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -59,18 +62,6 @@ fn primitive_arm(dir: &Path) -> Arc<Robot> {
   <disable_collisions link1="l3" link2="tip" reason="Adjacent"/>
 </robot>"#;
     Arc::new(Robot::from_strings(&urdf, Some(srdf), dir).expect("robot"))
-}
-
-fn obstacle(name: &str, xyz: [f64; 3], rpy: [f64; 3], shape: Shape) -> StaticBody {
-    StaticBody {
-        name: name.into(),
-        kind: StaticKind::Obstacle,
-        pose: iso_from_rpy(xyz, rpy),
-        shapes: vec![Geometry {
-            origin: Pose::identity(),
-            shape,
-        }],
-    }
 }
 
 /// Boxes and cylinders around the arm.

@@ -322,15 +322,7 @@ fn an_open_mesh_keeps_its_hull() {
 
 /// A post (box) and a bar (cylinder) for the held statuette to pass.
 fn obstacles() -> Vec<StaticBody> {
-    let body = |name: &str, xyz: [f64; 3], rpy: [f64; 3], shape: Shape| StaticBody {
-        name: name.into(),
-        kind: StaticKind::Obstacle,
-        pose: iso_from_rpy(xyz, rpy),
-        shapes: vec![Geometry {
-            origin: Pose::identity(),
-            shape,
-        }],
-    };
+    let body = common::obstacle;
     vec![
         body(
             "post",

@@ -661,24 +661,14 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Whether `link` at `pose` (object frame) collides with the object (the contact link may
-    /// enter it by at most the tolerance) or with a placed link.
-    fn link_blocked(
-        &self,
-        link: usize,
-        pose: &Pose,
-        contact: bool,
-        placed: &[(usize, Pose)],
-    ) -> bool {
+    /// Whether `link` at `pose` (object frame) collides with the object or with a placed link
+    /// (a contact link is tested by its depth instead, [`Self::link_depth`]).
+    fn link_blocked(&self, link: usize, pose: &Pose, placed: &[(usize, Pose)]) -> bool {
         let shapes = &self.hand.shapes[&link];
         let bounds = &self.bounds[&link];
         for ((s, local), b) in shapes.iter().zip(bounds) {
             let w = pose * local;
-            if contact {
-                if self.object.depth(s, &w, *b) > self.params.contact_tolerance {
-                    return true;
-                }
-            } else if self.object.hits(s, &w, *b) {
+            if self.object.hits(s, &w, *b) {
                 return true;
             }
             for (other, opose) in placed {
@@ -709,20 +699,11 @@ impl Ctx<'_> {
         false
     }
 
-    /// Places finger `fi`'s links at the current configuration; true when all are free.
-    fn place_finger_links(
-        &self,
-        fi: usize,
-        palm: &Pose,
-        w: &mut Worker,
-        links: &[usize],
-        contact_allowed: bool,
-    ) -> bool {
-        let f = &self.hand.fingers[fi];
+    /// Places a finger's `links` at the current configuration; true when all are free.
+    fn place_finger_links(&self, palm: &Pose, w: &mut Worker, links: &[usize]) -> bool {
         for &l in links {
             let pose = palm * self.hand.link_in_palm(l, &w.q);
-            let contact = contact_allowed && l == f.contact_link;
-            if self.link_blocked(l, &pose, contact, &w.placed) {
+            if self.link_blocked(l, &pose, &w.placed) {
                 return false;
             }
             w.placed.push((l, pose));
@@ -736,7 +717,7 @@ impl Ctx<'_> {
         w.placed.clear();
         for &l in &self.hand.palm_links {
             let pose = palm * self.hand.link_in_palm(l, &w.q);
-            if self.link_blocked(l, &pose, false, &w.placed) {
+            if self.link_blocked(l, &pose, &w.placed) {
                 return out;
             }
             w.placed.push((l, pose));
@@ -759,7 +740,7 @@ impl Ctx<'_> {
                         }
                         w.placed.truncate(mark);
                         let links = f.links.clone();
-                        if self.place_finger_links(fi, palm, w, &links, false) {
+                        if self.place_finger_links(palm, w, &links) {
                             ok = true;
                             break;
                         }
@@ -823,15 +804,15 @@ impl Ctx<'_> {
                     continue;
                 }
                 let pose = palm * self.hand.link_in_palm(l, &w.q);
-                if self.link_blocked(l, &pose, false, &w.placed) {
+                if self.link_blocked(l, &pose, &w.placed) {
                     return None;
                 }
                 w.placed.push((l, pose));
             }
             let cl = f.contact_link;
             let pose = palm * self.hand.link_in_palm(cl, &w.q);
-            // The contact link may enter the object by the tolerance ([`Self::link_blocked`]
-            // with `contact`, its depth computed once: it also sets the retry's target).
+            // The contact link may enter the object by the tolerance (its depth, computed once,
+            // also sets the retry's target).
             let depth = self.link_depth(cl, &pose);
             let hand_free = self.hand_free(cl, &pose, &w.placed);
             if depth > tol || !hand_free {
@@ -949,7 +930,7 @@ impl Ctx<'_> {
                 let l = self.robot.var_limits(v);
                 w.q[v] = l.lower + (l.upper - l.lower) * t;
             }
-            if !self.place_finger_links(fi, palm, w, &f.base_links, false) {
+            if !self.place_finger_links(palm, w, &f.base_links) {
                 continue;
             }
             let base_mark = w.placed.len();

@@ -14,6 +14,24 @@ use manyhands::model::{load_robot_dir, Scene};
 use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{IkRrt, IkRrtSettings, JointSpace, PlanResult, Termination};
 
+/// A fixed obstacle of one shape at `xyz`, turned by `rpy`.
+pub fn obstacle(
+    name: &str,
+    xyz: [f64; 3],
+    rpy: [f64; 3],
+    shape: manyhands::geometry::Shape,
+) -> manyhands::collision::StaticBody {
+    manyhands::collision::StaticBody {
+        name: name.into(),
+        kind: manyhands::collision::StaticKind::Obstacle,
+        pose: manyhands::geometry::iso_from_rpy(xyz, rpy),
+        shapes: vec![manyhands::geometry::Geometry {
+            origin: Pose::identity(),
+            shape,
+        }],
+    }
+}
+
 /// A free-floating probe robot: prismatic joints x, y, z (limits ±`limit`) carrying one
 /// collision geometry (URDF `<geometry>` text) on its link `tool`.
 pub fn probe_urdf(geometry: &str, limit: f64) -> String {
