@@ -374,6 +374,7 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
     for max_searches in [20, 1] {
         let st = RoadmapQuerySettings {
             max_searches,
+            connect_rounds: 1,
             ..RoadmapQuerySettings::default()
         };
         let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(20));
