@@ -63,12 +63,43 @@ struct ShapeRec {
     witness: PVector,
 }
 
+/// Surfaces (`TriMesh`) of the solids converted so far, by solid: a checker is built per
+/// world (the pick-and-place task builds one per phase world and per key-configuration search),
+/// and the `TriMesh`'s BVH of a 1 300-triangle statuette was 7 % of a task's instructions. The
+/// same solid gives the same `TriMesh` (a pure function of its vertices and triangles); entries
+/// of dropped solids are pruned on insertion.
+static SURFACES: std::sync::Mutex<Vec<(std::sync::Weak<Solid>, SharedShape)>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// The surface of `solid` as parry's `TriMesh` (cached, [`SURFACES`]); `None` when parry
+/// refuses the triangles.
+fn solid_surface(solid: &Arc<Solid>) -> Option<SharedShape> {
+    let cached = |c: &[(std::sync::Weak<Solid>, SharedShape)]| {
+        c.iter()
+            .find(|(w, _)| std::ptr::eq(w.as_ptr(), Arc::as_ptr(solid)))
+            .map(|(_, s)| s.clone())
+    };
+    if let Ok(c) = SURFACES.lock() {
+        if let Some(s) = cached(&c) {
+            return Some(s);
+        }
+    }
+    let pts: Vec<PVector> = solid.vertices.iter().map(|v| to_pvec(&v.coords)).collect();
+    let tm = SharedShape::trimesh(pts, solid.triangles.clone()).ok()?;
+    if let Ok(mut c) = SURFACES.lock() {
+        c.retain(|(w, _)| w.strong_count() > 0);
+        if cached(&c).is_none() {
+            c.push((Arc::downgrade(solid), tm.clone()));
+        }
+    }
+    Some(tm)
+}
+
 /// [`convert`], except that a solid mesh gives its surface (parry's `TriMesh`) and its solid.
 fn convert_solid(shape: &Shape) -> (SharedShape, Pose, f64, Option<Arc<Solid>>) {
     if let Shape::Mesh(m) = shape {
         if let Ok(solid) = &m.solid {
-            let pts: Vec<PVector> = solid.vertices.iter().map(|v| to_pvec(&v.coords)).collect();
-            if let Ok(tm) = SharedShape::trimesh(pts, solid.triangles.clone()) {
+            if let Some(tm) = solid_surface(solid) {
                 return (tm, Pose::identity(), m.max_radius(), Some(solid.clone()));
             }
         }
