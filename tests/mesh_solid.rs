@@ -69,11 +69,39 @@ fn densely_free(exact: &mut ExactChecker, a: &[f64], b: &[f64]) -> f64 {
     min_d
 }
 
+/// Certifies `n` straight motions of the probe from `motion` (0.06 m coarse inflation) and
+/// re-checks each certified one densely ([`densely_free`]): how many were certified, and how
+/// many of those pass within 2 cm of the mesh.
+fn certify_motions(
+    fast: &mut FastChecker,
+    exact: &mut ExactChecker,
+    n: usize,
+    mut motion: impl FnMut() -> (Vec<f64>, Vec<f64>),
+) -> (usize, usize) {
+    let (mut certified, mut near) = (0, 0);
+    for _ in 0..n {
+        let (a, b) = motion();
+        if !fast.segment_certified(&a, &b, 0.06) {
+            continue;
+        }
+        certified += 1;
+        if densely_free(exact, &a, &b) < 0.02 {
+            near += 1;
+        }
+    }
+    (certified, near)
+}
+
 const FINGER: &str = r#"<geometry><sphere radius="0.01"/></geometry>"#;
 
 /// Deterministic uniform numbers in [0, 1) (SplitMix64).
 struct Mix(u64);
 impl Mix {
+    /// A uniformly random direction.
+    fn dir(&mut self) -> Vector3<f64> {
+        Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5).normalize()
+    }
+
     fn next(&mut self) -> f64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
@@ -259,25 +287,18 @@ fn certified_motions_past_the_legs_are_free_under_a_dense_exact_check() {
     let mut exact = ExactChecker::new(&world);
     let mut fast = FastChecker::new(&world);
     let mut rng = Mix(3);
-    let (mut certified, mut grazing) = (0, 0);
-    for _ in 0..300 {
-        // Motions through the space under the belly, in random directions.
+    // Motions through the space under the belly, in random directions.
+    let (certified, grazing) = certify_motions(&mut fast, &mut exact, 300, || {
         let c = [
             -0.06 + 0.12 * rng.next(),
             -0.02 + 0.04 * rng.next(),
             0.04 + 0.08 * rng.next(),
         ];
-        let dir = Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5).normalize();
+        let dir = rng.dir();
         let a: Vec<f64> = (0..3).map(|k| c[k] - 0.06 * dir[k]).collect();
         let b: Vec<f64> = (0..3).map(|k| c[k] + 0.06 * dir[k]).collect();
-        if !fast.segment_certified(&a, &b, 0.06) {
-            continue;
-        }
-        certified += 1;
-        if densely_free(&mut exact, &a, &b) < 0.02 {
-            grazing += 1;
-        }
-    }
+        (a, b)
+    });
     println!("{certified} of 300 motions certified, {grazing} within 2 cm");
     assert!(certified > 30, "{certified} of 300 motions certified");
     assert!(grazing > 5, "{grazing} certified motions pass within 2 cm");
@@ -390,19 +411,12 @@ fn a_held_statuette_is_checked_conservatively_and_its_motions_certified() {
         }
     }
     assert!(hits > 200 && free > 300, "{hits} hits, {free} free");
-    let (mut certified, mut near) = (0, 0);
-    for _ in 0..400 {
+    let (certified, near) = certify_motions(&mut fast, &mut exact, 400, || {
         let a = sample(&mut rng);
-        let dir = Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5).normalize();
+        let dir = rng.dir();
         let b: Vec<f64> = (0..3).map(|k| a[k] + 0.08 * dir[k]).collect();
-        if !fast.segment_certified(&a, &b, 0.06) {
-            continue;
-        }
-        certified += 1;
-        if densely_free(&mut exact, &a, &b) < 0.02 {
-            near += 1;
-        }
-    }
+        (a, b)
+    });
     println!("{hits} colliding / {free} free states; {certified} of 400 motions certified, {near} within 2 cm");
     assert!(certified > 40, "{certified} of 400 motions certified");
     assert!(near > 5, "{near} certified motions pass within 2 cm");

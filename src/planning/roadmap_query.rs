@@ -31,6 +31,7 @@ use serde::Serialize;
 
 use super::shortcut::{simplify, ShortcutSettings};
 use super::super_graph::{SuperGraph, ANGULAR, LINEAR};
+use super::validity::SegmentChecker;
 use super::{
     space_checker, JointSpace, PlanError, PlannerRng, RrtConnect, RrtConnectSettings,
     SpaceValidator, Termination,
@@ -286,38 +287,7 @@ pub fn query_super_graph(
                     st.first_path_nodes = p.len().saturating_sub(2);
                 }
                 let tv = Instant::now();
-                let mut all_ok = true;
-                for &a in &p {
-                    if node_ok[a as usize] == Known::Unknown {
-                        st.nodes_validated += 1;
-                        node_ok[a as usize] = if v.is_state_valid(state(a)) {
-                            Known::Valid
-                        } else {
-                            st.invalid_nodes += 1;
-                            Known::Invalid
-                        };
-                    }
-                    all_ok &= node_ok[a as usize] == Known::Valid;
-                }
-                for w in p.windows(2) {
-                    let key = (w[0].min(w[1]), w[0].max(w[1]));
-                    if node_ok[w[0] as usize] != Known::Valid
-                        || node_ok[w[1] as usize] != Known::Valid
-                    {
-                        continue;
-                    }
-                    let e = edge_ok.entry(key).or_insert(Known::Unknown);
-                    if *e == Known::Unknown {
-                        st.edges_validated += 1;
-                        *e = if v.is_motion_valid(state(w[0]), state(w[1])) {
-                            Known::Valid
-                        } else {
-                            st.invalid_edges += 1;
-                            Known::Invalid
-                        };
-                    }
-                    all_ok &= *e == Known::Valid;
-                }
+                let all_ok = revalidate(&mut v, &p, state, (&mut node_ok, &mut edge_ok), &mut st);
                 st.validation_ms += tv.elapsed().as_secs_f64() * 1e3;
                 if all_ok {
                     graph_path = Some(p);
@@ -394,6 +364,50 @@ pub fn query_super_graph(
         world_path,
         stats: st,
     })
+}
+
+/// Step 3, lazy revalidation: the nodes, then the edges between valid nodes, of graph path `p`
+/// not checked yet are checked in the query world (`state` gives a node's configuration) and
+/// marked valid or invalid. True when every node and edge of `p` is valid.
+fn revalidate<'a, C: SegmentChecker>(
+    v: &mut SpaceValidator<C>,
+    p: &[u32],
+    state: impl Fn(u32) -> &'a Vec<f64>,
+    (node_ok, edge_ok): (&mut [Known], &mut HashMap<(u32, u32), Known>),
+    st: &mut RoadmapQueryStats,
+) -> bool {
+    let mut all_ok = true;
+    for &a in p {
+        if node_ok[a as usize] == Known::Unknown {
+            st.nodes_validated += 1;
+            node_ok[a as usize] = if v.is_state_valid(state(a)) {
+                Known::Valid
+            } else {
+                st.invalid_nodes += 1;
+                Known::Invalid
+            };
+        }
+        all_ok &= node_ok[a as usize] == Known::Valid;
+    }
+    for w in p.windows(2) {
+        if node_ok[w[0] as usize] != Known::Valid || node_ok[w[1] as usize] != Known::Valid {
+            continue;
+        }
+        let e = edge_ok
+            .entry((w[0].min(w[1]), w[0].max(w[1])))
+            .or_insert(Known::Unknown);
+        if *e == Known::Unknown {
+            st.edges_validated += 1;
+            *e = if v.is_motion_valid(state(w[0]), state(w[1])) {
+                Known::Valid
+            } else {
+                st.invalid_edges += 1;
+                Known::Invalid
+            };
+        }
+        all_ok &= *e == Known::Valid;
+    }
+    all_ok
 }
 
 /// A* from `from` to `to` over nodes `0..n` (`succ` fills the usable neighbours, `cost` is the
