@@ -79,6 +79,19 @@ impl ForwardKinematics {
     }
 }
 
+/// One movable joint of a chain, as [`FkModel::speed_axes`] gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedAxis {
+    /// The joint's child link (a computed link of the model).
+    pub child: usize,
+    /// Unit axis in the child link's frame.
+    pub axis: nalgebra::Vector3<f64>,
+    /// The joint moves by `mul · Δq` of its variable.
+    pub mul: f64,
+    /// Revolute or continuous (else prismatic).
+    pub revolute: bool,
+}
+
 /// A rigid frame as rotation matrix + translation: cheaper to compose than quaternions, and the
 /// form the collision checker consumes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -397,6 +410,48 @@ impl FkModel {
             k = j.parent;
         }
         out.iter().all(|(_, w)| w.is_finite()).then_some(out)
+    }
+
+    /// The movable joints from `link` up to the root, in the order of [`Self::speed_bounds`]:
+    /// per joint its child (computed) link, its unit axis in that link's frame (a revolute
+    /// joint turns about the axis line through the frame's origin; a prismatic one slides
+    /// along it), its multiplier (signed: the joint moves by `multiplier · Δq` of its
+    /// variable) and whether it is revolute (or continuous). `None` for a degenerate zero axis.
+    pub fn speed_axes(&self, link: usize) -> Vec<Option<SpeedAxis>> {
+        let mut out = Vec::new();
+        let mut k = self.rep[link];
+        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+            if j.kind != JointKind::Fixed {
+                let n = j.axis.norm();
+                out.push((n > 0.0).then(|| SpeedAxis {
+                    child: k as usize,
+                    axis: j.axis / n,
+                    mul: j.mul,
+                    revolute: j.kind != JointKind::Prismatic,
+                }));
+            }
+            k = j.parent;
+        }
+        out
+    }
+
+    /// Every movable joint in the order [`Self::compute`] visits them (parents first): its
+    /// parent and child (computed) links, its variable and its axis ([`Self::speed_axes`]).
+    pub fn movable_joints(&self) -> Vec<(usize, usize, usize, Option<SpeedAxis>)> {
+        self.joints
+            .iter()
+            .filter(|j| j.kind != JointKind::Fixed)
+            .map(|j| {
+                let n = j.axis.norm();
+                let axis = (n > 0.0).then(|| SpeedAxis {
+                    child: j.child as usize,
+                    axis: j.axis / n,
+                    mul: j.mul,
+                    revolute: j.kind != JointKind::Prismatic,
+                });
+                (j.parent as usize, j.child as usize, j.var as usize, axis)
+            })
+            .collect()
     }
 
     /// Number of links (length of the output slice).

@@ -6,7 +6,10 @@
 //! Every moving body (robot link or attached object) has speed bounds per variable
 //! ([`crate::kinematics::FkModel::speed_bounds`] of its bounding sphere): along the segment
 //! `a → b` no point of body `i` travels farther than `L_i = Σ_v |b_v − a_v| · w_iv`, uniformly
-//! in the segment parameter. A run of states between parameters `t0` and `t1` is free when both
+//! in the segment parameter; a body's whole-chain `L_i` is the smaller of that and its
+//! configuration-dependent bound along the segment (`travel.rs`: the joint motions summed as
+//! vectors at the midpoints of a few pieces, plus a second-order term for their change, proven
+//! against dense forward kinematics in its test). A run of states between parameters `t0` and `t1` is free when both
 //! its end states are free with every body's primitives grown by `L_i · (t1 − t0) / 2` (each
 //! state of the run lies within that distance of one end, the same certificate as
 //! [`crate::collision::SphereChecker::segment_certified`]; Schwarzer, Saha & Latombe, IEEE T-RO
@@ -40,6 +43,8 @@
 
 use super::{dist2_point_aabb, FastChecker};
 
+mod travel;
+
 /// What an inflated check of one state found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Inflated {
@@ -59,6 +64,24 @@ pub(super) struct Sweep {
     /// `(world variable, w)` of every body's joints from its mount up to the root;
     /// body `i` owns `chain[range[i].0..range[i].1]`.
     chain: Vec<(u32, f64)>,
+    /// Per `chain` entry, for a revolute joint: its child (computed) link, unit axis in that
+    /// link's frame and `|multiplier|` — what [`FastChecker::segment_lengths`] needs to bound
+    /// the body's distance from the axis along one segment.
+    axes: Vec<Option<crate::kinematics::SpeedAxis>>,
+    /// Per `chain` entry: the static bound of the ball centre's distance from a revolute
+    /// joint's axis (`w / |mul|`, with the radius; 0 otherwise), for the second-order term.
+    rs: Vec<f64>,
+    /// Every robot's movable joints in forward-kinematics order `(robot, parent link, child
+    /// link, world variable, axis)`, and per robot and computed link the sums over the joints
+    /// from the root to it (for the current bound piece): `Σ Δθ·z` of the revolute ones (the
+    /// link's angular velocity `Ω`), `Σ Δθ·z × o` (`Γ`) and `Σ Δθ·z` of the prismatic ones
+    /// (`P`); a point `c` of the link moves at `Ω × c − Γ + P`.
+    tree: Vec<(u32, u32, u32, u32, Option<crate::kinematics::SpeedAxis>)>,
+    link_sums: Vec<Vec<[nalgebra::Vector3<f64>; 3]>>,
+    /// Per body: the whole chain's vector bound summed over the pieces so far, and the
+    /// second-order sum `M` for the whole segment (negative: no vector bound).
+    body_vec: Vec<f64>,
+    body_m: Vec<f64>,
     range: Vec<(u32, u32)>,
     /// Running sums of `|Δq_v| · w` along each body's chain (`chain length + 1` entries
     /// from `cum_off[i]`), for the current segment.
@@ -150,6 +173,7 @@ impl Sweep {
     /// The sweep model of `c`'s bodies and pairs (after the pair list is final).
     pub(super) fn new(c: &FastChecker) -> Sweep {
         let mut chain = Vec::new();
+        let mut axes = Vec::new();
         let mut range = Vec::with_capacity(c.moving.len());
         let mut cum_off = Vec::with_capacity(c.moving.len());
         let mut bounded = true;
@@ -159,11 +183,17 @@ impl Sweep {
             let r = b.mount.robot;
             let placed = &c.world.robots[r];
             match c.fk[r].speed_bounds(&placed.robot, b.mount.link, &b.bc, b.br) {
-                Some(s) => chain.extend(
-                    s.into_iter()
-                        // 1e-9 relative: rounding of the bound itself never makes it too small.
-                        .map(|(v, w)| ((placed.offset + v) as u32, w * (1.0 + 1e-9))),
-                ),
+                Some(s) => {
+                    let ax = c.fk[r].speed_axes(b.mount.link);
+                    debug_assert_eq!(ax.len(), s.len());
+                    let n = s.len();
+                    chain.extend(
+                        s.into_iter()
+                            // 1e-9 relative: rounding of the bound itself never makes it too small.
+                            .map(|(v, w)| ((placed.offset + v) as u32, w * (1.0 + 1e-9))),
+                    );
+                    axes.extend(ax.into_iter().chain(std::iter::repeat(None)).take(n));
+                }
                 None => bounded = false,
             }
             range.push((first, chain.len() as u32));
@@ -204,6 +234,31 @@ impl Sweep {
                     )
                 }
             })
+            .collect();
+        let rs: Vec<f64> = chain
+            .iter()
+            .zip(&axes)
+            .map(|(&(_, w), ax)| match ax {
+                Some(ax) if ax.revolute && ax.mul != 0.0 => w / ax.mul.abs(),
+                _ => 0.0,
+            })
+            .collect();
+        let mut tree = Vec::new();
+        for (r, p) in c.world.robots.iter().enumerate() {
+            for (parent, child, v, ax) in c.fk[r].movable_joints() {
+                tree.push((
+                    r as u32,
+                    parent as u32,
+                    child as u32,
+                    (p.offset + v) as u32,
+                    ax,
+                ));
+            }
+        }
+        let link_sums = c
+            .link_poses
+            .iter()
+            .map(|l| vec![[nalgebra::Vector3::zeros(); 3]; l.len()])
             .collect();
         let np = c.pairs.len();
         let mut prismatic = Vec::new();
@@ -265,6 +320,12 @@ impl Sweep {
             pair_reach2: vec![0.0; np],
             bounded,
             chain,
+            axes,
+            rs,
+            tree,
+            link_sums,
+            body_vec: vec![0.0; c.moving.len()],
+            body_m: vec![-1.0; c.moving.len()],
             range,
             cum: vec![0.0; cum_len as usize],
             cum_off,
@@ -725,7 +786,7 @@ impl FastChecker {
         max_inflation: f64,
     ) -> super::Certification {
         use super::Certification;
-        s.lengths(a, b);
+        self.segment_lengths(s, q, a, b, max_inflation);
         let lmax = s.lmax;
         if !lmax.is_finite() {
             return Certification::Unproven;
