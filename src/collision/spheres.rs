@@ -135,8 +135,9 @@ pub struct SphereChecker {
     inflate: f64,
     // Certified motion checks (see [`SphereChecker::segment_certified`]).
     /// The chains' speed bounds summed per variable, variable-major (`dof × bodies`): a
-    /// body's displacement bound over a segment is `Σ_v |Δq_v| · var_w[v · bodies + body]`,
-    /// one vectorised pass over the bodies per variable.
+    /// body's displacement bound over a segment is `Σ_v |Δq_v| · var_w[v · stride + body]`,
+    /// one vectorised pass over the bodies per variable (`stride`: the bodies rounded up to a
+    /// multiple of 4, the padding 0).
     var_w: Vec<f64>,
     /// Per self pair (`pair-major`, `dof` each): the speed bounds of both bodies' chain
     /// entries below the pair's common ancestor, per variable (joints above it move both
@@ -150,7 +151,8 @@ pub struct SphereChecker {
     seg_epoch: u32,
     /// Every prismatic joint has bounded travel, so the speed bounds are finite.
     certifiable: bool,
-    /// Per body: displacement bound of its spheres over the segment being certified.
+    /// Per body: displacement bound of its spheres over the segment being certified (padded
+    /// with zeros to the stride of `var_w`).
     seg_len: Vec<f64>,
     /// Per body: extra radius of its spheres in the current check (0 outside certification).
     infl: Vec<f32>,
@@ -648,10 +650,11 @@ impl SphereChecker {
             cum_off[a] + n
         };
         let dof = world.dof();
-        let mut var_w = vec![0.0f64; dof * nb];
+        let stride = nb.div_ceil(4) * 4;
+        let mut var_w = vec![0.0f64; dof * stride];
         for (bi, &(c0, c1)) in chain_range.iter().enumerate() {
             for &(v, w) in &chain[c0 as usize..c1 as usize] {
-                var_w[v as usize * nb + bi] += w;
+                var_w[v as usize * stride + bi] += w;
             }
         }
         let n_pairs = self_pairs.len();
@@ -706,7 +709,7 @@ impl SphereChecker {
             var_w,
             pair_w,
             certifiable,
-            seg_len: vec![0.0; nb],
+            seg_len: vec![0.0; stride],
             infl: vec![0.0; nb],
             pair_scale: 0.0,
             seg_dq: vec![0.0; world.dof()],
