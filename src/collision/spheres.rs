@@ -673,7 +673,7 @@ impl SphereChecker {
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
         let avx2 = false;
-        Some(SphereChecker {
+        let mut checker = SphereChecker {
             world: world.clone(),
             qv: vec![[0.0; LANES]; world.dof()],
             frames: vec![[[0.0; LANES]; 12]; steps.len()],
@@ -721,7 +721,9 @@ impl SphereChecker {
             refine_needed: Vec::new(),
             focus_pool: Vec::new(),
             focus: true,
-        })
+        };
+        checker.init_roots();
+        Some(checker)
     }
 
     /// Turns the hot-body-first order of 8-lane checks on or off (on by default). It never

@@ -128,6 +128,8 @@ impl SphereChecker {
         let s = &self.steps[si];
         let ax = match s.kind {
             StepKind::Revolute(ax) if ax != Axis::General => ax,
+            // A root's frame is constant, written at construction (`init_roots`).
+            StepKind::Root => return,
             _ => return self.step_lanes::<LANES, true>(si),
         };
         let (pi, ci) = (s.parent as usize, si);
@@ -135,16 +137,34 @@ impl SphereChecker {
         let p = &lo[pi];
         // SAFETY (loads, stores): each lane array holds 8 f32 (unaligned).
         let ld = |k: usize| unsafe { _mm256_loadu_ps(p[k].as_ptr()) };
-        let mut t = [_mm256_setzero_ps(); 3];
-        for r in 0..3 {
-            let mut o = ld(9 + r);
-            for k in 0..3 {
-                if s.t_terms & (1 << k) != 0 {
-                    o = _mm256_fmadd_ps(ld(k * 3 + r), _mm256_set1_ps(s.t[k]), o);
-                }
+        // t = P.rot · o.t + P.t without the origin's zero terms, in the order of the generic
+        // code; one branch-free body per set of terms.
+        #[inline(always)]
+        fn moved<const M: u8>(p: &[Lane; 12], t: &[f32; 3]) -> [V; 3] {
+            // SAFETY: 8 f32 per lane array; the caller runs with AVX2 + FMA.
+            unsafe {
+                let ld = |k: usize| _mm256_loadu_ps(p[k].as_ptr());
+                std::array::from_fn(|r| {
+                    let mut o = ld(9 + r);
+                    for k in 0..3 {
+                        if M & (1 << k) != 0 {
+                            o = _mm256_fmadd_ps(ld(k * 3 + r), _mm256_set1_ps(t[k]), o);
+                        }
+                    }
+                    o
+                })
             }
-            t[r] = o;
         }
+        let t = match s.t_terms & 0b111 {
+            0 => moved::<0>(p, &s.t),
+            1 => moved::<1>(p, &s.t),
+            2 => moved::<2>(p, &s.t),
+            3 => moved::<3>(p, &s.t),
+            4 => moved::<4>(p, &s.t),
+            5 => moved::<5>(p, &s.t),
+            6 => moved::<6>(p, &s.t),
+            _ => moved::<7>(p, &s.t),
+        };
         let mut m: [V; 9] = match s.rot_kind {
             OriginRot::Identity => std::array::from_fn(ld),
             OriginRot::Permutation(cols) => std::array::from_fn(|e| {
@@ -200,6 +220,16 @@ impl SphereChecker {
         for (k, v) in m.iter().chain(&t).enumerate() {
             // SAFETY: 8 f32.
             unsafe { _mm256_storeu_ps(f[k].as_mut_ptr(), *v) };
+        }
+    }
+
+    /// Writes the (constant) frames of the robots' roots in every lane: [`Self::step_avx`]
+    /// does not recompute them.
+    pub(super) fn init_roots(&mut self) {
+        for si in 0..self.steps.len() {
+            if self.steps[si].kind == StepKind::Root {
+                self.step_lanes::<LANES, false>(si);
+            }
         }
     }
 
