@@ -248,9 +248,10 @@ pub struct Tree {
     parents: Vec<u32>,
     /// Dynamic-domain radius of each state (`f64::INFINITY` until a planner sets one).
     radii: Vec<f64>,
-    /// Per state: the edge from its parent is not yet proven valid (lazy planners, see
-    /// [`Tree::mark_unproven`]).
-    unproven: Vec<bool>,
+    /// Per state: 0 when the edge from its parent is proven valid, else the tag of
+    /// [`Tree::mark_unproven_tagged`] (lazy planners; [`Tree::mark_unproven`] tags
+    /// `u32::MAX`).
+    unproven: Vec<u32>,
     kd: Vec<KdNode>,
     kd_overflow: Vec<u32>,
     leaf_data: Vec<f64>,
@@ -415,7 +416,7 @@ impl Tree {
         self.states.extend_from_slice(q);
         self.parents.push(parent);
         self.radii.push(f64::INFINITY);
-        self.unproven.push(false);
+        self.unproven.push(0);
         self.infinite_radii += 1;
         let i = (self.parents.len() - 1) as u32;
         if (i as usize) < LINEAR_SCAN_MAX {
@@ -678,19 +679,36 @@ impl Tree {
     /// checking: it passed a screening check only; see `RrtConnectSettings::lazy`).
     #[inline]
     pub fn mark_unproven(&mut self, i: u32) {
-        self.unproven[i as usize] = true;
+        self.unproven[i as usize] = u32::MAX;
+    }
+
+    /// [`Tree::mark_unproven`] with a caller's tag (≥ 1, e.g. where it keeps what finishing the
+    /// proof needs), returned by [`Tree::unproven_tag`] and kept by
+    /// [`Tree::remove_subtree`].
+    #[inline]
+    pub fn mark_unproven_tagged(&mut self, i: u32, tag: u32) {
+        debug_assert!(tag != 0);
+        self.unproven[i as usize] = tag;
     }
 
     /// Marks the edge into state `i` as proven valid.
     #[inline]
     pub fn mark_proven(&mut self, i: u32) {
-        self.unproven[i as usize] = false;
+        self.unproven[i as usize] = 0;
     }
 
     /// Whether the edge into state `i` is still unproven ([`Tree::mark_unproven`]).
     #[inline]
     pub fn is_unproven(&self, i: u32) -> bool {
-        self.unproven[i as usize]
+        self.unproven[i as usize] != 0
+    }
+
+    /// The tag of an unproven edge into state `i` (`u32::MAX` from [`Tree::mark_unproven`]),
+    /// `None` when it is proven.
+    #[inline]
+    pub fn unproven_tag(&self, i: u32) -> Option<u32> {
+        let t = self.unproven[i as usize];
+        (t != 0).then_some(t)
     }
 
     /// Removes state `i` (not a root) and every state below it, keeping the other states in

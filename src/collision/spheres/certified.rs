@@ -251,6 +251,35 @@ impl SphereChecker {
         r
     }
 
+    /// What [`Self::segment_certified_screened`] needs of the last [`Self::segment_screened`]
+    /// that answered [`SegmentScreen::Tight`]: its tight (state, body or self pair) entries
+    /// (opaque to callers; empty after any other answer).
+    pub fn screened_tight(&self) -> &[(usize, u32)] {
+        &self.tight_states
+    }
+
+    /// [`Self::segment_certified`] of a segment whose [`Self::segment_screened`] answered
+    /// [`SegmentScreen::Tight`], given what [`Self::screened_tight`] returned then: the first
+    /// pass is not run again (it would find the same states free and the same entries
+    /// tight), only the refinement, so the verdict is exactly that of
+    /// [`Self::segment_certified`]. Lazy planners certify path edges this way: rerunning the
+    /// first pass of every tight edge on a found path made lazy certification slower than
+    /// eager certification on the easy MotionBenchMaker sets.
+    pub fn segment_certified_screened(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+        tight: &[(usize, u32)],
+    ) -> bool {
+        let n = self.begin_segment(a, b, max_inflation);
+        self.tight_states.clear();
+        self.tight_states.extend_from_slice(tight);
+        let ok = self.tight_states.is_empty() || self.refine_tight(a, b, n);
+        self.end_segment();
+        ok
+    }
+
     /// Ends a certified check: no inflation outside it.
     fn end_segment(&mut self) {
         self.infl.iter_mut().for_each(|i| *i = 0.0);
@@ -353,6 +382,12 @@ impl SphereChecker {
         if self.tight_states.is_empty() {
             return true;
         }
+        self.refine_tight(a, b, n)
+    }
+
+    /// The refinement of [`Self::certify`] after a first pass over `n` sub-intervals that
+    /// left the tight entries in `tight_states`.
+    fn refine_tight(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
         let h = 1.0 / n as f64;
         // Sub-intervals [i, i+1] with a tight end, each once, in pairs ([`pair_runs`]). A
         // body (against all its obstacles) or self pair free with the inflation at both ends
