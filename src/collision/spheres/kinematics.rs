@@ -122,7 +122,7 @@ impl SphereChecker {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     #[inline]
-    fn step_avx(&mut self, si: usize) {
+    pub(super) fn step_avx(&mut self, si: usize) {
         use std::arch::x86_64::*;
         type V = __m256;
         let s = &self.steps[si];
