@@ -145,8 +145,8 @@ pub struct RrtConnect<C: SegmentChecker = FastChecker> {
 }
 
 /// The screening records of the edges lazy certification accepted unproven (see
-/// [`RrtConnectSettings::lazy`]): such an edge's tree tag ([`Tree::mark_unproven_tagged`]) is 1
-/// + the index of its record in `spans`, so that certifying it on a found path refines only
+/// [`RrtConnectSettings::lazy`]): such an edge's tree tag ([`Tree::mark_unproven_tagged`]) is
+/// its record's index in `spans` plus one, so that certifying it on a found path refines only
 /// ([`SpaceValidator::certify_screened`]) instead of running the screening pass again.
 #[derive(Debug, Default)]
 pub(super) struct Screens {
