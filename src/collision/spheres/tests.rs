@@ -124,6 +124,7 @@ fn specialised_origins_give_the_general_frames_on_panda() {
 fn specialised_origins(robot: std::sync::Arc<crate::Robot>) {
     use super::*;
     use crate::geometry::Pose;
+    use nalgebra::Matrix3;
     use rand::{Rng, SeedableRng};
     // The URDF's truncated π/2 and π/4, as written there.
     #[allow(clippy::approx_constant)]
