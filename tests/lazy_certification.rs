@@ -116,7 +116,8 @@ fn failed_lazy_edges_are_removed_and_the_search_goes_on() {
 }
 
 /// The screening pass agrees with the full certificate: `Collides` only where the certificate
-/// fails, `Certified` only where it holds.
+/// fails, `Certified` only where it holds, and a `Tight` segment certified from its screening
+/// record gets the full certificate's verdict.
 #[test]
 fn screening_is_consistent_with_the_certificate() {
     let Some(dir) = data_for_test() else { return };
@@ -161,11 +162,17 @@ fn screening_is_consistent_with_the_certificate() {
         space.write_world(&a, &mut wa);
         space.write_world(&b, &mut wb);
         let screened = sc.segment_screened(&wa, &wb, 0.04);
+        let record = sc.screened_tight().to_vec();
         let certified = sc.segment_certified(&wa, &wb, 0.04);
         match screened {
             SegmentScreen::Collides => assert!(!certified),
             SegmentScreen::Certified => assert!(certified),
-            SegmentScreen::Tight => {}
+            // Certifying from the screening record (what lazy planners do for path edges)
+            // gives the full certificate's verdict.
+            SegmentScreen::Tight => assert_eq!(
+                sc.segment_certified_screened(&wa, &wb, 0.04, &record),
+                certified
+            ),
         }
         seen[screened as usize] += 1;
     }

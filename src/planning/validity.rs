@@ -44,6 +44,26 @@ pub trait SegmentChecker: CollisionChecker {
         None
     }
 
+    /// Appends to `out` what [`Self::segment_certified_screened`] needs of the last
+    /// [`Self::segment_screened`] that answered [`SegmentScreen::Tight`] (opaque entries; see
+    /// [`SphereChecker::screened_tight`]). The default appends nothing.
+    #[inline]
+    fn screen_record(&self, _out: &mut Vec<(usize, u32)>) {}
+
+    /// [`Self::segment_certified`] of a segment screened [`SegmentScreen::Tight`], from its
+    /// [`Self::screen_record`] (the same verdict without the first pass again, see
+    /// [`SphereChecker::segment_certified_screened`]); `None` when this checker cannot.
+    #[inline]
+    fn segment_certified_screened(
+        &mut self,
+        _a: &[f64],
+        _b: &[f64],
+        _max_inflation: f64,
+        _record: &[(usize, u32)],
+    ) -> Option<bool> {
+        None
+    }
+
     /// Counts of the certified motion checks since the last [`Self::reset_certify_stats`],
     /// when this checker certifies its segment checks.
     fn certify_stats(&self) -> Option<CertifyStats> {
@@ -101,6 +121,23 @@ impl SegmentChecker for SphereChecker {
         self.certifiable()
             .then(|| SphereChecker::segment_screened(self, a, b, max_inflation))
     }
+
+    #[inline]
+    fn screen_record(&self, out: &mut Vec<(usize, u32)>) {
+        out.extend_from_slice(self.screened_tight());
+    }
+
+    #[inline]
+    fn segment_certified_screened(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+        record: &[(usize, u32)],
+    ) -> Option<bool> {
+        self.certifiable()
+            .then(|| SphereChecker::segment_certified_screened(self, a, b, max_inflation, record))
+    }
 }
 
 impl SegmentChecker for AutoChecker {
@@ -127,6 +164,32 @@ impl SegmentChecker for AutoChecker {
         match self {
             AutoChecker::Spheres(s) => SegmentChecker::segment_screened(s, a, b, max_inflation),
             AutoChecker::Fast(f) => SegmentChecker::segment_screened(f, a, b, max_inflation),
+        }
+    }
+
+    #[inline]
+    fn screen_record(&self, out: &mut Vec<(usize, u32)>) {
+        match self {
+            AutoChecker::Spheres(s) => SegmentChecker::screen_record(s, out),
+            AutoChecker::Fast(f) => SegmentChecker::screen_record(f, out),
+        }
+    }
+
+    #[inline]
+    fn segment_certified_screened(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+        record: &[(usize, u32)],
+    ) -> Option<bool> {
+        match self {
+            AutoChecker::Spheres(s) => {
+                SegmentChecker::segment_certified_screened(s, a, b, max_inflation, record)
+            }
+            AutoChecker::Fast(f) => {
+                SegmentChecker::segment_certified_screened(f, a, b, max_inflation, record)
+            }
         }
     }
 
@@ -300,6 +363,43 @@ impl<C: SegmentChecker> SpaceValidator<C> {
         } else {
             SegmentScreen::Collides
         }
+    }
+
+    /// [`Self::screen_motion`] that, on [`SegmentScreen::Tight`], appends the segment's
+    /// screening record to `record` (see [`SegmentChecker::screen_record`]) for
+    /// [`Self::certify_screened`].
+    #[inline]
+    pub fn screen_motion_recorded(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        record: &mut Vec<(usize, u32)>,
+    ) -> SegmentScreen {
+        let s = self.screen_motion(a, b);
+        if s == SegmentScreen::Tight {
+            self.motion.checker.screen_record(record);
+        }
+        s
+    }
+
+    /// The full check of [`Self::is_motion_valid`] of a segment screened
+    /// [`SegmentScreen::Tight`] by [`Self::screen_motion_recorded`], from its `record` when the
+    /// checker can (the same verdict, without the screening pass again).
+    #[inline]
+    pub fn certify_screened(&mut self, a: &[f64], b: &[f64], record: &[(usize, u32)]) -> bool {
+        if let Some(d) = self.certify {
+            self.space.write_world(a, &mut self.wa);
+            self.space.write_world(b, &mut self.wb);
+            if let Some(ok) = self
+                .motion
+                .checker
+                .segment_certified_screened(&self.wa, &self.wb, d, record)
+            {
+                self.own_segments += 1;
+                return ok;
+            }
+        }
+        self.is_motion_valid(a, b)
     }
 
     /// Checks a whole path: every state within bounds, the first state free and every segment

@@ -124,6 +124,7 @@ fn specialised_origins_give_the_general_frames_on_panda() {
 fn specialised_origins(robot: std::sync::Arc<crate::Robot>) {
     use super::*;
     use crate::geometry::Pose;
+    use nalgebra::Matrix3;
     use rand::{Rng, SeedableRng};
     // The URDF's truncated π/2 and π/4, as written there.
     #[allow(clippy::approx_constant)]
@@ -277,4 +278,50 @@ fn sincos_f32_is_accurate() {
             .max((c as f64 - xr.cos()).abs());
     }
     assert!(worst < 5e-7, "worst {worst:e}");
+}
+
+/// The AVX2 kinematics step ([`SphereChecker::step_avx`]) gives the generic FMA step's frames
+/// bit for bit, with the quarter-turn origins as classified, with every origin general, and
+/// with the translations' zero terms kept.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn avx_step_is_the_generic_step_bit_for_bit() {
+    use super::*;
+    use crate::geometry::Pose;
+    use rand::{Rng, SeedableRng};
+    let robot = twin_arms();
+    let world = CollisionWorld::single(robot.clone(), Pose::identity());
+    let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    if !sc.avx2 {
+        return;
+    }
+    let mut general = sc.clone();
+    for s in &mut general.steps[1..] {
+        s.rot_kind = OriginRot::General;
+        s.t_terms = 0b111;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    for mut model in [sc.clone(), general] {
+        for _ in 0..100 {
+            for (v, lanes) in model.qv.iter_mut().enumerate() {
+                let l = robot.var_limits(v);
+                for x in lanes.iter_mut() {
+                    *x = rng.random_range(l.lower.max(-4.0)..=l.upper.min(4.0)) as f32;
+                }
+            }
+            sc = model.clone();
+            for si in 0..model.steps.len() {
+                model.step_lanes::<LANES, true>(si);
+                // SAFETY: AVX2 + FMA are present (checked above).
+                unsafe { sc.step_avx(si) };
+            }
+            for (f, g) in sc.frames.iter().zip(&model.frames) {
+                for k in 0..12 {
+                    for l in 0..LANES {
+                        assert_eq!(f[k][l].to_bits(), g[k][l].to_bits());
+                    }
+                }
+            }
+        }
+    }
 }
