@@ -422,13 +422,7 @@ impl FkModel {
         let mut k = self.rep[link];
         while let Some(j) = self.joints.iter().find(|j| j.child == k) {
             if j.kind != JointKind::Fixed {
-                let n = j.axis.norm();
-                out.push((n > 0.0).then(|| SpeedAxis {
-                    child: k as usize,
-                    axis: j.axis / n,
-                    mul: j.mul,
-                    revolute: j.kind != JointKind::Prismatic,
-                }));
+                out.push(j.speed_axis());
             }
             k = j.parent;
         }
@@ -442,14 +436,12 @@ impl FkModel {
             .iter()
             .filter(|j| j.kind != JointKind::Fixed)
             .map(|j| {
-                let n = j.axis.norm();
-                let axis = (n > 0.0).then(|| SpeedAxis {
-                    child: j.child as usize,
-                    axis: j.axis / n,
-                    mul: j.mul,
-                    revolute: j.kind != JointKind::Prismatic,
-                });
-                (j.parent as usize, j.child as usize, j.var as usize, axis)
+                (
+                    j.parent as usize,
+                    j.child as usize,
+                    j.var as usize,
+                    j.speed_axis(),
+                )
             })
             .collect()
     }
@@ -470,6 +462,17 @@ impl FkModel {
 }
 
 impl FkJoint {
+    /// This movable joint as [`FkModel::speed_axes`] gives it (`None` for a zero axis).
+    fn speed_axis(&self) -> Option<SpeedAxis> {
+        let n = self.axis.norm();
+        (n > 0.0).then(|| SpeedAxis {
+            child: self.child as usize,
+            axis: self.axis / n,
+            mul: self.mul,
+            revolute: self.kind != JointKind::Prismatic,
+        })
+    }
+
     /// Frame of the child link given the parent's frame `p`.
     #[inline(always)]
     fn apply(&self, p: &Frame, q: &[f64]) -> Frame {
