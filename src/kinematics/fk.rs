@@ -82,9 +82,7 @@ impl ForwardKinematics {
 /// One movable joint of a chain, as [`FkModel::speed_axes`] gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpeedAxis {
-    /// The joint's child link (a computed link of the model).
-    pub child: usize,
-    /// Unit axis in the child link's frame.
+    /// Unit axis in the frame of the joint's child link.
     pub axis: nalgebra::Vector3<f64>,
     /// The joint moves by `mul · Δq` of its variable.
     pub mul: f64,
@@ -413,7 +411,7 @@ impl FkModel {
     }
 
     /// The movable joints from `link` up to the root, in the order of [`Self::speed_bounds`]:
-    /// per joint its child (computed) link, its unit axis in that link's frame (a revolute
+    /// per joint its unit axis in its child link's frame (a revolute
     /// joint turns about the axis line through the frame's origin; a prismatic one slides
     /// along it), its multiplier (signed: the joint moves by `multiplier · Δq` of its
     /// variable) and whether it is revolute (or continuous). `None` for a degenerate zero axis.
@@ -466,7 +464,6 @@ impl FkJoint {
     fn speed_axis(&self) -> Option<SpeedAxis> {
         let n = self.axis.norm();
         (n > 0.0).then(|| SpeedAxis {
-            child: self.child as usize,
             axis: self.axis / n,
             mul: self.mul,
             revolute: self.kind != JointKind::Prismatic,

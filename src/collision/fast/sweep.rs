@@ -64,9 +64,8 @@ pub(super) struct Sweep {
     /// `(world variable, w)` of every body's joints from its mount up to the root;
     /// body `i` owns `chain[range[i].0..range[i].1]`.
     chain: Vec<(u32, f64)>,
-    /// Per `chain` entry, for a revolute joint: its child (computed) link, unit axis in that
-    /// link's frame and `|multiplier|` — what [`FastChecker::segment_lengths`] needs to bound
-    /// the body's distance from the axis along one segment.
+    /// Per `chain` entry: its joint's axis, signed multiplier and kind (`None`: a zero axis),
+    /// for the second-order sums of [`FastChecker::segment_lengths`].
     axes: Vec<Option<crate::kinematics::SpeedAxis>>,
     /// Per `chain` entry: the static bound of the ball centre's distance from a revolute
     /// joint's axis (`w / |mul|`, with the radius; 0 otherwise), for the second-order term.
