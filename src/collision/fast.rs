@@ -117,6 +117,10 @@ pub struct FastChecker {
     bases: Vec<Frame>,
     // Per-check buffers.
     link_poses: Vec<Vec<Frame>>,
+    /// Per robot: the variables `link_poses` were computed for (empty: not yet), and a
+    /// scratch flag per link ([`FastChecker::robot_frames`] recomputes what changed).
+    fk_last: Vec<Vec<f64>>,
+    fk_changed: Vec<bool>,
     body_bc: Vec<Vector3<f64>>,
     world_prims: Vec<Prim>,
     /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
@@ -522,6 +526,16 @@ impl FastChecker {
             self_start,
             moving_lo: Vector3::zeros(),
             moving_hi: Vector3::zeros(),
+            fk_last: vec![Vec::new(); world.robots.len()],
+            fk_changed: vec![
+                false;
+                world
+                    .robots
+                    .iter()
+                    .map(|p| p.robot.links.len())
+                    .max()
+                    .unwrap_or(0)
+            ],
             fk,
             bases,
             link_poses,
@@ -796,13 +810,8 @@ impl FastChecker {
 
     #[inline]
     fn prepare(&mut self, q: &[f64]) {
-        for (r, p) in self.world.robots.iter().enumerate() {
-            let dof = p.robot.dof();
-            self.fk[r].compute(
-                &self.bases[r],
-                &q[p.offset..p.offset + dof],
-                &mut self.link_poses[r],
-            );
+        for r in 0..self.world.robots.len() {
+            self.robot_frames(r, q);
         }
         let mut lo = Vector3::repeat(f64::INFINITY);
         let mut hi = Vector3::repeat(f64::NEG_INFINITY);
@@ -820,6 +829,29 @@ impl FastChecker {
         self.next_epoch();
     }
 
+    /// Robot `r`'s link frames for the world configuration `q` into `link_poses[r]`: only
+    /// what changed since its last call is recomputed ([`FkModel::update`]; the same frames
+    /// as computing them all). Everything that writes `link_poses` goes through here.
+    #[inline]
+    pub(super) fn robot_frames(&mut self, r: usize, q: &[f64]) {
+        let p = &self.world.robots[r];
+        let q = &q[p.offset..p.offset + p.robot.dof()];
+        let last = &mut self.fk_last[r];
+        if last.len() == q.len() {
+            self.fk[r].update(
+                &self.bases[r],
+                q,
+                last,
+                &mut self.fk_changed,
+                &mut self.link_poses[r],
+            );
+        } else {
+            self.fk[r].compute(&self.bases[r], q, &mut self.link_poses[r]);
+            last.clear();
+            last.extend_from_slice(q);
+        }
+    }
+
     /// [`Self::prepare`] for a test of the pairs `focus` only (indices into the pair list):
     /// the frames of the robots they involve and their bodies' bounding-sphere centres (not the
     /// box around all moving bodies).
@@ -833,14 +865,9 @@ impl FastChecker {
                 robots |= 1 << (self.moving[p.b as usize].mount.robot % 64);
             }
         }
-        for (r, p) in self.world.robots.iter().enumerate() {
+        for r in 0..nr {
             if nr > 64 || robots & (1 << r) != 0 {
-                let dof = p.robot.dof();
-                self.fk[r].compute(
-                    &self.bases[r],
-                    &q[p.offset..p.offset + dof],
-                    &mut self.link_poses[r],
-                );
+                self.robot_frames(r, q);
             }
         }
         for &pi in focus {

@@ -457,6 +457,35 @@ impl FkModel {
             out[j.child as usize] = j.apply(&out[j.parent as usize], q);
         }
     }
+
+    /// [`Self::compute`] when `out` already holds the frames of the configuration `last` (same
+    /// `base`): only the links whose joint's variable differs from `last` (bit for bit), or
+    /// whose parent link was recomputed, are computed again; then `last` becomes `q`. Each frame
+    /// comes from the same inputs by the same operations as in `compute`, so the frames are
+    /// bit for bit the same. `changed`: scratch, one entry per link. A planner that moves one
+    /// arm of a two-armed robot recomputes that arm only.
+    #[inline]
+    pub fn update(
+        &self,
+        base: &Frame,
+        q: &[f64],
+        last: &mut [f64],
+        changed: &mut [bool],
+        out: &mut [Frame],
+    ) {
+        out[0] = *base;
+        changed[0] = false;
+        for j in &self.joints {
+            let moved = j.kind != JointKind::Fixed
+                && q[j.var as usize].to_bits() != last[j.var as usize].to_bits();
+            let c = changed[j.parent as usize] || moved;
+            changed[j.child as usize] = c;
+            if c {
+                out[j.child as usize] = j.apply(&out[j.parent as usize], q);
+            }
+        }
+        last.copy_from_slice(q);
+    }
 }
 
 impl FkJoint {

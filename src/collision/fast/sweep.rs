@@ -15,8 +15,11 @@
 //! [`crate::collision::SphereChecker::segment_certified`]; Schwarzer, Saha & Latombe, IEEE T-RO
 //! 2005, with inflated primitives instead of distances). For a pair of moving bodies only the
 //! joints below their first common ancestor count (the ones above move both rigidly), on both
-//! sides (the pair's primitives are grown by the sum); for a body against a fixed one all of
-//! them; bodies of different robots count their whole chains. Growing a primitive's radii and
+//! sides (the pair's primitives are grown by the sum), or their whole chains' bounds when that
+//! sum is smaller (both bodies' travels in the world bound their relative motion too: a point
+//! where they meet in a run lies within `L_a·δ` of a point of `a` and `L_b·δ` of a point of
+//! `b` at the run's end); for a body against a fixed one all of them; bodies of different
+//! robots count their whole chains. Growing a primitive's radii and
 //! half extents by a distance contains its Minkowski sum with a ball of that radius, so the
 //! test stays conservative.
 //!
@@ -90,6 +93,14 @@ pub(super) struct Sweep {
     /// motion (a body against a fixed one: its whole chain and its entry 0, which is 0; two
     /// moving bodies: each chain below their first common ancestor).
     pair_cum: Vec<(u32, u32)>,
+    /// Per pair: the two entries of `cum` for the bodies' whole chains (a body against a fixed
+    /// one: as `pair_cum`). The sum of two bodies' travels in the world bounds their relative
+    /// motion too, and a whole chain's bound may be the tighter one: the configuration-dependent
+    /// bound of `travel.rs` tightens whole chains only.
+    pair_whole: Vec<(u32, u32)>,
+    /// Per pair, for the current segment: the smaller of the two sums (`pair_cum`,
+    /// `pair_whole`) — how far the pair's bodies move relative to each other.
+    pair_len: Vec<f64>,
     /// Per pair, for the current inflation: the distance its primitives are grown by and the
     /// squared reach of its bounding-sphere cull.
     pair_d: Vec<f64>,
@@ -217,6 +228,19 @@ impl Sweep {
                 .unwrap_or(n)
                 .min(n)
         };
+        let pair_whole = c
+            .pairs
+            .iter()
+            .map(|p| {
+                let a = p.a as usize;
+                let whole = |i: usize| cum_off[i] + range[i].1 - range[i].0;
+                if p.b_static {
+                    (whole(a), cum_off[a])
+                } else {
+                    (whole(a), whole(p.b as usize))
+                }
+            })
+            .collect();
         let pair_cum = c
             .pairs
             .iter()
@@ -329,6 +353,8 @@ impl Sweep {
             cum: vec![0.0; cum_len as usize],
             cum_off,
             pair_cum,
+            pair_whole,
+            pair_len: vec![0.0; np],
             lmax: 0.0,
             scale: 0.0,
             q: vec![0.0; c.world.dof()],
@@ -364,8 +390,12 @@ impl Sweep {
     /// reach.
     fn set_inflation(&mut self, h: f64) {
         self.scale = 0.5 * h;
-        for (pi, &(ca, cb)) in self.pair_cum.iter().enumerate() {
-            let d = self.scale * (self.cum[ca as usize] + self.cum[cb as usize]);
+        for (pi, (&(ca, cb), &(wa, wb))) in self.pair_cum.iter().zip(&self.pair_whole).enumerate() {
+            let cum = &self.cum;
+            let len =
+                (cum[ca as usize] + cum[cb as usize]).min(cum[wa as usize] + cum[wb as usize]);
+            self.pair_len[pi] = len;
+            let d = self.scale * len;
             let reach = self.pair_reach0[pi] + d;
             self.pair_d[pi] = d;
             self.pair_reach2[pi] = reach * reach;
@@ -392,8 +422,7 @@ impl Sweep {
     /// segment.
     #[inline]
     fn inflation(&self, pi: usize, h: f64) -> f64 {
-        let (ca, cb) = self.pair_cum[pi];
-        0.5 * h * (self.cum[ca as usize] + self.cum[cb as usize])
+        0.5 * h * self.pair_len[pi]
     }
 
     /// The state `a + (b − a)·t` into `q`, as the motion validator computes its states
@@ -953,8 +982,7 @@ impl FastChecker {
         for &pi in focus {
             let pi = pi as usize;
             let p = self.pairs[pi];
-            let (ca, cb) = s.pair_cum[pi];
-            let d = scale * (s.cum[ca as usize] + s.cum[cb as usize]);
+            let d = scale * s.pair_len[pi];
             let reach = s.pair_reach0[pi] + d;
             let (x, y) = (p.a as usize, p.b as usize);
             let near = if p.b_static {

@@ -106,10 +106,9 @@ impl FastChecker {
         s.body_vec.fill(0.0);
         for piece in 0..pieces {
             lerp(a, b, (piece as f64 + 0.5) * frac, q);
-            for (r, p) in self.world.robots.iter().enumerate() {
+            for r in 0..self.world.robots.len() {
                 if moves(r) {
-                    let range = p.offset..p.offset + p.robot.dof();
-                    self.fk[r].compute(&self.bases[r], &q[range], &mut self.link_poses[r]);
+                    self.robot_frames(r, q);
                 }
             }
             for &(r, parent, child, v, ax) in &s.tree {
@@ -295,13 +294,8 @@ mod tests {
                 let mut prev: Vec<Vec<[Vector3<f64>; 7]>> = Vec::new();
                 for step in 0..=n {
                     lerp(&a, &b, step as f64 / n as f64, &mut q);
-                    for (r, p) in world.robots.iter().enumerate() {
-                        let d = p.robot.dof();
-                        c.fk[r].compute(
-                            &c.bases[r],
-                            &q[p.offset..p.offset + d],
-                            &mut c.link_poses[r],
-                        );
+                    for r in 0..world.robots.len() {
+                        c.robot_frames(r, &q);
                     }
                     let mut cur = Vec::with_capacity(bodies);
                     for i in 0..bodies {
