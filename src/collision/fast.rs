@@ -117,10 +117,9 @@ pub struct FastChecker {
     bases: Vec<Frame>,
     // Per-check buffers.
     link_poses: Vec<Vec<Frame>>,
-    /// Per robot: the variables `link_poses` were computed for (empty: not yet), and a
-    /// scratch flag per link ([`FastChecker::robot_frames`] recomputes what changed).
+    /// Per robot: the variables `link_poses` were computed for (empty: not yet;
+    /// [`FastChecker::robot_frames`] recomputes what changed).
     fk_last: Vec<Vec<f64>>,
-    fk_changed: Vec<bool>,
     body_bc: Vec<Vector3<f64>>,
     world_prims: Vec<Prim>,
     /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
@@ -527,15 +526,6 @@ impl FastChecker {
             moving_lo: Vector3::zeros(),
             moving_hi: Vector3::zeros(),
             fk_last: vec![Vec::new(); world.robots.len()],
-            fk_changed: vec![
-                false;
-                world
-                    .robots
-                    .iter()
-                    .map(|p| p.robot.links.len())
-                    .max()
-                    .unwrap_or(0)
-            ],
             fk,
             bases,
             link_poses,
@@ -838,13 +828,7 @@ impl FastChecker {
         let q = &q[p.offset..p.offset + p.robot.dof()];
         let last = &mut self.fk_last[r];
         if last.len() == q.len() {
-            self.fk[r].update(
-                &self.bases[r],
-                q,
-                last,
-                &mut self.fk_changed,
-                &mut self.link_poses[r],
-            );
+            self.fk[r].update(&self.bases[r], q, last, &mut self.link_poses[r]);
         } else {
             self.fk[r].compute(&self.bases[r], q, &mut self.link_poses[r]);
             last.clear();

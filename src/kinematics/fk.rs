@@ -166,6 +166,15 @@ struct FkJoint {
 #[derive(Debug, Clone)]
 pub struct FkModel {
     joints: Vec<FkJoint>,
+    /// Per joint (as `joints`): the variables its child's frame depends on, its own and its
+    /// ancestors', as a bit set ([`FkModel::update`]); their union in `deps_all`. Empty when a
+    /// variable index is 64 or more (`update` then computes every frame).
+    deps: Vec<u64>,
+    deps_all: u64,
+    /// The variables of the movable joints (`deps_all` as a list), and those of the movable
+    /// joints without a movable ancestor: when all of these move, every frame does.
+    vars: Vec<u32>,
+    root_vars: Vec<u32>,
     links: usize,
     /// Per link: the computed link it is rigidly attached to, and its offset from it.
     rep: Vec<u32>,
@@ -218,10 +227,48 @@ impl FkModel {
         let n = robot.links.len();
         FkModel {
             joints,
+            deps: Vec::new(),
+            deps_all: 0,
+            vars: Vec::new(),
+            root_vars: Vec::new(),
             links: n,
             rep: (0..n as u32).collect(),
             offset: vec![None; n],
         }
+        .with_deps()
+    }
+
+    /// Fills [`FkModel::deps`] (joints come parents first).
+    fn with_deps(mut self) -> FkModel {
+        self.deps.clear();
+        self.deps_all = 0;
+        if self
+            .joints
+            .iter()
+            .any(|j| j.kind != JointKind::Fixed && j.var >= 64)
+        {
+            return self;
+        }
+        let mut link = vec![0u64; self.links];
+        for j in &self.joints {
+            let own = if j.kind == JointKind::Fixed {
+                0
+            } else {
+                1u64 << j.var
+            };
+            let up = link[j.parent as usize];
+            if up == 0 && own != 0 && self.root_vars.iter().all(|&v| v != j.var) {
+                self.root_vars.push(j.var);
+            }
+            let d = up | own;
+            link[j.child as usize] = d;
+            self.deps.push(d);
+            self.deps_all |= d;
+        }
+        self.vars = (0..64u32)
+            .filter(|v| self.deps_all & (1 << v) != 0)
+            .collect();
+        self
     }
 
     /// The reduced model: only links after movable joints are computed.
@@ -276,10 +323,15 @@ impl FkModel {
         }
         FkModel {
             joints,
+            deps: Vec::new(),
+            deps_all: 0,
+            vars: Vec::new(),
+            root_vars: Vec::new(),
             links: n,
             rep,
             offset,
         }
+        .with_deps()
     }
 
     /// The computed link that `link` is rigidly attached to and its offset from it (`None` when
@@ -459,32 +511,40 @@ impl FkModel {
     }
 
     /// [`Self::compute`] when `out` already holds the frames of the configuration `last` (same
-    /// `base`): only the links whose joint's variable differs from `last` (bit for bit), or
-    /// whose parent link was recomputed, are computed again; then `last` becomes `q`. Each frame
-    /// comes from the same inputs by the same operations as in `compute`, so the frames are
-    /// bit for bit the same. `changed`: scratch, one entry per link. A planner that moves one
-    /// arm of a two-armed robot recomputes that arm only.
+    /// `base`): only the frames that depend on a variable whose value differs from `last` (bit
+    /// for bit) are computed again (all of them when every movable joint without a movable
+    /// ancestor moves); then `last` takes `q`'s values of the variables the frames depend on
+    /// (the others are never read). Each frame comes from the same
+    /// inputs by the same operations as in `compute`, so the frames are bit for bit the same.
+    /// A planner that moves one arm of a two-armed robot recomputes that arm only.
     #[inline]
-    pub fn update(
-        &self,
-        base: &Frame,
-        q: &[f64],
-        last: &mut [f64],
-        changed: &mut [bool],
-        out: &mut [Frame],
-    ) {
-        out[0] = *base;
-        changed[0] = false;
-        for j in &self.joints {
-            let moved = j.kind != JointKind::Fixed
-                && q[j.var as usize].to_bits() != last[j.var as usize].to_bits();
-            let c = changed[j.parent as usize] || moved;
-            changed[j.child as usize] = c;
-            if c {
-                out[j.child as usize] = j.apply(&out[j.parent as usize], q);
+    pub fn update(&self, base: &Frame, q: &[f64], last: &mut [f64], out: &mut [Frame]) {
+        let same = |v: u32| q[v as usize].to_bits() == last[v as usize].to_bits();
+        if self.deps.len() != self.joints.len()
+            || q.len() != last.len()
+            || self.root_vars.iter().all(|&v| !same(v))
+        {
+            // Every frame moves (or the model has no dependency sets): all of them.
+            self.compute(base, q, out);
+        } else {
+            let mut moved = 0u64;
+            for &v in &self.vars {
+                moved |= u64::from(!same(v)) << v;
+            }
+            if moved != 0 {
+                out[0] = *base;
+                for (j, &d) in self.joints.iter().zip(&self.deps) {
+                    if d & moved != 0 {
+                        out[j.child as usize] = j.apply(&out[j.parent as usize], q);
+                    }
+                }
             }
         }
-        last.copy_from_slice(q);
+        if q.len() == last.len() {
+            for &v in &self.vars {
+                last[v as usize] = q[v as usize];
+            }
+        }
     }
 }
 
