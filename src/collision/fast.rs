@@ -99,6 +99,19 @@ struct Pair {
     reach2: f64,
 }
 
+/// A robot's frames `out` for its variables `q`, recomputing only what changed since `last`
+/// (empty: everything; [`FkModel::update`]).
+#[inline]
+fn frames_update(fk: &FkModel, base: &Frame, q: &[f64], last: &mut Vec<f64>, out: &mut [Frame]) {
+    if last.len() == q.len() {
+        fk.update(base, q, last, out);
+    } else {
+        fk.compute(base, q, out);
+        last.clear();
+        last.extend_from_slice(q);
+    }
+}
+
 /// Conservative checker used by planners. See the module documentation.
 #[derive(Debug, Clone)]
 pub struct FastChecker {
@@ -120,6 +133,10 @@ pub struct FastChecker {
     /// Per robot: the variables `link_poses` were computed for (empty: not yet;
     /// [`FastChecker::robot_frames`] recomputes what changed).
     fk_last: Vec<Vec<f64>>,
+    /// The frames of the sweep's travel-bound pieces (`sweep/travel.rs`), apart from
+    /// `link_poses` so that the state checked next keeps its frames, and their variables.
+    piece_poses: Vec<Vec<Frame>>,
+    piece_last: Vec<Vec<f64>>,
     body_bc: Vec<Vector3<f64>>,
     world_prims: Vec<Prim>,
     /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
@@ -500,7 +517,7 @@ impl FastChecker {
             }
         });
         let (static_groups, self_start) = group_pairs(&pairs);
-        let link_poses = world
+        let link_poses: Vec<Vec<Frame>> = world
             .robots
             .iter()
             .map(|p: &PlacedRobot| vec![Frame::identity(); p.robot.links.len()])
@@ -526,6 +543,8 @@ impl FastChecker {
             moving_lo: Vector3::zeros(),
             moving_hi: Vector3::zeros(),
             fk_last: vec![Vec::new(); world.robots.len()],
+            piece_poses: link_poses.clone(),
+            piece_last: vec![Vec::new(); world.robots.len()],
             fk,
             bases,
             link_poses,
@@ -826,14 +845,27 @@ impl FastChecker {
     pub(super) fn robot_frames(&mut self, r: usize, q: &[f64]) {
         let p = &self.world.robots[r];
         let q = &q[p.offset..p.offset + p.robot.dof()];
-        let last = &mut self.fk_last[r];
-        if last.len() == q.len() {
-            self.fk[r].update(&self.bases[r], q, last, &mut self.link_poses[r]);
-        } else {
-            self.fk[r].compute(&self.bases[r], q, &mut self.link_poses[r]);
-            last.clear();
-            last.extend_from_slice(q);
-        }
+        frames_update(
+            &self.fk[r],
+            &self.bases[r],
+            q,
+            &mut self.fk_last[r],
+            &mut self.link_poses[r],
+        );
+    }
+
+    /// [`Self::robot_frames`] into `piece_poses` (the travel bound's pieces).
+    #[inline]
+    pub(super) fn piece_frames(&mut self, r: usize, q: &[f64]) {
+        let p = &self.world.robots[r];
+        let q = &q[p.offset..p.offset + p.robot.dof()];
+        frames_update(
+            &self.fk[r],
+            &self.bases[r],
+            q,
+            &mut self.piece_last[r],
+            &mut self.piece_poses[r],
+        );
     }
 
     /// [`Self::prepare`] for a test of the pairs `focus` only (indices into the pair list):

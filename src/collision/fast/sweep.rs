@@ -814,7 +814,14 @@ impl FastChecker {
         max_inflation: f64,
     ) -> super::Certification {
         use super::Certification;
-        self.segment_lengths(s, q, a, b, max_inflation);
+        let pieces = self.chain_lengths(s, a, b, max_inflation);
+        // A long motion (an RRT extension) often ends in collision: its end state alone, with
+        // the plain primitives, answers that before the vector bound's pieces and the pairs'
+        // inflations are computed. Short ones (a Jacobian step) mostly end free.
+        if (s.lmax / (2.0 * max_inflation)).ceil() >= PROBE_END_RUNS && self.find(b).is_some() {
+            return Certification::Collides;
+        }
+        self.vector_lengths(s, q, a, b, pieces);
         let lmax = s.lmax;
         if !lmax.is_finite() {
             return Certification::Unproven;
@@ -833,7 +840,12 @@ impl FastChecker {
         s.state_tight.resize(runs + 1, (0, 0));
         for idx in 0..=runs {
             let k = if idx < runs { s.order[idx] as usize } else { 0 };
-            lerp(a, b, run_param(k, runs), q);
+            if k == runs {
+                // The end state itself (the probe above left its frames prepared).
+                q.copy_from_slice(b);
+            } else {
+                lerp(a, b, run_param(k, runs), q);
+            }
             let start = pool.len() as u32;
             if self.check_inflated_logging(s, q, Some(pool)) == Inflated::Hit {
                 return Certification::Collides;
@@ -1017,6 +1029,14 @@ impl FastChecker {
     }
 }
 
+/// Coarse runs (of the static bound) from which a certified check tests the motion's end
+/// state alone first ([`FastChecker::certify`]; its frames stay prepared for the coarse check
+/// of that state when it is free). Callgrind, `bench planners` (instructions against no probe):
+/// from 4 / 8 / 16 / 32 runs, dual-arm IK-RRT with the obstacle (10 runs) −7.7 / −7.7 / −7.8 /
+/// −2.8 %, kitchen task and Bimanual (10 runs) −6.6 / −6.6 / −6.6 / −5.8 %, IK-RRT reach with
+/// the obstacle (40 runs) +2.9 / +2.7 / +1.9 / +0.3 %; dual-arm J+-RRT (4 runs) −0.8 % at 8 and
+/// 16, +8 % probing every motion (its Jacobian steps mostly end free).
+const PROBE_END_RUNS: f64 = 16.0;
 /// Most coarse runs of a certified check (a longer motion is covered by larger inflations).
 const CERTIFY_MAX_RUNS: usize = 4096;
 /// Most refinement steps (halvings) of one certified check before it gives up (unproven).

@@ -24,7 +24,10 @@ impl FastChecker {
     /// parameter length `f` adds at most `|v_c| + r·|ω| + M·f²/4` (Schwarzer, Saha & Latombe
     /// 2005 bound a link point's travel from the joints' motion; this is its
     /// configuration-dependent form, computed once per piece, not per checked state). Leaves
-    /// the last piece's frames in `link_poses`.
+    /// `link_poses` as they were (the pieces' frames go to `piece_poses`). The certified check
+    /// runs its two passes, [`Self::chain_lengths`] and [`Self::vector_lengths`], apart (it
+    /// may test the motion's end state between them); this is both, for the tests.
+    #[cfg(test)]
     pub(super) fn segment_lengths(
         &mut self,
         s: &mut Sweep,
@@ -33,15 +36,21 @@ impl FastChecker {
         b: &[f64],
         max_inflation: f64,
     ) {
-        let mut moved = 0u64;
-        for (r, p) in self.world.robots.iter().enumerate() {
-            let range = p.offset..p.offset + p.robot.dof();
-            if a[range.clone()] != b[range] {
-                moved |= 1 << (r % 64);
-            }
-        }
-        let all = self.world.robots.len() > 64;
-        let moves = |r: usize| all || moved & (1 << (r % 64)) != 0;
+        let pieces = self.chain_lengths(s, a, b, max_inflation);
+        self.vector_lengths(s, q, a, b, pieces);
+    }
+
+    /// The first pass of [`Self::segment_lengths`]: the static running sums along every chain
+    /// (`cum`, `lmax`: [`Sweep::lengths`]) and the second-order sums; returns the pieces the
+    /// vector bound is worth (0: none).
+    pub(super) fn chain_lengths(
+        &mut self,
+        s: &mut Sweep,
+        a: &[f64],
+        b: &[f64],
+        max_inflation: f64,
+    ) -> usize {
+        let moves = self.moving_robots(a, b);
         // [`Sweep::lengths`] and, in the same pass over each chain (body to root), the
         // second-order sums for the whole segment's |Δθ|, in the incremental form: joint k adds
         // its own term and grows every lower joint's A by |Δθ_k|.
@@ -100,15 +109,34 @@ impl FastChecker {
             let l = s.cum[s.cum_off[i] as usize + (c1 - c0) as usize];
             s.body_m[i] >= 0.0 && 0.25 * frac * s.body_m[i] < 0.5 * l
         });
-        if !room {
+        if room {
+            pieces
+        } else {
+            0
+        }
+    }
+
+    /// The second pass of [`Self::segment_lengths`]: every body's whole-chain bound from the
+    /// vector sums at the midpoints of `pieces` equal pieces (none: the static bounds stay).
+    pub(super) fn vector_lengths(
+        &mut self,
+        s: &mut Sweep,
+        q: &mut [f64],
+        a: &[f64],
+        b: &[f64],
+        pieces: usize,
+    ) {
+        if pieces == 0 {
             return;
         }
+        let moves = self.moving_robots(a, b);
+        let frac = 1.0 / pieces as f64;
         s.body_vec.fill(0.0);
         for piece in 0..pieces {
             lerp(a, b, (piece as f64 + 0.5) * frac, q);
             for r in 0..self.world.robots.len() {
                 if moves(r) {
-                    self.robot_frames(r, q);
+                    self.piece_frames(r, q);
                 }
             }
             for &(r, parent, child, v, ax) in &s.tree {
@@ -121,7 +149,7 @@ impl FastChecker {
                 if let Some(ax) = ax {
                     let dth = ax.mul * (b[v as usize] - a[v as usize]) * frac;
                     if dth != 0.0 {
-                        let f = &self.link_poses[r][child as usize];
+                        let f = &self.piece_poses[r][child as usize];
                         let z = f.rot * ax.axis * dth;
                         if ax.revolute {
                             acc[0] += z;
@@ -138,7 +166,7 @@ impl FastChecker {
                 if !moves(r) {
                     continue;
                 }
-                let f = &self.link_poses[r][body.mount.link];
+                let f = &self.piece_poses[r][body.mount.link];
                 let c = f.rot * body.bc + f.t;
                 let [om, gamma, pr] = s.link_sums[r][body.mount.link];
                 s.body_vec[i] += (om.cross(&c) - gamma + pr).norm() + body.br * om.norm();
@@ -160,6 +188,21 @@ impl FastChecker {
             }
             s.lmax = s.lmax.max(l);
         }
+    }
+}
+
+impl FastChecker {
+    /// Whether robot `r` moves along `a → b` (every robot when there are more than 64).
+    fn moving_robots(&self, a: &[f64], b: &[f64]) -> impl Fn(usize) -> bool {
+        let mut moved = 0u64;
+        for (r, p) in self.world.robots.iter().enumerate() {
+            let range = p.offset..p.offset + p.robot.dof();
+            if a[range.clone()] != b[range] {
+                moved |= 1 << (r % 64);
+            }
+        }
+        let all = self.world.robots.len() > 64;
+        move |r: usize| all || moved & (1 << (r % 64)) != 0
     }
 }
 
