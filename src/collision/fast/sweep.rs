@@ -101,6 +101,8 @@ pub(super) struct Sweep {
     /// Per pair, for the current segment: the smaller of the two sums (`pair_cum`,
     /// `pair_whole`) — how far the pair's bodies move relative to each other.
     pair_len: Vec<f64>,
+    /// How many pairs (the first ones) are against fixed bodies.
+    static_pairs: usize,
     /// Per pair, for the current inflation: the distance its primitives are grown by and the
     /// squared reach of its bounding-sphere cull.
     pair_d: Vec<f64>,
@@ -355,6 +357,7 @@ impl Sweep {
             pair_cum,
             pair_whole,
             pair_len: vec![0.0; np],
+            static_pairs: c.pairs.iter().take_while(|p| p.b_static).count(),
             lmax: 0.0,
             scale: 0.0,
             q: vec![0.0; c.world.dof()],
@@ -390,15 +393,31 @@ impl Sweep {
     /// reach.
     fn set_inflation(&mut self, h: f64) {
         self.scale = 0.5 * h;
-        for (pi, (&(ca, cb), &(wa, wb))) in self.pair_cum.iter().zip(&self.pair_whole).enumerate() {
-            let cum = &self.cum;
-            let len =
-                (cum[ca as usize] + cum[cb as usize]).min(cum[wa as usize] + cum[wb as usize]);
-            self.pair_len[pi] = len;
-            let d = self.scale * len;
-            let reach = self.pair_reach0[pi] + d;
-            self.pair_d[pi] = d;
-            self.pair_reach2[pi] = reach * reach;
+        let cum = &self.cum;
+        // Pairs against fixed bodies come first: their length is the moving body's whole
+        // chain (`pair_cum` and `pair_whole` agree, the fixed side's entry is 0).
+        let ns = self.static_pairs;
+        for (len, &(ca, _)) in self.pair_len[..ns].iter_mut().zip(&self.pair_cum[..ns]) {
+            *len = cum[ca as usize];
+        }
+        for ((len, &(ca, cb)), &(wa, wb)) in self.pair_len[ns..]
+            .iter_mut()
+            .zip(&self.pair_cum[ns..])
+            .zip(&self.pair_whole[ns..])
+        {
+            *len = (cum[ca as usize] + cum[cb as usize]).min(cum[wa as usize] + cum[wb as usize]);
+        }
+        let scale = self.scale;
+        for (((d, r2), &len), &r0) in self
+            .pair_d
+            .iter_mut()
+            .zip(self.pair_reach2.iter_mut())
+            .zip(&self.pair_len)
+            .zip(&self.pair_reach0)
+        {
+            *d = scale * len;
+            let reach = r0 + *d;
+            *r2 = reach * reach;
         }
         for (runs, reach0, reach2) in [
             (
