@@ -99,19 +99,6 @@ struct Pair {
     reach2: f64,
 }
 
-/// A robot's frames `out` for its variables `q`, recomputing only what changed since `last`
-/// (empty: everything; [`FkModel::update`]).
-#[inline]
-fn frames_update(fk: &FkModel, base: &Frame, q: &[f64], last: &mut Vec<f64>, out: &mut [Frame]) {
-    if last.len() == q.len() {
-        fk.update(base, q, last, out);
-    } else {
-        fk.compute(base, q, out);
-        last.clear();
-        last.extend_from_slice(q);
-    }
-}
-
 /// Conservative checker used by planners. See the module documentation.
 #[derive(Debug, Clone)]
 pub struct FastChecker {
@@ -843,29 +830,33 @@ impl FastChecker {
     /// as computing them all). Everything that writes `link_poses` goes through here.
     #[inline]
     pub(super) fn robot_frames(&mut self, r: usize, q: &[f64]) {
-        let p = &self.world.robots[r];
-        let q = &q[p.offset..p.offset + p.robot.dof()];
-        frames_update(
-            &self.fk[r],
-            &self.bases[r],
-            q,
-            &mut self.fk_last[r],
-            &mut self.link_poses[r],
-        );
+        self.frames_for(r, q, false);
     }
 
     /// [`Self::robot_frames`] into `piece_poses` (the travel bound's pieces).
     #[inline]
     pub(super) fn piece_frames(&mut self, r: usize, q: &[f64]) {
+        self.frames_for(r, q, true);
+    }
+
+    /// Robot `r`'s frames for `q` into `piece_poses` (`piece`) or `link_poses`, recomputing
+    /// only what changed since that buffer's last configuration (none yet: everything).
+    #[inline]
+    fn frames_for(&mut self, r: usize, q: &[f64], piece: bool) {
         let p = &self.world.robots[r];
         let q = &q[p.offset..p.offset + p.robot.dof()];
-        frames_update(
-            &self.fk[r],
-            &self.bases[r],
-            q,
-            &mut self.piece_last[r],
-            &mut self.piece_poses[r],
-        );
+        let (last, out) = if piece {
+            (&mut self.piece_last[r], &mut self.piece_poses[r])
+        } else {
+            (&mut self.fk_last[r], &mut self.link_poses[r])
+        };
+        if last.len() == q.len() {
+            self.fk[r].update(&self.bases[r], q, last, out);
+        } else {
+            self.fk[r].compute(&self.bases[r], q, out);
+            last.clear();
+            last.extend_from_slice(q);
+        }
     }
 
     /// [`Self::prepare`] for a test of the pairs `focus` only (indices into the pair list):
