@@ -81,10 +81,10 @@ enum Obs {
     },
 }
 
-/// What collided: a body and an obstacle or another body.
+/// What collided: a body and an obstacle (and the body's sphere that hit it) or another body.
 #[derive(Debug, Clone, Copy)]
 enum Hit {
-    Obstacle(u32, u32),
+    Obstacle(u32, u32, u32),
     SelfPair(u32, u32),
 }
 
@@ -167,6 +167,13 @@ pub struct SphereChecker {
     hot_body: u32,
     /// The hot body goes first (off only to compare against in tests).
     hot_first: bool,
+    /// The (sphere, obstacle) of the hot body's last hit in an 8-lane check (`u32::MAX`:
+    /// none). Before the hot body's full test, that one sphere is placed and tested against
+    /// that one obstacle with its plain radius, the test the full one would make: measured
+    /// (Panda cage), 84 % of the 8-lane checks that collide hit the hot body, most with the
+    /// same sphere and obstacle as the last time. A probe only ever finds a collision the full
+    /// test finds too, so verdicts do not change.
+    hot_pair: (u32, u32),
     /// The bodies (obstacle tests) and self pairs (`SELF_PAIR | index`) with tight lanes in
     /// the last check, each once, with those lanes.
     tight_log: Vec<(u32, u32)>,
@@ -215,6 +222,7 @@ impl SphereChecker {
     pub fn set_hot_first(&mut self, on: bool) {
         self.hot_first = on;
         self.hot_body = u32::MAX;
+        self.hot_pair = (u32::MAX, u32::MAX);
     }
 
     /// Turns focused refinement of certified checks on or off (on by default): with it, a
@@ -371,7 +379,13 @@ impl SphereChecker {
                 self.step::<N, AVX>(si);
             }
             stepped = node + 1;
+            if self.hot_pair.0 != u32::MAX && self.hot_probe::<N, AVX>(hot as usize) {
+                return Some(Hit::Obstacle(hot, self.hot_pair.1, self.hot_pair.0));
+            }
             if let Some(h) = self.env_of::<N, AVX>(hot as usize) {
+                if let Hit::Obstacle(_, o, s) = h {
+                    self.hot_pair = (s, o);
+                }
                 return Some(h);
             }
         }
@@ -385,8 +399,9 @@ impl SphereChecker {
                     continue;
                 }
                 if let Some(h) = self.env_of::<N, AVX>(b as usize) {
-                    if N == LANES {
+                    if let (true, Hit::Obstacle(_, o, s)) = (N == LANES, h) {
                         self.hot_body = b;
+                        self.hot_pair = (s, o);
                     }
                     return Some(h);
                 }
@@ -464,6 +479,31 @@ impl SphereChecker {
             }
         }
         None
+    }
+
+    /// Whether the hot pair's sphere (of body `b`, its node's frame computed) touches the hot
+    /// pair's obstacle in any lane with its plain radius (see [`Self::hot_pair`]).
+    #[inline(always)]
+    fn hot_probe<const N: usize, const AVX: bool>(&self, b: usize) -> bool {
+        let (si, oi) = (self.hot_pair.0 as usize, self.hot_pair.1 as usize);
+        let f = &self.frames[self.bodies[b].node as usize];
+        let sp = self.spheres[si];
+        #[cfg(target_arch = "x86_64")]
+        if AVX && N == LANES {
+            // SAFETY: as in `env_of`.
+            return unsafe { self.hot_probe_avx(f, &sp, oi) };
+        }
+        let p = Self::place::<N, AVX>(f, &[sp[0], sp[1], sp[2]]);
+        obs_mask::<N>(&self.obstacles[oi], &p[0], &p[1], &p[2], sp[3]) != 0
+    }
+
+    /// [`Self::hot_probe`] in AVX2 + FMA registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn hot_probe_avx(&self, f: &[Lane; 12], sp: &[f32; 4], oi: usize) -> bool {
+        let p = avx8::place(f, &[sp[0], sp[1], sp[2]]);
+        avx8::obs(&self.obstacles_wide[oi], p, sp[3]) != 0
     }
 
     /// Self pair `pi` (bodies `a`, `b`, their centres placed).
@@ -555,7 +595,7 @@ impl SphereChecker {
                 let m = obs_mask::<N>(&o, &x, &y, &z, r + infl);
                 if m != 0 {
                     if infl == 0.0 || obs_mask::<N>(&o, &x, &y, &z, r) != 0 {
-                        return Some(Hit::Obstacle(b as u32, oi as u32));
+                        return Some(Hit::Obstacle(b as u32, oi as u32, si as u32));
                     }
                     tb |= m;
                 }
@@ -654,12 +694,12 @@ impl SphereChecker {
                     store3(w, place(f, &[sp[0], sp[1], sp[2]]));
                 }
             }
-            for (sp, w) in spheres[s0..s1].iter().zip(&sw[s0..s1]) {
+            for (si, (sp, w)) in spheres[s0..s1].iter().zip(&sw[s0..s1]).enumerate() {
                 let p = load3(w);
                 let m = obs(o, p, sp[3] + infl);
                 if m != 0 {
                     if infl == 0.0 || obs(o, p, sp[3]) != 0 {
-                        return Some(Hit::Obstacle(b as u32, oi));
+                        return Some(Hit::Obstacle(b as u32, oi, (s0 + si) as u32));
                     }
                     tb |= m;
                 }
@@ -716,7 +756,7 @@ impl SphereChecker {
 
     fn contact(&self, h: Hit) -> Contact {
         let (a, b) = match h {
-            Hit::Obstacle(b, o) => (
+            Hit::Obstacle(b, o, _) => (
                 self.bodies[b as usize].id,
                 BodyId::Static(self.obstacle_static[o as usize] as usize),
             ),
