@@ -511,8 +511,9 @@ impl SphereChecker {
     fn pair_of<const N: usize, const AVX: bool>(&mut self, pi: usize, a: usize, b: usize) -> bool {
         #[cfg(target_arch = "x86_64")]
         if AVX && N == LANES {
-            // SAFETY: as in `env_of`.
-            return unsafe { self.pair_hits_avx(pi, a, b) };
+            // SAFETY: as in `env_of`. The bounding-sphere test inline, the spheres' tests in
+            // a call only for the pairs that pass it (13 % on Panda cage).
+            return unsafe { self.pair_near_avx(a, b) && self.pair_spheres_avx(pi, a, b) };
         }
         self.pair_hits::<N>(pi, a, b)
     }
@@ -711,17 +712,25 @@ impl SphereChecker {
         None
     }
 
-    /// [`Self::pair_hits`] for 8 lanes in AVX2 + FMA registers (see [`Self::body_env_avx`]).
+    /// The first test of [`Self::pair_hits`] in AVX2 + FMA registers: whether the bodies'
+    /// bounding spheres (grown by their inflations) touch in any lane.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     #[inline]
-    fn pair_hits_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
+    fn pair_near_avx(&self, a: usize, b: usize) -> bool {
+        let (ca, cb) = (avx8::load3(&self.bcw[a]), avx8::load3(&self.bcw[b]));
+        let r = self.bodies[a].br + self.bodies[b].br + (self.infl[a] + self.infl[b]);
+        avx8::near(ca, cb, r) != 0
+    }
+
+    /// [`Self::pair_hits`] after its first test ([`Self::pair_near_avx`]) for 8 lanes in
+    /// AVX2 + FMA registers (see [`Self::body_env_avx`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn pair_spheres_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
         use avx8::*;
-        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
-        let (ca, cb) = (load3(&self.bcw[a]), load3(&self.bcw[b]));
-        if near(ca, cb, ba.br + bb.br + (self.infl[a] + self.infl[b])) == 0 {
-            return false;
-        }
+        let cb = load3(&self.bcw[b]);
         let ex = self.pair_inflation(pi);
         self.ensure_spheres::<LANES, true>(a);
         self.ensure_spheres::<LANES, true>(b);
