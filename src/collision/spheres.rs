@@ -169,10 +169,10 @@ pub struct SphereChecker {
     hot_first: bool,
     /// The (sphere, obstacle) of the hot body's last hit in an 8-lane check (`u32::MAX`:
     /// none). Before the hot body's full test, that one sphere is placed and tested against
-    /// that one obstacle with its plain radius, the test the full one would make: measured
-    /// (Panda cage), 84 % of the 8-lane checks that collide hit the hot body, most with the
-    /// same sphere and obstacle as the last time. A probe only ever finds a collision the full
-    /// test finds too, so verdicts do not change.
+    /// that one obstacle with its plain radius, the test the full one would make. Measured
+    /// (callgrind, 15 Panda cage problems): 84 % of the 8-lane checks that collide hit the hot
+    /// body, and the probe alone decides 27 % of those (4 575 of 16 637). A probe only ever
+    /// finds a collision the full test finds too, so verdicts do not change.
     hot_pair: (u32, u32),
     /// The bodies (obstacle tests) and self pairs (`SELF_PAIR | index`) with tight lanes in
     /// the last check, each once, with those lanes.
