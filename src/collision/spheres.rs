@@ -81,10 +81,10 @@ enum Obs {
     },
 }
 
-/// What collided: a body and an obstacle or another body.
+/// What collided: a body and an obstacle (and the body's sphere that hit it) or another body.
 #[derive(Debug, Clone, Copy)]
 enum Hit {
-    Obstacle(u32, u32),
+    Obstacle(u32, u32, u32),
     SelfPair(u32, u32),
 }
 
@@ -167,6 +167,13 @@ pub struct SphereChecker {
     hot_body: u32,
     /// The hot body goes first (off only to compare against in tests).
     hot_first: bool,
+    /// The (sphere, obstacle) of the hot body's last hit in an 8-lane check (`u32::MAX`:
+    /// none). Before the hot body's full test, that one sphere is placed and tested against
+    /// that one obstacle with its plain radius, the test the full one would make. Measured
+    /// (callgrind, 15 Panda cage problems): 84 % of the 8-lane checks that collide hit the hot
+    /// body, and the probe alone decides 27 % of those (4 575 of 16 637). A probe only ever
+    /// finds a collision the full test finds too, so verdicts do not change.
+    hot_pair: (u32, u32),
     /// The bodies (obstacle tests) and self pairs (`SELF_PAIR | index`) with tight lanes in
     /// the last check, each once, with those lanes.
     tight_log: Vec<(u32, u32)>,
@@ -215,6 +222,7 @@ impl SphereChecker {
     pub fn set_hot_first(&mut self, on: bool) {
         self.hot_first = on;
         self.hot_body = u32::MAX;
+        self.hot_pair = (u32::MAX, u32::MAX);
     }
 
     /// Turns focused refinement of certified checks on or off (on by default): with it, a
@@ -371,7 +379,13 @@ impl SphereChecker {
                 self.step::<N, AVX>(si);
             }
             stepped = node + 1;
+            if self.hot_pair.0 != u32::MAX && self.hot_probe::<N, AVX>(hot as usize) {
+                return Some(Hit::Obstacle(hot, self.hot_pair.1, self.hot_pair.0));
+            }
             if let Some(h) = self.env_of::<N, AVX>(hot as usize) {
+                if let Hit::Obstacle(_, o, s) = h {
+                    self.hot_pair = (s, o);
+                }
                 return Some(h);
             }
         }
@@ -385,8 +399,9 @@ impl SphereChecker {
                     continue;
                 }
                 if let Some(h) = self.env_of::<N, AVX>(b as usize) {
-                    if N == LANES {
+                    if let (true, Hit::Obstacle(_, o, s)) = (N == LANES, h) {
                         self.hot_body = b;
+                        self.hot_pair = (s, o);
                     }
                     return Some(h);
                 }
@@ -466,13 +481,39 @@ impl SphereChecker {
         None
     }
 
+    /// Whether the hot pair's sphere (of body `b`, its node's frame computed) touches the hot
+    /// pair's obstacle in any lane with its plain radius (see [`Self::hot_pair`]).
+    #[inline(always)]
+    fn hot_probe<const N: usize, const AVX: bool>(&self, b: usize) -> bool {
+        let (si, oi) = (self.hot_pair.0 as usize, self.hot_pair.1 as usize);
+        let f = &self.frames[self.bodies[b].node as usize];
+        let sp = self.spheres[si];
+        #[cfg(target_arch = "x86_64")]
+        if AVX && N == LANES {
+            // SAFETY: as in `env_of`.
+            return unsafe { self.hot_probe_avx(f, &sp, oi) };
+        }
+        let p = Self::place::<N, AVX>(f, &[sp[0], sp[1], sp[2]]);
+        obs_mask::<N>(&self.obstacles[oi], &p[0], &p[1], &p[2], sp[3]) != 0
+    }
+
+    /// [`Self::hot_probe`] in AVX2 + FMA registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn hot_probe_avx(&self, f: &[Lane; 12], sp: &[f32; 4], oi: usize) -> bool {
+        let p = avx8::place(f, &[sp[0], sp[1], sp[2]]);
+        avx8::obs(&self.obstacles_wide[oi], p, sp[3]) != 0
+    }
+
     /// Self pair `pi` (bodies `a`, `b`, their centres placed).
     #[inline(always)]
     fn pair_of<const N: usize, const AVX: bool>(&mut self, pi: usize, a: usize, b: usize) -> bool {
         #[cfg(target_arch = "x86_64")]
         if AVX && N == LANES {
-            // SAFETY: as in `env_of`.
-            return unsafe { self.pair_hits_avx(pi, a, b) };
+            // SAFETY: as in `env_of`. The bounding-sphere test inline, the spheres' tests in
+            // a call only for the pairs that pass it (13 % on Panda cage).
+            return unsafe { self.pair_near_avx(a, b) && self.pair_spheres_avx(pi, a, b) };
         }
         self.pair_hits::<N>(pi, a, b)
     }
@@ -555,7 +596,7 @@ impl SphereChecker {
                 let m = obs_mask::<N>(&o, &x, &y, &z, r + infl);
                 if m != 0 {
                     if infl == 0.0 || obs_mask::<N>(&o, &x, &y, &z, r) != 0 {
-                        return Some(Hit::Obstacle(b as u32, oi as u32));
+                        return Some(Hit::Obstacle(b as u32, oi as u32, si as u32));
                     }
                     tb |= m;
                 }
@@ -654,12 +695,12 @@ impl SphereChecker {
                     store3(w, place(f, &[sp[0], sp[1], sp[2]]));
                 }
             }
-            for (sp, w) in spheres[s0..s1].iter().zip(&sw[s0..s1]) {
+            for (si, (sp, w)) in spheres[s0..s1].iter().zip(&sw[s0..s1]).enumerate() {
                 let p = load3(w);
                 let m = obs(o, p, sp[3] + infl);
                 if m != 0 {
                     if infl == 0.0 || obs(o, p, sp[3]) != 0 {
-                        return Some(Hit::Obstacle(b as u32, oi));
+                        return Some(Hit::Obstacle(b as u32, oi, (s0 + si) as u32));
                     }
                     tb |= m;
                 }
@@ -671,17 +712,25 @@ impl SphereChecker {
         None
     }
 
-    /// [`Self::pair_hits`] for 8 lanes in AVX2 + FMA registers (see [`Self::body_env_avx`]).
+    /// The first test of [`Self::pair_hits`] in AVX2 + FMA registers: whether the bodies'
+    /// bounding spheres (grown by their inflations) touch in any lane.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     #[inline]
-    fn pair_hits_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
+    fn pair_near_avx(&self, a: usize, b: usize) -> bool {
+        let (ca, cb) = (avx8::load3(&self.bcw[a]), avx8::load3(&self.bcw[b]));
+        let r = self.bodies[a].br + self.bodies[b].br + (self.infl[a] + self.infl[b]);
+        avx8::near(ca, cb, r) != 0
+    }
+
+    /// [`Self::pair_hits`] after its first test ([`Self::pair_near_avx`]) for 8 lanes in
+    /// AVX2 + FMA registers (see [`Self::body_env_avx`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn pair_spheres_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
         use avx8::*;
-        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
-        let (ca, cb) = (load3(&self.bcw[a]), load3(&self.bcw[b]));
-        if near(ca, cb, ba.br + bb.br + (self.infl[a] + self.infl[b])) == 0 {
-            return false;
-        }
+        let cb = load3(&self.bcw[b]);
         let ex = self.pair_inflation(pi);
         self.ensure_spheres::<LANES, true>(a);
         self.ensure_spheres::<LANES, true>(b);
@@ -716,7 +765,7 @@ impl SphereChecker {
 
     fn contact(&self, h: Hit) -> Contact {
         let (a, b) = match h {
-            Hit::Obstacle(b, o) => (
+            Hit::Obstacle(b, o, _) => (
                 self.bodies[b as usize].id,
                 BodyId::Static(self.obstacle_static[o as usize] as usize),
             ),

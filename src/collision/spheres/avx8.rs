@@ -1,4 +1,4 @@
-//! The 8-lane tests of [`super::SphereChecker::body_env_avx`] and [`super::SphereChecker::pair_hits_avx`] in
+//! The 8-lane tests of [`super::SphereChecker::body_env_avx`] and [`super::SphereChecker::pair_spheres_avx`] in
 //! AVX2 + FMA intrinsics; each mirrors the generic function of the same name (`obs_mask`,
 //! `near_mask`, `point_near_mask`, `lin4`).
 

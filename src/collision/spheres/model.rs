@@ -504,6 +504,7 @@ impl SphereChecker {
             seg_dq: vec![0.0; world.dof()],
             hot_body: u32::MAX,
             hot_first: true,
+            hot_pair: (u32::MAX, u32::MAX),
             tight_log: Vec::new(),
             tight_states: Vec::new(),
             refine: Vec::new(),
