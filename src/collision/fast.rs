@@ -129,6 +129,9 @@ pub struct FastChecker {
     /// Bounding-sphere radius of each primitive of `world_prims` (about its centre; constant).
     prim_radius: Vec<f64>,
     prims_ready: Vec<u32>,
+    /// Per moving body: the mount frame its world primitives (or group boxes) were last made
+    /// with (NaN: never); a body whose frame has not changed keeps them.
+    prims_frame: Vec<Frame>,
     /// Grouped bodies (`groups.rs`): the group boxes in the world (made with the body's
     /// primitives' epoch, `prims_ready`), their bounding radii, the epoch of each group's
     /// members in `world_prims`, and a scratch list of unit pairs.
@@ -545,6 +548,13 @@ impl FastChecker {
             ],
             prim_radius,
             prims_ready: vec![0; nb],
+            prims_frame: vec![
+                Frame {
+                    rot: nalgebra::Matrix3::repeat(f64::NAN),
+                    t: Vector3::repeat(f64::NAN),
+                };
+                nb
+            ],
             world_groups: vec![
                 Prim::Sphere {
                     c: Vector3::zeros(),
@@ -915,6 +925,14 @@ impl FastChecker {
         self.prims_ready[i] = self.epoch;
         let b = &self.moving[i];
         let f = &self.link_poses[b.mount.robot][b.mount.link];
+        let last = &mut self.prims_frame[i];
+        let same = |x: &[f64], y: &[f64]| x.iter().zip(y).all(|(a, b)| a.to_bits() == b.to_bits());
+        if same(f.rot.as_slice(), last.rot.as_slice()) && same(f.t.as_slice(), last.t.as_slice()) {
+            // The frame the body's world primitives were made with (the other arm's links
+            // while one arm moves): they stand.
+            return;
+        }
+        *last = *f;
         if b.groups.is_empty() {
             for (k, p) in b.local.iter().enumerate() {
                 self.world_prims[b.start + k] = p.transformed(&f.rot, &f.t);
