@@ -35,30 +35,28 @@ fn thread_nice_values() -> Vec<(String, i64)> {
 async fn planner_threads_yield_to_queries() {
     let h = common::server::start("priority").await;
     // The pools start their threads asynchronously, and each planner thread sets its own
-    // nice value once running: wait (bounded) until both workers show it.
-    let planners_of = |threads: &[(String, i64)]| -> Vec<i64> {
+    // nice value once running: wait (bounded) until both workers show it and the query pool's
+    // threads exist.
+    let named = |threads: &[(String, i64)], prefix: &str| -> Vec<i64> {
         threads
             .iter()
-            .filter(|(n, _)| n.starts_with("manyhands-plann"))
+            .filter(|(n, _)| n.starts_with(prefix))
             .map(|(_, v)| *v)
             .collect()
     };
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
     let mut threads = thread_nice_values();
     while std::time::Instant::now() < deadline {
-        let p = planners_of(&threads);
-        if p.len() >= 2 && p.iter().all(|&n| n == 10) {
+        let p = named(&threads, "manyhands-plann");
+        let q = named(&threads, "manyhands-query");
+        if p.len() >= 2 && p.iter().all(|&n| n == 10) && !q.is_empty() {
             break;
         }
         tokio::time::sleep(std::time::Duration::from_millis(10)).await;
         threads = thread_nice_values();
     }
-    let planners = planners_of(&threads);
-    let queries: Vec<i64> = threads
-        .iter()
-        .filter(|(n, _)| n.starts_with("manyhands-query"))
-        .map(|(_, v)| *v)
-        .collect();
+    let planners = named(&threads, "manyhands-plann");
+    let queries = named(&threads, "manyhands-query");
     assert_eq!(planners.len(), 2, "two planner workers: {threads:?}");
     assert!(planners.iter().all(|&n| n == 10), "{threads:?}");
     assert!(
