@@ -42,15 +42,16 @@ impl FastChecker {
 
     /// The first pass of [`Self::segment_lengths`]: the static running sums along every chain
     /// (`cum`, `lmax`: [`Sweep::lengths`]) and the second-order sums; returns the pieces the
-    /// vector bound is worth (0: none).
+    /// vector bound is worth (0: none) and the robots that move.
     pub(super) fn chain_lengths(
         &mut self,
         s: &mut Sweep,
         a: &[f64],
         b: &[f64],
         max_inflation: f64,
-    ) -> usize {
-        let moves = self.moving_robots(a, b);
+    ) -> Pieces {
+        let moved = self.moving_robots(a, b);
+        let moves = |r: usize| moved & (1 << (r % 64)) != 0;
         // [`Sweep::lengths`] and, in the same pass over each chain (body to root), the
         // second-order sums for the whole segment's |Δθ|, in the incremental form: joint k adds
         // its own term and grows every lower joint's A by |Δθ_k|.
@@ -109,27 +110,31 @@ impl FastChecker {
             let l = s.cum[s.cum_off[i] as usize + (c1 - c0) as usize];
             s.body_m[i] >= 0.0 && 0.25 * frac * s.body_m[i] < 0.5 * l
         });
-        if room {
-            pieces
-        } else {
-            0
+        Pieces {
+            count: if room { pieces } else { 0 },
+            moved,
         }
     }
 
     /// The second pass of [`Self::segment_lengths`]: every body's whole-chain bound from the
-    /// vector sums at the midpoints of `pieces` equal pieces (none: the static bounds stay).
+    /// vector sums at the midpoints of `pieces.count` equal pieces (none: the static bounds
+    /// stay), for the robots [`Self::chain_lengths`] found moving.
     pub(super) fn vector_lengths(
         &mut self,
         s: &mut Sweep,
         q: &mut [f64],
         a: &[f64],
         b: &[f64],
-        pieces: usize,
+        pieces: Pieces,
     ) {
+        let Pieces {
+            count: pieces,
+            moved,
+        } = pieces;
         if pieces == 0 {
             return;
         }
-        let moves = self.moving_robots(a, b);
+        let moves = |r: usize| moved & (1 << (r % 64)) != 0;
         let frac = 1.0 / pieces as f64;
         s.body_vec.fill(0.0);
         for piece in 0..pieces {
@@ -191,18 +196,29 @@ impl FastChecker {
     }
 }
 
+/// What [`FastChecker::chain_lengths`] found for [`FastChecker::vector_lengths`]: the pieces
+/// of the vector bound (0: none) and the robots that move, bit `r % 64` for robot `r`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Pieces {
+    count: usize,
+    moved: u64,
+}
+
 impl FastChecker {
-    /// Whether robot `r` moves along `a → b` (every robot when there are more than 64).
-    fn moving_robots(&self, a: &[f64], b: &[f64]) -> impl Fn(usize) -> bool {
+    /// The robots that move along `a → b`, bit `r % 64` for robot `r` (all bits when there
+    /// are more than 64 robots).
+    fn moving_robots(&self, a: &[f64], b: &[f64]) -> u64 {
+        if self.world.robots.len() > 64 {
+            return u64::MAX;
+        }
         let mut moved = 0u64;
         for (r, p) in self.world.robots.iter().enumerate() {
             let range = p.offset..p.offset + p.robot.dof();
             if a[range.clone()] != b[range] {
-                moved |= 1 << (r % 64);
+                moved |= 1 << r;
             }
         }
-        let all = self.world.robots.len() > 64;
-        move |r: usize| all || moved & (1 << (r % 64)) != 0
+        moved
     }
 }
 
