@@ -165,6 +165,13 @@ pub struct SphereChecker {
     /// (Panda's forearm in 69 % of MotionBenchMaker hits), and a check that hits early skips
     /// the other bodies. Verdicts do not depend on the order.
     hot_body: u32,
+    /// The body that was hot before `hot_body` (`u32::MAX`: none): an 8-lane check tests it
+    /// second, with the kinematics up to its node, when the hot body finds no collision; a hit
+    /// there swaps the two. Measured (callgrind, search only, `--no-simplify`): Baxter's two
+    /// arms alternate as the colliding one, and 10 problems per set went 1 948 → 1 803 M
+    /// instructions (−7.4 %); 15 Panda problems per set 233.5 → 232.0 M (−0.6 %). Verdicts do
+    /// not depend on the order.
+    warm_body: u32,
     /// The hot body goes first (off only to compare against in tests).
     hot_first: bool,
     /// The (sphere, obstacle) of the hot body's last hit in an 8-lane check (`u32::MAX`:
@@ -222,6 +229,7 @@ impl SphereChecker {
     pub fn set_hot_first(&mut self, on: bool) {
         self.hot_first = on;
         self.hot_body = u32::MAX;
+        self.warm_body = u32::MAX;
         self.hot_pair = (u32::MAX, u32::MAX);
     }
 
@@ -389,17 +397,38 @@ impl SphereChecker {
                 return Some(h);
             }
         }
+        let warm = if hot != u32::MAX && self.warm_body != hot {
+            self.warm_body
+        } else {
+            u32::MAX
+        };
+        if warm != u32::MAX {
+            let node = self.bodies[warm as usize].node as usize;
+            for si in stepped..=node {
+                self.step::<N, AVX>(si);
+            }
+            stepped = stepped.max(node + 1);
+            if let Some(h) = self.env_of::<N, AVX>(warm as usize) {
+                if let Hit::Obstacle(_, o, s) = h {
+                    self.warm_body = hot;
+                    self.hot_body = warm;
+                    self.hot_pair = (s, o);
+                }
+                return Some(h);
+            }
+        }
         for si in 0..self.steps.len() {
             if si >= stepped {
                 self.step::<N, AVX>(si);
             }
             let (b0, b1) = self.steps[si].bodies;
             for b in b0..b1 {
-                if b == hot {
+                if b == hot || b == warm {
                     continue;
                 }
                 if let Some(h) = self.env_of::<N, AVX>(b as usize) {
                     if let (true, Hit::Obstacle(_, o, s)) = (N == LANES, h) {
+                        self.warm_body = self.hot_body;
                         self.hot_body = b;
                         self.hot_pair = (s, o);
                     }

@@ -503,6 +503,7 @@ impl SphereChecker {
             pair_scale: 0.0,
             seg_dq: vec![0.0; world.dof()],
             hot_body: u32::MAX,
+            warm_body: u32::MAX,
             hot_first: true,
             hot_pair: (u32::MAX, u32::MAX),
             tight_log: Vec::new(),
