@@ -911,11 +911,7 @@ impl FastChecker {
                 }
                 // Every pair was checked here, with its plain primitives at least.
                 still_checked = true;
-                for &pi in &pool[start as usize..] {
-                    let pi = pi as usize;
-                    let d = self.free_inflation(s, pi, 0.5 * s.pair_d[pi]);
-                    pool_d.push(d);
-                }
+                self.log_free_inflations(s, &pool[start as usize..], pool_d);
                 s.state_tight[m] = (start, pool.len() as u32);
             }
             if free {
@@ -950,13 +946,7 @@ impl FastChecker {
             if self.check_inflated_logging(s, q, Some(pool), skip_still) == Inflated::Hit {
                 return Certification::Collides;
             }
-            // Per tight pair, the largest inflation of a halving sequence it is free with here
-            // (the state is still prepared): later levels read it instead of checking again.
-            for &pi in &pool[start as usize..] {
-                let pi = pi as usize;
-                let d = self.free_inflation(s, pi, 0.5 * s.pair_d[pi]);
-                pool_d.push(d);
-            }
+            self.log_free_inflations(s, &pool[start as usize..], pool_d);
             s.state_tight[k] = (start, pool.len() as u32);
         }
         s.stack.clear();
@@ -1034,6 +1024,17 @@ impl FastChecker {
         }
         self.certify_finest = self.certify_finest.min(finest);
         Certification::Free
+    }
+
+    /// Per pair of `tight` (logged in the prepared state), the largest inflation of a halving
+    /// sequence from the next level's it is free with there, appended to `out`: later levels
+    /// read it instead of checking the state again.
+    fn log_free_inflations(&mut self, s: &Sweep, tight: &[u32], out: &mut Vec<f64>) {
+        for &pi in tight {
+            let pi = pi as usize;
+            let d = self.free_inflation(s, pi, 0.5 * s.pair_d[pi]);
+            out.push(d);
+        }
     }
 
     /// The largest of `d0, d0/2, d0/4, …` (at least [`CERTIFY_FLOOR`]) that pair `pi` is free
