@@ -1139,9 +1139,10 @@ impl FastChecker {
 const PROBE_END_RUNS: f64 = 16.0;
 /// Most coarse runs whose midpoints a certified check tests first ([`FastChecker::certify`]).
 /// Callgrind, `bench planners` against ends only (with [`Sweep::run_still`] in both): dual-arm
-/// J+-RRT with the obstacle (4 runs) 5 683 → 5 433 M at 1, 5 422 M at 2; Bimanual (10 runs)
-/// 1 844 → 1 835 M; dual-arm IK-RRT with the obstacle, IK-RRT reach and the kitchen task within
-/// ±0.5 %.
+/// J+-RRT with the obstacle (4 runs) 5 683 → 5 433 M at 1, 5 422 M at 2 (with
+/// [`Sweep::any_still`]); Bimanual (10 runs) 1 843.5 → 1 843.6 M at 1 (its drop to 1 835 M at 2
+/// is `any_still`'s); dual-arm IK-RRT with the obstacle, IK-RRT reach and the kitchen task
+/// within ±0.5 %.
 const MIDPOINT_RUNS: usize = 2;
 /// Most coarse runs of a certified check (a longer motion is covered by larger inflations).
 const CERTIFY_MAX_RUNS: usize = 4096;
