@@ -11,4 +11,4 @@ mod trig;
 pub use pose::{iso_from_rpy, quat_from_rpy, quat_to_rpy, Pose, PoseJson};
 pub use shape::{Geometry, Mesh, Shape};
 pub use solid::{CoverBox, Solid, COVER_CELLS, MAX_COVER_BOXES, MAX_MOVING_COVER_BOXES};
-pub use trig::{atan2, sin_cos};
+pub use trig::{atan2, sin_cos, sin_cos_lanes};

@@ -53,6 +53,95 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     (t[q], t[(q + 1) & 3])
 }
 
+/// [`sin_cos`] of each of the first `n` of `x` (at most `N`) into `(s[i], c[i])`, bit for bit
+/// the values [`sin_cos`] gives: the same operations in the same order, four angles at a time
+/// in AVX2 registers where the CPU has them (no fused multiply-adds, so the roundings are the
+/// scalar ones). `N` is a multiple of 4 and whole groups of four are evaluated: lanes `n..` up
+/// to the next multiple of 4 get the values of whatever angles they hold. For forward
+/// kinematics, whose joints' angles are all known before the chain is composed: an arm's
+/// seven angles cost two vector evaluations instead of seven scalar ones, and the vector
+/// evaluations' latencies overlap (dual-arm IK-RRT rows of `bench planners`: medians −6 %).
+#[inline]
+pub fn sin_cos_lanes<const N: usize>(x: &[f64; N], s: &mut [f64; N], c: &mut [f64; N], n: usize) {
+    const { assert!(N % 4 == 0) };
+    let n = n.min(N);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        let mut i = 0;
+        while i < n {
+            // SAFETY: AVX2 is present (checked above); i + 4 <= N as N is a multiple of 4.
+            unsafe { avx2::sin_cos4(&x[i..i + 4], &mut s[i..i + 4], &mut c[i..i + 4]) };
+            i += 4;
+        }
+        return;
+    }
+    for k in 0..n {
+        (s[k], c[k]) = sin_cos(x[k]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::*;
+    use std::arch::x86_64::*;
+
+    /// [`sin_cos`] of `x[0..4]`, lane by lane the scalar function's operations.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn sin_cos4(x: &[f64], s_out: &mut [f64], c_out: &mut [f64]) {
+        debug_assert!(x.len() >= 4 && s_out.len() >= 4 && c_out.len() >= 4);
+        let set = |v: f64| _mm256_set1_pd(v);
+        let (add, sub, mul) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd);
+        let xv = _mm256_loadu_pd(x.as_ptr());
+        // Lanes the scalar function hands to the library: NaN or |x| > 1e5.
+        let sign = set(-0.0);
+        let ok = _mm256_cmp_pd::<_CMP_LE_OQ>(_mm256_andnot_pd(sign, xv), set(1e5));
+        const MAGIC: f64 = 6_755_399_441_055_744.0;
+        let t = add(mul(xv, set(INV_PIO2)), set(MAGIC));
+        let k = sub(t, set(MAGIC));
+        let r = sub(sub(xv, mul(k, set(PIO2_1))), mul(k, set(PIO2_1T)));
+        // kernel(r)
+        let z = mul(r, r);
+        let ps = add(set(S5), mul(z, set(S6)));
+        let ps = add(set(S4), mul(z, ps));
+        let ps = add(set(S3), mul(z, ps));
+        let ps = add(set(S2), mul(z, ps));
+        let ps = add(set(S1), mul(z, ps));
+        let sv = add(r, mul(mul(r, z), ps));
+        let hz = mul(set(0.5), z);
+        let w = sub(set(1.0), hz);
+        let pc = add(set(C5), mul(z, set(C6)));
+        let pc = add(set(C4), mul(z, pc));
+        let pc = add(set(C3), mul(z, pc));
+        let pc = add(set(C2), mul(z, pc));
+        let pc = add(set(C1), mul(z, pc));
+        let cv = add(w, add(sub(sub(set(1.0), w), hz), mul(mul(z, z), pc)));
+        // Quadrant q = k mod 4: t = MAGIC + k exactly, and 2⁵¹ (MAGIC's share of the
+        // mantissa) is divisible by 4, so t's low mantissa bits are q in two's complement.
+        let ti = _mm256_castpd_si256(t);
+        let one = _mm256_set1_epi64x(1);
+        let two = _mm256_set1_epi64x(2);
+        let odd = _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(ti, one), one));
+        let neg_s = _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(ti, two), two));
+        let neg_c = _mm256_castsi256_pd(_mm256_cmpeq_epi64(
+            _mm256_and_si256(_mm256_add_epi64(ti, one), two),
+            two,
+        ));
+        // [s, c, -s, -c][q] and [s, c, -s, -c][(q + 1) & 3].
+        let sin = _mm256_xor_pd(_mm256_blendv_pd(sv, cv, odd), _mm256_and_pd(neg_s, sign));
+        let cos = _mm256_xor_pd(_mm256_blendv_pd(cv, sv, odd), _mm256_and_pd(neg_c, sign));
+        _mm256_storeu_pd(s_out.as_mut_ptr(), sin);
+        _mm256_storeu_pd(c_out.as_mut_ptr(), cos);
+        let m = _mm256_movemask_pd(ok);
+        if m != 0b1111 {
+            for l in 0..4 {
+                if m & (1 << l) == 0 {
+                    (s_out[l], c_out[l]) = x[l].sin_cos();
+                }
+            }
+        }
+    }
+}
+
 const ATAN_HI: [f64; 4] = [
     4.636_476_090_008_060_935_15e-01,
     std::f64::consts::FRAC_PI_4,
@@ -171,6 +260,48 @@ mod tests {
         let (s, c) = super::sin_cos(1e9);
         assert_eq!((s, c), 1e9f64.sin_cos());
         assert!(super::sin_cos(f64::NAN).0.is_nan());
+    }
+
+    #[test]
+    fn batch_is_the_scalar_function_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut x: Vec<f64> = (0..200_000)
+            .map(|i| {
+                let m = [0.1, 1.0, 4.0, 40.0, 3e4, 2e5][i % 6];
+                rng.random_range(-m..m)
+            })
+            .collect();
+        // Quadrant boundaries, signed zeros, the library's range and non-finite values.
+        for k in -8..=8 {
+            let b = k as f64 * std::f64::consts::FRAC_PI_2;
+            x.extend([b, b.next_up(), b.next_down()]);
+        }
+        x.extend([
+            0.0,
+            -0.0,
+            1e5,
+            -1e5,
+            1e5f64.next_up(),
+            f64::NAN,
+            f64::INFINITY,
+        ]);
+        x.extend([f64::NEG_INFINITY, 1e300, -7.0]);
+        for n in [0, 1, 3, 4, 7, 16] {
+            let mut xs = [0.0f64; 16];
+            let (mut s, mut c) = ([0.0f64; 16], [0.0f64; 16]);
+            for chunk in x.chunks(16) {
+                xs[..chunk.len()].copy_from_slice(chunk);
+                super::sin_cos_lanes(&xs, &mut s, &mut c, n.min(chunk.len()));
+                for i in 0..n.min(chunk.len()) {
+                    let (s0, c0) = super::sin_cos(xs[i]);
+                    assert_eq!(
+                        (s[i].to_bits(), c[i].to_bits()),
+                        (s0.to_bits(), c0.to_bits())
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -505,8 +505,15 @@ impl FkModel {
     #[inline]
     pub fn compute(&self, base: &Frame, q: &[f64], out: &mut [Frame]) {
         out[0] = *base;
-        for j in &self.joints {
-            out[j.child as usize] = j.apply(&out[j.parent as usize], q);
+        for chunk in self.joints.chunks(TRIG_BATCH) {
+            let mut t = Trig::new();
+            for (k, j) in chunk.iter().enumerate() {
+                t.x[k] = j.angle(q);
+            }
+            t.eval(chunk.len());
+            for (k, j) in chunk.iter().enumerate() {
+                out[j.child as usize] = j.apply_sc(&out[j.parent as usize], q, t.s[k], t.c[k]);
+            }
         }
     }
 
@@ -533,9 +540,28 @@ impl FkModel {
             }
             if moved != 0 {
                 out[0] = *base;
-                for (j, &d) in self.joints.iter().zip(&self.deps) {
-                    if d & moved != 0 {
-                        out[j.child as usize] = j.apply(&out[j.parent as usize], q);
+                for (chunk, deps) in self
+                    .joints
+                    .chunks(TRIG_BATCH)
+                    .zip(self.deps.chunks(TRIG_BATCH))
+                {
+                    // The moved joints' angles first, their sines and cosines in one batch.
+                    let mut t = Trig::new();
+                    let mut n = 0;
+                    for (j, &d) in chunk.iter().zip(deps) {
+                        if d & moved != 0 {
+                            t.x[n] = j.angle(q);
+                            n += 1;
+                        }
+                    }
+                    t.eval(n);
+                    let mut k = 0;
+                    for (j, &d) in chunk.iter().zip(deps) {
+                        if d & moved != 0 {
+                            out[j.child as usize] =
+                                j.apply_sc(&out[j.parent as usize], q, t.s[k], t.c[k]);
+                            k += 1;
+                        }
                     }
                 }
             }
@@ -545,6 +571,35 @@ impl FkModel {
                 last[v as usize] = q[v as usize];
             }
         }
+    }
+}
+
+/// Joints per batch of [`Trig`]: the angles of a chunk of joints are known before its frames
+/// are composed (they depend on `q` only), so their sines and cosines are evaluated together
+/// ([`crate::geometry::sin_cos_lanes`], bit for bit the scalar values).
+const TRIG_BATCH: usize = 16;
+
+/// Angles of up to [`TRIG_BATCH`] joints and their sines and cosines (on the stack).
+struct Trig {
+    x: [f64; TRIG_BATCH],
+    s: [f64; TRIG_BATCH],
+    c: [f64; TRIG_BATCH],
+}
+
+impl Trig {
+    #[inline(always)]
+    fn new() -> Trig {
+        Trig {
+            x: [0.0; TRIG_BATCH],
+            s: [0.0; TRIG_BATCH],
+            c: [0.0; TRIG_BATCH],
+        }
+    }
+
+    /// Sines and cosines of the first `n` angles.
+    #[inline(always)]
+    fn eval(&mut self, n: usize) {
+        crate::geometry::sin_cos_lanes(&self.x, &mut self.s, &mut self.c, n);
     }
 }
 
@@ -559,9 +614,27 @@ impl FkJoint {
         })
     }
 
+    /// The angle of a revolute joint at `q` (0 for other kinds, whose variable may not exist).
+    #[inline(always)]
+    fn angle(&self, q: &[f64]) -> f64 {
+        match self.kind {
+            JointKind::Revolute | JointKind::Continuous => {
+                self.mul * q[self.var as usize] + self.off
+            }
+            _ => 0.0,
+        }
+    }
+
     /// Frame of the child link given the parent's frame `p`.
     #[inline(always)]
     fn apply(&self, p: &Frame, q: &[f64]) -> Frame {
+        let (s, c) = crate::geometry::sin_cos(self.angle(q));
+        self.apply_sc(p, q, s, c)
+    }
+
+    /// [`Self::apply`] given `(s, c) = sin_cos(self.angle(q))` (ignored unless revolute).
+    #[inline(always)]
+    fn apply_sc(&self, p: &Frame, q: &[f64], s: f64, c: f64) -> Frame {
         let j = self;
         let mut t = p.rot * j.origin.t + p.t;
         let r0 = if j.origin_rot_identity {
@@ -578,7 +651,6 @@ impl FkJoint {
             }
             JointKind::Revolute | JointKind::Continuous => {
                 let v = j.mul * q[j.var as usize] + j.off;
-                let (s, c) = crate::geometry::sin_cos(v);
                 rotate_about_axis(&r0, j.axis_kind, &j.axis, v, s, c)
             }
         };
@@ -615,8 +687,15 @@ impl FkPath {
     #[inline]
     pub fn frame(&self, q: &[f64]) -> Frame {
         let mut f = Frame::identity();
-        for j in &self.joints {
-            f = j.apply(&f, q);
+        for chunk in self.joints.chunks(TRIG_BATCH) {
+            let mut t = Trig::new();
+            for (k, j) in chunk.iter().enumerate() {
+                t.x[k] = j.angle(q);
+            }
+            t.eval(chunk.len());
+            for (k, j) in chunk.iter().enumerate() {
+                f = j.apply_sc(&f, q, t.s[k], t.c[k]);
+            }
         }
         match &self.tail {
             Some(o) => f.mul(o),
