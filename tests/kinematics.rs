@@ -179,6 +179,29 @@ fn jacobian_check(label: &str, robot: &Robot, chain: &Chain, samples: usize, see
         let q = random_config(robot, &chain.vars, &mut r);
         let jac = chain.jacobian(robot, &q);
         assert_eq!(jac.ncols(), chain.vars.len());
+        if chain.base_link == 0 {
+            // The root-to-tip path's matrix pass (the J+ steps' Jacobian) gives the same.
+            let path = manyhands::kinematics::FkPath::new(robot, chain.tip_link);
+            let cols: Vec<usize> = path
+                .joint_vars()
+                .map(|(v, _)| {
+                    chain
+                        .vars
+                        .iter()
+                        .position(|&c| c == v)
+                        .unwrap_or(usize::MAX)
+                })
+                .collect();
+            let mut pj = nalgebra::Matrix6xX::zeros(chain.vars.len());
+            let f = path.jacobian_into(&q, &cols, &mut pj);
+            let diff = (&pj - &jac).abs().max();
+            assert!(
+                diff <= 1e-12,
+                "{label}: FkPath Jacobian differs by {diff:e}"
+            );
+            let tip = chain.tip_pose(robot, &q).translation.vector;
+            assert!((f.t - tip).norm() <= 1e-12, "{label}: FkPath tip frame");
+        }
         for (c, &v) in chain.vars.iter().enumerate() {
             let mut qp = q.clone();
             let mut qm = q.clone();
@@ -239,6 +262,24 @@ fn jacobian_matches_finite_differences() {
         "armar root→left_tcp includes the mobile base"
     );
     jacobian_check("armar root→left_tcp (prismatic base)", &a, &whole, 50, 4);
+    let right = Chain::new(&a, 0, a.link("right_tcp").unwrap()).unwrap();
+    jacobian_check("armar root→right_tcp", &a, &right, 50, 5);
+    let tip = Chain::from_group(&p, "left_arm").unwrap().tip_link;
+    jacobian_check(
+        "twin_arms root→left tip",
+        &p,
+        &Chain::new(&p, 0, tip).unwrap(),
+        50,
+        6,
+    );
+    let tip = lift.tip_link;
+    jacobian_check(
+        "srs root→lift_arm tip",
+        &s,
+        &Chain::new(&s, 0, tip).unwrap(),
+        50,
+        7,
+    );
 }
 
 #[test]

@@ -635,13 +635,36 @@ impl FkJoint {
     /// [`Self::apply`] given `(s, c) = sin_cos(self.angle(q))` (ignored unless revolute).
     #[inline(always)]
     fn apply_sc(&self, p: &Frame, q: &[f64], s: f64, c: f64) -> Frame {
+        let (r0, t) = self.joint_frame(p);
+        self.move_by(r0, t, q, s, c)
+    }
+
+    /// The joint's frame before its motion (the parent's frame `p` times the origin): rotation
+    /// and translation.
+    #[inline(always)]
+    fn joint_frame(&self, p: &Frame) -> (nalgebra::Matrix3<f64>, nalgebra::Vector3<f64>) {
         let j = self;
-        let mut t = p.rot * j.origin.t + p.t;
+        let t = p.rot * j.origin.t + p.t;
         let r0 = if j.origin_rot_identity {
             p.rot
         } else {
             p.rot * j.origin.rot
         };
+        (r0, t)
+    }
+
+    /// The child's frame from the joint frame `(r0, t)` ([`Self::joint_frame`]) and the
+    /// joint's motion at `q` (`(s, c)` its angle's sine and cosine when revolute).
+    #[inline(always)]
+    fn move_by(
+        &self,
+        r0: nalgebra::Matrix3<f64>,
+        mut t: nalgebra::Vector3<f64>,
+        q: &[f64],
+        s: f64,
+        c: f64,
+    ) -> Frame {
+        let j = self;
         let rot = match j.kind {
             JointKind::Fixed => r0,
             JointKind::Prismatic => {
@@ -701,6 +724,67 @@ impl FkPath {
             Some(o) => f.mul(o),
             None => f,
         }
+    }
+
+    /// The variable each joint of the path moves, in order (with its multiplier: a mimic
+    /// joint moves its master's variable).
+    pub fn joint_vars(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        self.joints.iter().map(|j| (j.var as usize, j.mul))
+    }
+
+    /// The geometric Jacobian of the link (rows: linear then angular velocity, in the root
+    /// frame) into `jac`, as [`crate::kinematics::Chain::jacobian_into`] computes it for the
+    /// chain from the root to this link, in one pass of the frames [`Self::frame`] composes:
+    /// `cols[k]` is the column of the path's joint k ([`Self::joint_vars`]; `usize::MAX` for
+    /// none), whose axis `z` in the root frame adds `(z × (tip − p), z)` (revolute; `z`
+    /// times the mimic multiplier) or `(z, 0)` (prismatic) at the joint's origin `p`. Returns
+    /// the link's frame. Same values as the chain's Jacobian to rounding (matrices instead of
+    /// quaternions, a few ulp), for the J+ steps of 000 Alg. 2.
+    pub fn jacobian_into(
+        &self,
+        q: &[f64],
+        cols: &[usize],
+        jac: &mut nalgebra::Matrix6xX<f64>,
+    ) -> Frame {
+        jac.fill(0.0);
+        let mut f = Frame::identity();
+        let mut k0 = 0;
+        for chunk in self.joints.chunks(TRIG_BATCH) {
+            let mut t = Trig::new();
+            for (k, j) in chunk.iter().enumerate() {
+                t.x[k] = j.angle(q);
+            }
+            t.eval(chunk.len());
+            for (k, j) in chunk.iter().enumerate() {
+                let (r0, p) = j.joint_frame(&f);
+                if let Some(&col) = cols.get(k0 + k).filter(|&&c| c < jac.ncols()) {
+                    let z = r0 * (j.axis * j.mul);
+                    let revolute = j.kind != JointKind::Prismatic;
+                    let lin = if revolute { -z.cross(&p) } else { z };
+                    let mut column = jac.column_mut(col);
+                    for r in 0..3 {
+                        column[r] += lin[r];
+                        if revolute {
+                            column[r + 3] += z[r];
+                        }
+                    }
+                }
+                f = j.move_by(r0, p, q, t.s[k], t.c[k]);
+            }
+            k0 += chunk.len();
+        }
+        let f = match &self.tail {
+            Some(o) => f.mul(o),
+            None => f,
+        };
+        for mut column in jac.column_iter_mut() {
+            let w = nalgebra::Vector3::new(column[3], column[4], column[5]);
+            let t = w.cross(&f.t);
+            for r in 0..3 {
+                column[r] += t[r];
+            }
+        }
+        f
     }
 
     /// Pose of the link: `T_root→link(q)`.

@@ -94,7 +94,6 @@
 //! 28 / 56 → 29 / 45 ms. Restarting after 1 500, 2 000 or 5 000 nodes gave means 46 / 61,
 //! 35 / 65 and 55 / 69 ms.
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::{Matrix6, Matrix6xX, UnitQuaternion, Vector3, Vector6};
@@ -111,7 +110,6 @@ use crate::collision::{CollisionWorld, FastChecker};
 use crate::geometry::Pose;
 use crate::kinematics::randomized::ArmChain;
 use crate::kinematics::{pose_error, Chain, FkPath};
-use crate::model::Robot;
 
 /// Settings of [`JPlusRrt`] and [`DualArmJPlusRrt`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -286,7 +284,6 @@ fn ws_distance_sq(a: &Pose, b: &Pose, w: f64) -> f64 {
 /// The kinematics of one hand as the planners need them: TCP pose, the Jacobian of the space
 /// variables that move it, and the analytic arm IK of its S-R-S arm.
 struct HandKin {
-    robot: Arc<Robot>,
     /// World pose of the robot's root link.
     base: Pose,
     offset: usize,
@@ -297,6 +294,8 @@ struct HandKin {
     chain: Chain,
     /// (Jacobian column, space dimension) of every variable a step may move.
     cols: Vec<(usize, usize)>,
+    /// Per joint of `tip_path`: the Jacobian column of its variable (`usize::MAX`: none).
+    tip_cols: Vec<usize>,
     arm: ArmChain,
     /// Space dimension of each of the 7 arm variables (`None`: some arm variable is not free in
     /// the space; the exact convergence then uses Newton iterations only).
@@ -315,13 +314,13 @@ impl HandKin {
         let placed = world.robots.get(hand.robot).ok_or_else(|| {
             PlanError::InvalidInput(format!("the world has no robot {}", hand.robot))
         })?;
-        let robot = placed.robot.clone();
+        let robot = &placed.robot;
         let tip = hand.tcp_link();
         let mut root = tip;
         while let Some(j) = robot.links[root].parent_joint {
             root = robot.joints[j].parent;
         }
-        let chain = Chain::new(&robot, root, tip).ok_or_else(|| {
+        let chain = Chain::new(robot, root, tip).ok_or_else(|| {
             PlanError::InvalidInput("internal: no chain from the robot root to the TCP".into())
         })?;
         let dim_of = |robot_var: usize| {
@@ -352,13 +351,24 @@ impl HandKin {
             .filter_map(|&v| dim_of(v))
             .collect();
         let arm_dims = <[usize; 7]>::try_from(dims.as_slice()).ok();
+        let tip_path = FkPath::new(robot, tip);
+        let tip_cols = tip_path
+            .joint_vars()
+            .map(|(v, _)| {
+                chain
+                    .vars
+                    .iter()
+                    .position(|&c| c == v)
+                    .unwrap_or(usize::MAX)
+            })
+            .collect();
         Ok(HandKin {
             jac: Matrix6xX::zeros(chain.vars.len()),
+            tip_cols,
             base: placed.base,
             offset: placed.offset,
             dof: robot.dof(),
-            tip_path: FkPath::new(&robot, tip),
-            robot,
+            tip_path,
             chain,
             cols,
             arm: hand.arm.clone(),
@@ -373,11 +383,15 @@ impl HandKin {
     }
 
     /// The Jacobian at world configuration `wq` (robot root frame), kept for
-    /// [`HandKin::dls_solve`].
+    /// [`HandKin::dls_solve`]: the TCP path's frames as matrices with their sines and cosines
+    /// batched ([`FkPath::jacobian_into`]; the chain's quaternion pass,
+    /// [`crate::kinematics::Chain::jacobian_into`], gives the same to rounding and was 7 % of
+    /// the dual-arm J+-RRT row).
     #[inline]
     fn update_jacobian(&mut self, wq: &[f64]) {
         let rq = &wq[self.offset..self.offset + self.dof];
-        self.chain.jacobian_into(&self.robot, rq, &mut self.jac);
+        self.tip_path
+            .jacobian_into(rq, &self.tip_cols, &mut self.jac);
     }
 
     /// [`HandKin::update_jacobian`] then [`HandKin::dls_solve`].
