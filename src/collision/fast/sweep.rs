@@ -91,6 +91,9 @@ pub(super) struct Sweep {
     body_vec: Vec<f64>,
     body_m: Vec<f64>,
     range: Vec<(u32, u32)>,
+    /// Per body: the world variables of its chain as a bit set (all bits when one is 64 or
+    /// more), so the travel bounds skip the bodies a segment does not move.
+    body_vars: Vec<u64>,
     /// Running sums of `|Δq_v| · w` along each body's chain (`chain length + 1` entries
     /// from `cum_off[i]`), for the current segment.
     cum: Vec<f64>,
@@ -317,6 +320,16 @@ impl Sweep {
                 }
             }
         }
+        let body_vars = range
+            .iter()
+            .map(|&(c0, c1)| {
+                chain[c0 as usize..c1 as usize]
+                    .iter()
+                    .fold(0u64, |m, &(v, _)| {
+                        m | 1u64.checked_shl(v).unwrap_or(u64::MAX)
+                    })
+            })
+            .collect();
         let (mounts, (static_runs, static_run_reach0), (runs, run_reach0)) = mount_runs(c);
         let mut used_mounts: Vec<u32> = static_runs
             .iter()
@@ -367,6 +380,7 @@ impl Sweep {
             link_sums,
             body_vec: vec![0.0; c.moving.len()],
             body_m: vec![-1.0; c.moving.len()],
+            body_vars,
             range,
             cum: vec![0.0; cum_len as usize],
             cum_off,

@@ -57,8 +57,21 @@ impl FastChecker {
         // its own term and grows every lower joint's A by |Δθ_k|.
         let mut pieces = 1usize;
         s.lmax = 0.0;
+        // The variables that move (bits of those below 64; a body with a variable of 64 or
+        // more has every bit in `body_vars` and is never skipped).
+        let mut moved_vars = 0u64;
+        for v in 0..a.len().min(b.len()).min(64) {
+            moved_vars |= u64::from(a[v] != b[v]) << v;
+        }
         for (i, &(c0, c1)) in s.range.iter().enumerate() {
             let o = s.cum_off[i] as usize;
+            if s.body_vars[i] & moved_vars == 0 {
+                // No joint of its chain moves: every running sum is 0 and there is no
+                // second-order term (the loop below gives exactly these values).
+                s.cum[o..=o + (c1 - c0) as usize].fill(0.0);
+                s.body_m[i] = -1.0;
+                continue;
+            }
             s.cum[o] = 0.0;
             let (mut l, mut a_below, mut v_below, mut m_v, mut m_w) = (0.0, 0.0, 0.0, 0.0, 0.0);
             let mut vector = true;
@@ -168,7 +181,8 @@ impl FastChecker {
             }
             for (i, body) in self.moving.iter().enumerate() {
                 let r = body.mount.robot;
-                if !moves(r) {
+                // A body without a second-order term keeps its static bound (below).
+                if !moves(r) || s.body_m[i] < 0.0 {
                     continue;
                 }
                 let f = &self.piece_poses[r][body.mount.link];
