@@ -1,9 +1,10 @@
 //! `sin_cos` and `atan2` for the kinematics hot loop (the analytic S-R-S IK calls them ~100
 //! times per swivel angle). `sin_cos`: fdlibm's kernels after a two-constant Cody–Waite
 //! reduction by π/2; within 2 ulp of `f64::sin_cos` for |x| ≤ 1e5 (joint angles), the library
-//! beyond. About 3× faster than libm's `sincos` here. `atan2`: fdlibm's `atan` (four breakpoints,
-//! 11-term polynomial, < 1 ulp) with its quadrant logic, inlined; the library for non-finite
-//! arguments.
+//! beyond. About 3× faster than libm's `sincos` here; [`sin_cos_lanes`] evaluates the same
+//! operations four angles at a time (AVX2) for forward kinematics. `atan2`: fdlibm's `atan`
+//! (four breakpoints, 11-term polynomial, < 1 ulp) with its quadrant logic, inlined; the
+//! library for non-finite arguments.
 
 // fdlibm's constants, written with all their digits.
 #![allow(clippy::excessive_precision)]
