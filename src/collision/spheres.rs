@@ -774,21 +774,14 @@ impl SphereChecker {
     }
 
     /// The first test of [`Self::pair_hits`] in AVX2 + FMA registers: whether the bodies'
-    /// bounding spheres (grown by their inflations) touch in any lane. Always inlined into
-    /// the 8-lane check (left to the compiler it was a call per pair: 76 k calls on 15 Panda
-    /// cage problems).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (only called inside [`Self::run8_avx2`]).
+    /// bounding spheres (grown by their inflations) touch in any lane.
     #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    unsafe fn pair_near_avx(&self, a: usize, b: usize) -> bool {
-        // SAFETY: AVX2 + FMA, by this function's contract.
-        unsafe {
-            let (ca, cb) = (avx8::load3(&self.bcw[a]), avx8::load3(&self.bcw[b]));
-            let r = self.bodies[a].br + self.bodies[b].br + (self.infl[a] + self.infl[b]);
-            avx8::near(ca, cb, r) != 0
-        }
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn pair_near_avx(&self, a: usize, b: usize) -> bool {
+        let (ca, cb) = (avx8::load3(&self.bcw[a]), avx8::load3(&self.bcw[b]));
+        let r = self.bodies[a].br + self.bodies[b].br + (self.infl[a] + self.infl[b]);
+        avx8::near(ca, cb, r) != 0
     }
 
     /// [`Self::pair_hits`] after its first test ([`Self::pair_near_avx`]) for 8 lanes in

@@ -21,9 +21,6 @@ pub struct JointSpace {
     weights: Vec<f64>,
     names: Vec<String>,
     base: Vec<f64>,
-    /// `vars` is `0, 1, …`: a state is the start of the world configuration, so
-    /// [`Self::write_world`] copies it whole.
-    leading: bool,
 }
 
 impl JointSpace {
@@ -91,7 +88,6 @@ impl JointSpace {
             weights: vec![1.0; vars.len()],
             names,
             base,
-            leading: vars.iter().enumerate().all(|(i, &w)| i == w),
         })
     }
 
@@ -198,9 +194,8 @@ impl JointSpace {
     /// `out = a + t (b − a)`.
     #[inline]
     pub fn interpolate(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {
-        let n = self.vars.len();
-        for ((o, &x), &y) in out[..n].iter_mut().zip(&a[..n]).zip(&b[..n]) {
-            *o = x + (y - x) * t;
+        for i in 0..self.vars.len() {
+            out[i] = a[i] + (b[i] - a[i]) * t;
         }
     }
 
@@ -277,13 +272,6 @@ impl JointSpace {
     /// Writes the state's variables into a world configuration (others untouched).
     #[inline]
     pub fn write_world(&self, q: &[f64], world_q: &mut [f64]) {
-        let n = self.vars.len();
-        if self.leading {
-            // The same values at the same places, in one copy (every motion check writes its
-            // two ends).
-            world_q[..n].copy_from_slice(&q[..n]);
-            return;
-        }
         for (i, &w) in self.vars.iter().enumerate() {
             world_q[w] = q[i];
         }
@@ -309,50 +297,5 @@ impl JointSpace {
     /// Sum of the distances between consecutive states.
     pub fn path_length(&self, path: &[Vec<f64>]) -> f64 {
         path.windows(2).map(|w| self.distance(&w[0], &w[1])).sum()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::Pose;
-    use std::sync::Arc;
-
-    /// `write_world` puts each variable at its world index, whether the space's variables are
-    /// the leading ones of the world (copied whole) or any others; `interpolate` is
-    /// `a + (b − a)·t` per variable.
-    #[test]
-    fn write_world_and_interpolate() {
-        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
-        let robot = Arc::new(
-            crate::Robot::from_files(
-                &dir.join("twin_arms.urdf"),
-                Some(&dir.join("twin_arms.srdf")),
-            )
-            .expect("tests/robots/twin_arms"),
-        );
-        let world = CollisionWorld::single(robot.clone(), Pose::identity());
-        let dof = world.dof();
-        assert!(dof >= 6);
-        let base: Vec<f64> = (0..dof).map(|i| 0.01 * i as f64).collect();
-        for vars in [vec![0, 1, 2], vec![2, 0, 5], (0..dof).collect::<Vec<_>>()] {
-            let space = JointSpace::new(&world, &vars, base.clone()).expect("space");
-            assert_eq!(space.leading, vars.iter().enumerate().all(|(i, &w)| i == w));
-            let q: Vec<f64> = (0..vars.len()).map(|i| -0.1 * (i + 1) as f64).collect();
-            let mut w = base.clone();
-            space.write_world(&q, &mut w);
-            let mut expect = base.clone();
-            for (i, &v) in vars.iter().enumerate() {
-                expect[v] = q[i];
-            }
-            assert_eq!(w, expect, "{vars:?}");
-            assert_eq!(space.to_world(&q), expect);
-            let b: Vec<f64> = q.iter().map(|x| x + 0.3).collect();
-            let mut out = vec![0.0; q.len()];
-            space.interpolate(&q, &b, 0.25, &mut out);
-            for i in 0..q.len() {
-                assert_eq!(out[i], q[i] + (b[i] - q[i]) * 0.25);
-            }
-        }
     }
 }
