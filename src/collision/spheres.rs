@@ -718,25 +718,11 @@ impl SphereChecker {
                 continue;
             }
             if !placed {
-                // The spheres are placed as the first obstacle that reaches them tests them:
-                // a hit returns before the later ones are needed (most hot-body hits). All
-                // are placed once that obstacle's loop completes. Same tests in the same
-                // order. Measured (callgrind, 15 Panda cage problems, search only): these
-                // tests 55.5 → 51.3 M instructions, the search 150.8 → 146.6 M.
-                for (si, (sp, w)) in spheres[s0..s1].iter().zip(&mut sw[s0..s1]).enumerate() {
-                    let p = place(f, &[sp[0], sp[1], sp[2]]);
-                    store3(w, p);
-                    let m = obs(o, p, sp[3] + infl);
-                    if m != 0 {
-                        if infl == 0.0 || obs(o, p, sp[3]) != 0 {
-                            return Some(Hit::Obstacle(b as u32, oi, (s0 + si) as u32));
-                        }
-                        tb |= m;
-                    }
-                }
                 placed = true;
                 sw_epoch[b] = *epoch;
-                continue;
+                for (sp, w) in spheres[s0..s1].iter().zip(&mut sw[s0..s1]) {
+                    store3(w, place(f, &[sp[0], sp[1], sp[2]]));
+                }
             }
             for (si, (sp, w)) in spheres[s0..s1].iter().zip(&sw[s0..s1]).enumerate() {
                 let p = load3(w);
@@ -753,24 +739,6 @@ impl SphereChecker {
             tight_log.push((b as u32, tb));
         }
         None
-    }
-
-    /// [`Self::ensure_spheres`] in AVX2 + FMA registers: places body `b`'s spheres in this
-    /// call's frames unless they are placed already (the same operations, so the same values).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    fn place_spheres_avx(&mut self, b: usize) {
-        if self.sw_epoch[b] == self.epoch {
-            return;
-        }
-        self.sw_epoch[b] = self.epoch;
-        let body = &self.bodies[b];
-        let f = &self.frames[body.node as usize];
-        let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
-        for (sp, w) in self.spheres[s0..s1].iter().zip(&mut self.sw[s0..s1]) {
-            avx8::store3(w, avx8::place(f, &[sp[0], sp[1], sp[2]]));
-        }
     }
 
     /// The first test of [`Self::pair_hits`] in AVX2 + FMA registers: whether the bodies'
@@ -793,22 +761,19 @@ impl SphereChecker {
         use avx8::*;
         let cb = load3(&self.bcw[b]);
         let ex = self.pair_inflation(pi);
-        self.place_spheres_avx(a);
+        self.ensure_spheres::<LANES, true>(a);
+        self.ensure_spheres::<LANES, true>(b);
         let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
         let (sa0, sa1) = (ba.spheres.0 as usize, ba.spheres.1 as usize);
         let (sb0, sb1) = (bb.spheres.0 as usize, bb.spheres.1 as usize);
         let rb = bb.br;
         let mut tp = 0u32;
-        for si in sa0..sa1 {
-            let (pi_, ri) = (load3(&self.sw[si]), self.spheres[si][3]);
+        for (si, wi) in self.spheres[sa0..sa1].iter().zip(&self.sw[sa0..sa1]) {
+            let (pi_, ri) = (load3(wi), si[3]);
             // The sphere against b's bounding sphere first.
             if near(pi_, cb, ri + rb + ex) == 0 {
                 continue;
             }
-            // b's spheres are placed only when one of a's spheres reaches its bounding
-            // sphere (most pairs that pass the bodies' test have none). Measured (callgrind,
-            // 15 Panda cage problems): these tests 7.5 → 5.3 M instructions.
-            self.place_spheres_avx(b);
             for (sj, wj) in self.spheres[sb0..sb1].iter().zip(&self.sw[sb0..sb1]) {
                 let pj = load3(wj);
                 let rij = ri + sj[3];
