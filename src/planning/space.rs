@@ -299,3 +299,47 @@ impl JointSpace {
         path.windows(2).map(|w| self.distance(&w[0], &w[1])).sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Pose;
+    use std::sync::Arc;
+
+    /// `write_world` puts each variable at its world index, whether the space's variables are
+    /// the leading ones of the world or any others; `interpolate` is
+    /// `a + (b − a)·t` per variable.
+    #[test]
+    fn write_world_and_interpolate() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/robots");
+        let robot = Arc::new(
+            crate::Robot::from_files(
+                &dir.join("twin_arms.urdf"),
+                Some(&dir.join("twin_arms.srdf")),
+            )
+            .expect("tests/robots/twin_arms"),
+        );
+        let world = CollisionWorld::single(robot.clone(), Pose::identity());
+        let dof = world.dof();
+        assert!(dof >= 6);
+        let base: Vec<f64> = (0..dof).map(|i| 0.01 * i as f64).collect();
+        for vars in [vec![0, 1, 2], vec![2, 0, 5], (0..dof).collect::<Vec<_>>()] {
+            let space = JointSpace::new(&world, &vars, base.clone()).expect("space");
+            let q: Vec<f64> = (0..vars.len()).map(|i| -0.1 * (i + 1) as f64).collect();
+            let mut w = base.clone();
+            space.write_world(&q, &mut w);
+            let mut expect = base.clone();
+            for (i, &v) in vars.iter().enumerate() {
+                expect[v] = q[i];
+            }
+            assert_eq!(w, expect, "{vars:?}");
+            assert_eq!(space.to_world(&q), expect);
+            let b: Vec<f64> = q.iter().map(|x| x + 0.3).collect();
+            let mut out = vec![0.0; q.len()];
+            space.interpolate(&q, &b, 0.25, &mut out);
+            for i in 0..q.len() {
+                assert_eq!(out[i], q[i] + (b[i] - q[i]) * 0.25);
+            }
+        }
+    }
+}

@@ -340,24 +340,18 @@ impl SphereChecker {
     fn first_pass(&mut self, a: &[f64], b: &[f64], n: usize) -> bool {
         let h = 1.0 / n as f64;
         self.set_inflation(h);
-        // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches).
+        // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches). The
+        // n + 1 states fill whole batches (`begin_segment` rounds n up so), so every lane holds
+        // a state.
         let total = n + 1;
-        let batches = total.div_ceil(LANES);
+        debug_assert!(total % LANES == 0);
+        let batches = total / LANES;
         self.tight_states.clear();
         for j in 0..batches {
-            let mut ts = [0.0; LANES];
-            let mut ks = [usize::MAX; LANES];
-            let mut used = 0u64;
-            for l in 0..LANES {
-                let k = total as isize - 1 - j as isize - (l * batches) as isize;
-                if k >= 0 {
-                    ks[l] = k as usize;
-                    used += 1;
-                }
-                ts[l] = if k >= 0 { k as f64 * h } else { 1.0 };
-            }
+            let top = total - 1 - j;
+            let ts: [f64; LANES] = std::array::from_fn(|l| (top - l * batches) as f64 * h);
             self.load_lanes(a, b, &ts);
-            self.checks += used;
+            self.checks += LANES as u64;
             if self.collides8() {
                 return false;
             }
@@ -366,9 +360,7 @@ impl SphereChecker {
                 while m != 0 {
                     let l = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    if ks[l] != usize::MAX {
-                        self.tight_states.push((ks[l], id));
-                    }
+                    self.tight_states.push((top - l * batches, id));
                 }
             }
         }

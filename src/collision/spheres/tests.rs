@@ -325,3 +325,98 @@ fn avx_step_is_the_generic_step_bit_for_bit() {
         }
     }
 }
+
+/// The 8-lane AVX2 check (`body_env_avx`, `pair_spheres_avx`, `step_avx`) finds a collision
+/// exactly when the generic 8-lane check does and, when there is none, logs the same tight
+/// lanes per body and self pair: batches of 8 states along random segments, with random
+/// inflations. The suite's two-arm robot alone (self pairs), and the Panda in a cage and
+/// Baxter in a bookshelf when the MotionBenchMaker data is there. (Written to guard changes
+/// to the order and placement of the AVX2 tests, which must keep every verdict.)
+#[test]
+fn avx_checks_equal_the_generic_checks() {
+    use crate::collision::CollisionWorld;
+    use crate::geometry::Pose;
+    let r = twin_arms();
+    let world = CollisionWorld::single(r.clone(), Pose::identity());
+    avx_checks_equal_the_generic_checks_in(&world, &r, 5);
+    for (name, set) in [
+        ("panda", "cage"),
+        ("baxter", "bookshelf_tall_both_arms_hard"),
+    ] {
+        let Some(r) = mbm_robot(name) else { return };
+        let Some(dir) = crate::planning::mbm_data::data_for_test() else {
+            return;
+        };
+        let file = crate::planning::mbm::MbmFile::load(&dir.join(name).join("problems.json"))
+            .expect("problems");
+        let set = file.set(set).expect("set");
+        let world = set.problems[0].world(r.clone());
+        avx_checks_equal_the_generic_checks_in(&world, &r, 6);
+    }
+}
+
+fn avx_checks_equal_the_generic_checks_in(
+    world: &crate::collision::CollisionWorld,
+    r: &crate::Robot,
+    seed: u64,
+) {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    let mut avx = SphereChecker::new(world, 0.0).expect("spheres");
+    if !avx.avx2 {
+        return;
+    }
+    let mut generic = avx.clone();
+    generic.avx2 = false;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (mut hits, mut free, mut tight) = (0, 0, 0);
+    for k in 0..3000 {
+        let mut config = || -> Vec<f64> {
+            (0..r.dof())
+                .map(|v| {
+                    let l = r.var_limits(v);
+                    rng.random_range(l.lower.max(-4.0)..=l.upper.min(4.0))
+                })
+                .collect()
+        };
+        let (a, c) = (config(), config());
+        let t = [1.0, 0.3, 0.1][k % 3];
+        let b: Vec<f64> = a.iter().zip(&c).map(|(x, y)| x + t * (y - x)).collect();
+        let ts: [f64; LANES] = std::array::from_fn(|l| l as f64 / (LANES - 1) as f64);
+        let h = [0.0, 0.02, 0.2][k % 3];
+        let lens: Vec<f64> = avx
+            .seg_len
+            .iter()
+            .map(|_| rng.random_range(0.0..1.0))
+            .collect();
+        for sc in [&mut avx, &mut generic] {
+            for ((d, x), y) in sc.seg_dq.iter_mut().zip(&a).zip(&b) {
+                *d = (y - x).abs();
+            }
+            sc.seg_len.copy_from_slice(&lens);
+            sc.seg_epoch = sc.seg_epoch.wrapping_add(1).max(1);
+            sc.set_inflation(h);
+            sc.load_lanes(&a, &b, &ts);
+        }
+        let hit = avx.collides8();
+        assert_eq!(hit, generic.collides8(), "batch {k}");
+        if hit {
+            hits += 1;
+        } else {
+            free += 1;
+            let (mut x, mut y) = (avx.tight_log.clone(), generic.tight_log.clone());
+            x.sort_unstable();
+            y.sort_unstable();
+            assert_eq!(x, y, "batch {k}");
+            tight += usize::from(!x.is_empty());
+        }
+    }
+    for sc in [&mut avx, &mut generic] {
+        sc.infl.iter_mut().for_each(|i| *i = 0.0);
+        sc.pair_scale = 0.0;
+    }
+    assert!(
+        hits > 100 && free > 100 && tight > 10,
+        "{hits} hits, {free} free, {tight} with tight lanes"
+    );
+}
