@@ -506,11 +506,7 @@ impl FkModel {
     pub fn compute(&self, base: &Frame, q: &[f64], out: &mut [Frame]) {
         out[0] = *base;
         for chunk in self.joints.chunks(TRIG_BATCH) {
-            let mut t = Trig::new();
-            for (k, j) in chunk.iter().enumerate() {
-                t.x[k] = j.angle(q);
-            }
-            t.eval(chunk.len());
+            let t = Trig::of(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 out[j.child as usize] = j.apply_sc(&out[j.parent as usize], q, t.s[k], t.c[k]);
             }
@@ -594,6 +590,17 @@ impl Trig {
             s: [0.0; TRIG_BATCH],
             c: [0.0; TRIG_BATCH],
         }
+    }
+
+    /// The angles of `joints` (at most [`TRIG_BATCH`]) at `q`, with their sines and cosines.
+    #[inline(always)]
+    fn of(joints: &[FkJoint], q: &[f64]) -> Trig {
+        let mut t = Trig::new();
+        for (x, j) in t.x.iter_mut().zip(joints) {
+            *x = j.angle(q);
+        }
+        t.eval(joints.len());
+        t
     }
 
     /// Sines and cosines of the first `n` angles.
@@ -711,11 +718,7 @@ impl FkPath {
     pub fn frame(&self, q: &[f64]) -> Frame {
         let mut f = Frame::identity();
         for chunk in self.joints.chunks(TRIG_BATCH) {
-            let mut t = Trig::new();
-            for (k, j) in chunk.iter().enumerate() {
-                t.x[k] = j.angle(q);
-            }
-            t.eval(chunk.len());
+            let t = Trig::of(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 f = j.apply_sc(&f, q, t.s[k], t.c[k]);
             }
@@ -750,11 +753,7 @@ impl FkPath {
         let mut f = Frame::identity();
         let mut k0 = 0;
         for chunk in self.joints.chunks(TRIG_BATCH) {
-            let mut t = Trig::new();
-            for (k, j) in chunk.iter().enumerate() {
-                t.x[k] = j.angle(q);
-            }
-            t.eval(chunk.len());
+            let t = Trig::of(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 let (r0, p) = j.joint_frame(&f);
                 if let Some(&col) = cols.get(k0 + k).filter(|&&c| c < jac.ncols()) {
