@@ -182,16 +182,7 @@ fn jacobian_check(label: &str, robot: &Robot, chain: &Chain, samples: usize, see
         if chain.base_link == 0 {
             // The root-to-tip path's matrix pass (the J+ steps' Jacobian) gives the same.
             let path = manyhands::kinematics::FkPath::new(robot, chain.tip_link);
-            let cols: Vec<usize> = path
-                .joint_vars()
-                .map(|(v, _)| {
-                    chain
-                        .vars
-                        .iter()
-                        .position(|&c| c == v)
-                        .unwrap_or(usize::MAX)
-                })
-                .collect();
+            let cols = path.jacobian_columns(&chain.vars);
             let mut pj = nalgebra::Matrix6xX::zeros(chain.vars.len());
             let f = path.jacobian_into(&q, &cols, &mut pj);
             let diff = (&pj - &jac).abs().max();

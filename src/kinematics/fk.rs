@@ -735,6 +735,15 @@ impl FkPath {
         self.joints.iter().map(|j| (j.var as usize, j.mul))
     }
 
+    /// The `cols` of [`Self::jacobian_into`] for a Jacobian whose columns are the robot
+    /// variables `vars` (a chain's [`crate::kinematics::Chain::vars`]): per joint of the path,
+    /// the position of its variable in `vars`, `usize::MAX` when absent.
+    pub fn jacobian_columns(&self, vars: &[usize]) -> Vec<usize> {
+        self.joint_vars()
+            .map(|(v, _)| vars.iter().position(|&c| c == v).unwrap_or(usize::MAX))
+            .collect()
+    }
+
     /// The geometric Jacobian of the link (rows: linear then angular velocity, in the root
     /// frame) into `jac`, as [`crate::kinematics::Chain::jacobian_into`] computes it for the
     /// chain from the root to this link, in one pass of the frames [`Self::frame`] composes:

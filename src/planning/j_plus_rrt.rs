@@ -352,16 +352,7 @@ impl HandKin {
             .collect();
         let arm_dims = <[usize; 7]>::try_from(dims.as_slice()).ok();
         let tip_path = FkPath::new(robot, tip);
-        let tip_cols = tip_path
-            .joint_vars()
-            .map(|(v, _)| {
-                chain
-                    .vars
-                    .iter()
-                    .position(|&c| c == v)
-                    .unwrap_or(usize::MAX)
-            })
-            .collect();
+        let tip_cols = tip_path.jacobian_columns(&chain.vars);
         Ok(HandKin {
             jac: Matrix6xX::zeros(chain.vars.len()),
             tip_cols,
