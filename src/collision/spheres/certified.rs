@@ -342,9 +342,13 @@ impl SphereChecker {
         self.set_inflation(h);
         // States k = 0..=n, raked: batch j holds k = n − j, n − j − B, … (B batches). The
         // n + 1 states fill whole batches (`begin_segment` rounds n up so), so every lane holds
-        // a state.
+        // a state. Checked in release builds too: were it broken, the last states would go
+        // unchecked and the certificate with them (one comparison per segment).
         let total = n + 1;
-        debug_assert!(total % LANES == 0);
+        assert!(
+            total % LANES == 0,
+            "first_pass: {total} states do not fill whole batches of {LANES}"
+        );
         let batches = total / LANES;
         self.tight_states.clear();
         for j in 0..batches {
