@@ -12,7 +12,7 @@ use manyhands::collision::{CollisionWorld, ExactChecker, StaticBody, StaticKind}
 use manyhands::geometry::{iso_from_rpy, Geometry, Pose, Shape};
 use manyhands::planning::shortcut::simplify;
 use manyhands::planning::{
-    JointSpace, PlanError, PlanResult, RrtConnect, RrtConnectSettings, ShortcutSettings,
+    JointSpace, PlanError, PlanResult, RrtConnect, RrtConnectSettings, Sampler, ShortcutSettings,
     SpaceValidator, Termination,
 };
 use manyhands::Robot;
@@ -180,6 +180,55 @@ fn arm_goes_around_the_wall() {
         assert!(r.stats.iterations > 0 && r.stats.collision_checks > 0);
         assert!(r.stats.start_tree_size >= 1 && r.stats.goal_tree_size >= 1);
     }
+}
+
+#[test]
+fn halton_sampler_gives_one_search_for_every_seed() {
+    let w = arm_world();
+    let settings = RrtConnectSettings {
+        sampler: Sampler::Halton,
+        ..raw_settings()
+    };
+    let mut p = planner(&w, settings);
+    let space = p.space().clone();
+    let goals = vec![ARM_GOAL.to_vec()];
+    let a = p
+        .plan(&ARM_START, &goals, &mut term(2000), 1)
+        .expect("solved");
+    assert_solution(&w, &space, &a, &ARM_START, &goals);
+    assert!(a.path.len() >= 3, "a path around the wall has a corner");
+    for seed in [2, 99] {
+        let b = p
+            .plan(&ARM_START, &goals, &mut term(2000), seed)
+            .expect("solved");
+        assert_eq!(a.path, b.path, "seed {seed}");
+        assert_eq!(a.stats.iterations, b.stats.iterations);
+    }
+    // With dynamic-domain sampling and balanced trees too (the skipped samples are drawn in
+    // one loop), and the uniform sampler still differs by seed.
+    let dd = RrtConnectSettings {
+        dynamic_domain: Some(1.0),
+        balance: true,
+        ..settings
+    };
+    let mut p = planner(&w, dd);
+    let c = p
+        .plan(&ARM_START, &goals, &mut term(2000), 1)
+        .expect("solved");
+    assert_solution(&w, &space, &c, &ARM_START, &goals);
+    let d = p
+        .plan(&ARM_START, &goals, &mut term(2000), 5)
+        .expect("solved");
+    assert_eq!(c.path, d.path);
+    let mut u = planner(&w, raw_settings());
+    let paths: Vec<_> = (1..=3)
+        .map(|seed| {
+            u.plan(&ARM_START, &goals, &mut term(2000), seed)
+                .expect("solved")
+                .path
+        })
+        .collect();
+    assert!(paths[0] != paths[1] || paths[1] != paths[2]);
 }
 
 #[test]

@@ -16,11 +16,28 @@ use manyhands::planning::mbm::{MbmFile, MbmProblem};
 use manyhands::planning::mbm_data;
 use manyhands::planning::range::{self, DerivedSettings};
 use manyhands::planning::{
-    PlanError, RrtConnect, RrtConnectSettings, ShortcutSettings, SpaceValidator, Termination,
+    PlanError, RrtConnect, RrtConnectSettings, Sampler, ShortcutSettings, SpaceValidator,
+    Termination,
 };
 use manyhands::Robot;
 
 use super::commands::Ctx;
+
+/// `--sampler` of `bench mbm`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SamplerArg {
+    Uniform,
+    Halton,
+}
+
+impl From<SamplerArg> for Sampler {
+    fn from(s: SamplerArg) -> Sampler {
+        match s {
+            SamplerArg::Uniform => Sampler::Uniform,
+            SamplerArg::Halton => Sampler::Halton,
+        }
+    }
+}
 
 #[derive(Args, Debug)]
 pub struct MbmArgs {
@@ -76,6 +93,11 @@ pub struct MbmArgs {
     /// from the space: 0.3 × its maximum extent (the Panda's is VAMP's 4).
     #[arg(long)]
     pub dynamic_domain: Option<f64>,
+    /// Sample source: `uniform` (seeded draws) or `halton` (the Halton sequence from its first
+    /// point for every problem, VAMP's default; see the README, "Where the time goes against
+    /// VAMP")
+    #[arg(long, value_enum, default_value = "uniform")]
+    pub sampler: SamplerArg,
     /// Alternate the trees instead of growing the smaller one (VAMP and this bench balance).
     #[arg(long)]
     pub no_balance: bool,
@@ -452,6 +474,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         // set, search only: cage −12.6 %, bookshelf_small −7.2 %, box −4.8 %, bookshelf_tall
         // −0.6 %) once a path edge's certification reuses its screening pass.
         lazy: a.lazy_certify || !a.eager_certify,
+        sampler: a.sampler.into(),
     };
     let started = chrono_like_now();
     let t_all = Instant::now();
@@ -459,7 +482,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     let mut summaries: Vec<Summary> = Vec::new();
     if !ctx.json {
         println!(
-            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, motion checks: {}, range {:.4}{}, dynamic domain {}, {} trees, padding {} m, exact re-check at {}°, {}",
+            "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, motion checks: {}, range {:.4}{}, dynamic domain {}, {} trees, {} samples, padding {} m, exact re-check at {}°, {}",
             file.robot,
             vars.len(),
             robot.dof(),
@@ -494,6 +517,10 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
                 "off".into()
             },
             if a.no_balance { "alternating" } else { "balanced" },
+            match a.sampler {
+                SamplerArg::Uniform => "uniform (seeded)",
+                SamplerArg::Halton => "Halton (from its first point)",
+            },
             a.padding,
             a.check_resolution,
             if a.no_simplify { "no simplification" } else { "shortcutting on" }
@@ -677,6 +704,7 @@ fn ompl_log(
                 .map_or("off".into(), |r| r.to_string()),
         ),
         ("balance", settings.balance.to_string()),
+        ("sampler", format!("{:?}", settings.sampler).to_lowercase()),
         ("simplify", settings.shortcut.is_some().to_string()),
     ];
     let _ = writeln!(o, "{} common properties", common.len());

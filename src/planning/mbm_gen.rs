@@ -332,6 +332,7 @@ pub fn solve_settings(world: &CollisionWorld, space: &JointSpace) -> RrtConnectS
         dynamic_domain: derived.as_ref().map(|d| d.dynamic_domain),
         balance: true,
         lazy: false,
+        sampler: super::Sampler::Uniform,
     }
 }
 

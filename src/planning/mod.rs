@@ -18,6 +18,7 @@
 pub mod bimanual_ik_rrt;
 pub mod decoupled;
 pub mod grasping;
+pub mod halton;
 mod ik_rrt;
 pub mod j_plus_rrt;
 pub mod mbm;
@@ -48,7 +49,7 @@ pub use j_plus_rrt::{DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings};
 pub use result::{PlanError, PlanResult, PlanStats};
 pub(crate) use rng::DomainPretest;
 pub use rng::PlannerRng;
-pub use rrt_connect::{RrtConnect, RrtConnectSettings};
+pub use rrt_connect::{RrtConnect, RrtConnectSettings, Sampler};
 pub use shortcut::{ShortcutSettings, ShortcutStats};
 pub use space::JointSpace;
 pub use termination::{StopReason, Termination};

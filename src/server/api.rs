@@ -14,8 +14,8 @@ pub use manyhands_api::{
     IkFrame, IkOrder, IkRequest, IkResponse, IkSolver, Job, JobList, JobState, JobSummary,
     JointInfo, JointSpacePlan, KitchenTaskPlan, LinkPose, MultiRobotRequest, PickPlaceTaskPlan,
     PlanRequest, PlanRobot, PoseBody, PoseOut, ReachPlan, RegionJson, RegraspPlan, RobotDetail,
-    RobotSummary, RobotUpload, SceneRobotConfig, SceneRobotInfo, SceneSummary, ScheduleRequest,
-    ScheduleTrajectory, Source, TwoHandIkResponse,
+    RobotSummary, RobotUpload, SamplerName, SceneRobotConfig, SceneRobotInfo, SceneSummary,
+    ScheduleRequest, ScheduleTrajectory, Source, TwoHandIkResponse,
 };
 pub use manyhands_api::{
     JointTrajectory, TimedWaypoint, TrajectoryEvent, TrajectoryPoint, TrajectoryRequest,

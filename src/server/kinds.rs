@@ -15,11 +15,12 @@ use serde_json::{json, Value};
 
 use crate::collision::{AutoChecker, BodyId, CollisionWorld, FastChecker};
 use crate::planning::{
-    JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, ShortcutSettings, Termination,
+    JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, Sampler, ShortcutSettings,
+    Termination,
 };
 
 use super::api::{
-    CollisionSweep, GraspPlanRequest, GraspPlanSettings, JointSpacePlan, PlanRequest,
+    CollisionSweep, GraspPlanRequest, GraspPlanSettings, JointSpacePlan, PlanRequest, SamplerName,
 };
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
@@ -227,6 +228,10 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
         dynamic_domain: r.dynamic_domain,
         balance: r.balance.unwrap_or(false),
         certify: r.certify,
+        sampler: match r.sampler {
+            None | Some(SamplerName::Uniform) => Sampler::Uniform,
+            Some(SamplerName::Halton) => Sampler::Halton,
+        },
         ..RrtConnectSettings::default()
     };
     Ok(Prepared {

@@ -46,7 +46,7 @@ impl Modify for BearerAuth {
         ErrorBody, ErrorDetail, PoseBody, PoseOut, Source, RobotSummary, RobotDetail, JointInfo, GroupInfo,
         EndEffectorInfo, RobotUpload, SceneSummary, SceneRobotInfo, FkRequest, FkResponse, LinkPose,
         IkRequest, IkResponse, IkFrame, IkSolver, IkOrder, CheckRequest, CheckResponse, CheckFast,
-        SceneRobotConfig, PlanRequest, JointSpacePlan, PlanRobot, CollisionSweep, ReachPlan, GraspPlannerName, HandRef, RegraspPlan, KitchenTaskPlan, BimanualPlan, super::api::GraspListPlan, super::api::GraspListParamsBody, super::api::PickPlaceTaskPlan, crate::server::multi_robot::MultiRobotRequest, crate::server::multi_robot::ScheduleRequest, crate::server::multi_robot::ScheduleTrajectory, Job, JobState, JobList,
+        SceneRobotConfig, PlanRequest, JointSpacePlan, super::api::SamplerName, PlanRobot, CollisionSweep, ReachPlan, GraspPlannerName, HandRef, RegraspPlan, KitchenTaskPlan, BimanualPlan, super::api::GraspListPlan, super::api::GraspListParamsBody, super::api::PickPlaceTaskPlan, crate::server::multi_robot::MultiRobotRequest, crate::server::multi_robot::ScheduleRequest, crate::server::multi_robot::ScheduleTrajectory, Job, JobState, JobList,
         JobSummary, Health,
         GraspIkRequest, GraspIkResponse, DualArmIkRequest, BasePlacementRequest, RegionJson, TwoHandIkResponse,
         GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,

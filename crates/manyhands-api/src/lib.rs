@@ -29,8 +29,8 @@ pub use grasp::{
 pub use plans::{
     BimanualPlan, CollisionSweep, GraspListParamsBody, GraspListPlan, GraspPlannerName, HandRef,
     Job, JobList, JobState, JobSummary, JointSpacePlan, KitchenTaskPlan, MultiRobotRequest,
-    PickPlaceTaskPlan, PlanRequest, PlanRobot, ReachPlan, RegraspPlan, ScheduleRequest,
-    ScheduleTrajectory,
+    PickPlaceTaskPlan, PlanRequest, PlanRobot, ReachPlan, RegraspPlan, SamplerName,
+    ScheduleRequest, ScheduleTrajectory,
 };
 pub use queries::{
     CheckFast, CheckRequest, CheckResponse, ConfigMap, FkRequest, FkResponse, IkFrame, IkOrder,

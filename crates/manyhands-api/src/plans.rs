@@ -65,6 +65,20 @@ pub struct JointSpacePlan {
     /// (0 < certify ≤ 0.5). Other robots keep checking states at the resolution. Default: off.
     #[serde(default)]
     pub certify: Option<f64>,
+    /// Sample source: `uniform` (draws from the seeded generator, the default) or `halton`
+    /// (the Halton sequence in bases 3, 5, 7, … from its first point, the same for every seed:
+    /// VAMP's default; the seed still drives the shortcutting).
+    #[serde(default)]
+    pub sampler: Option<SamplerName>,
+}
+
+/// The sample source of RRT-Connect (`JointSpacePlan::sampler`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum SamplerName {
+    Uniform,
+    Halton,
 }
 
 /// `kind: collision_sweep` — uniform random configurations of a scene's robots checked for
