@@ -142,7 +142,7 @@ enum AxisKind {
     General,
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct FkJoint {
     parent: u32,
     child: u32,
@@ -798,14 +798,74 @@ impl FkPath {
     /// Pose of the link: `T_root→link(q)`.
     #[inline]
     pub fn pose(&self, q: &[f64]) -> Pose {
-        let f = self.frame(q);
-        Pose::from_parts(
-            Translation3::from(f.t),
-            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(
-                f.rot,
-            )),
-        )
+        path_pose(&self.frame(q))
     }
+
+    /// This path together with the link of `prefix`, when `prefix`'s joints are the first
+    /// joints of this path (same robot model; `None` otherwise): [`FkPathPair::poses`] gives
+    /// both links' poses in one pass.
+    pub fn with_prefix(&self, prefix: &FkPath) -> Option<FkPathPair> {
+        self.joints.starts_with(&prefix.joints).then(|| FkPathPair {
+            path: self.clone(),
+            shared: prefix.joints.len(),
+            prefix_tail: prefix.tail,
+        })
+    }
+}
+
+/// An [`FkPath`] and a second link on it ([`FkPath::with_prefix`]): an arm's tip and the other
+/// arm's base under the same sampled hip (000 §III), their shared joints composed once.
+#[derive(Debug, Clone)]
+pub struct FkPathPair {
+    path: FkPath,
+    /// Joints of `path` that lead to the second link's computed ancestor.
+    shared: usize,
+    /// Offset of the second link from that ancestor.
+    prefix_tail: Option<Frame>,
+}
+
+impl FkPathPair {
+    /// `(path.pose(q), prefix.pose(q))` of the two paths [`FkPath::with_prefix`] was given, bit
+    /// for bit: the same products in the same order (the batched sines and cosines equal the
+    /// scalar ones), the shared joints composed once.
+    #[inline]
+    pub fn poses(&self, q: &[f64]) -> (Pose, Pose) {
+        let joints = &self.path.joints;
+        let mut f = Frame::identity();
+        let mut at_prefix = f;
+        let mut k0 = 0;
+        for chunk in joints.chunks(TRIG_BATCH) {
+            let t = Trig::of(chunk, q);
+            for (k, j) in chunk.iter().enumerate() {
+                if k0 + k == self.shared {
+                    at_prefix = f;
+                }
+                f = j.apply_sc(&f, q, t.s[k], t.c[k]);
+            }
+            k0 += chunk.len();
+        }
+        if self.shared == joints.len() {
+            at_prefix = f;
+        }
+        let tip = match &self.path.tail {
+            Some(o) => f.mul(o),
+            None => f,
+        };
+        let base = match &self.prefix_tail {
+            Some(o) => at_prefix.mul(o),
+            None => at_prefix,
+        };
+        (path_pose(&tip), path_pose(&base))
+    }
+}
+
+/// The pose of a frame [`FkPath`] composed (its rotation taken as orthonormal as it is).
+#[inline]
+fn path_pose(f: &Frame) -> Pose {
+    Pose::from_parts(
+        Translation3::from(f.t),
+        UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(f.rot)),
+    )
 }
 
 /// `r · R_axis(v)` given `(s, c) = sin_cos(v)`: for a principal axis only two columns change.

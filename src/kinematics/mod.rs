@@ -11,6 +11,8 @@ pub mod randomized;
 pub mod srs;
 
 pub use chain::Chain;
-pub use fk::{forward, link_pose, FkModel, FkPath, ForwardKinematics, Frame, SpeedAxis};
+pub use fk::{
+    forward, link_pose, FkModel, FkPath, FkPathPair, ForwardKinematics, Frame, SpeedAxis,
+};
 pub use numeric::{pose_error, IkFailure, IkSettings, IkStats, NumericIk};
 pub use srs::{SolutionOrder, SrsArm, SrsError};

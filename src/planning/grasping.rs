@@ -28,7 +28,7 @@ use crate::geometry::Pose;
 use crate::kinematics::randomized::{
     try_arm, ArmChain, GraspQuery, IkCounters, RandomizedIk, RandomizedIkSettings, ReachabilityMap,
 };
-use crate::kinematics::FkPath;
+use crate::kinematics::{FkPath, FkPathPair};
 use crate::model::Scene;
 use crate::reachability::queries::{end_effector_at, grasp_set, GraspSet};
 use crate::reachability::{hand_links, GridCache, ReachabilityGrid};
@@ -508,6 +508,13 @@ impl HandOffProblem {
             })
             .collect();
         let rdof = self.world.robots[self.receiver.robot].robot.dof();
+        let shared_hip = (self.giver.robot == self.receiver.robot)
+            .then(|| {
+                self.giver
+                    .tcp_path
+                    .with_prefix(&self.receiver.arm.base_path)
+            })
+            .flatten();
         HandOffGoals {
             world: self.world.clone(),
             checker,
@@ -523,6 +530,7 @@ impl HandOffProblem {
             cand: Vec::new(),
             probs: Vec::new(),
             rq: vec![0.0; rdof],
+            shared_hip,
             counters: IkCounters::default(),
         }
     }
@@ -549,6 +557,10 @@ pub struct HandOffGoals {
     probs: Vec<f64>,
     /// The receiver's configuration while its arm is solved (reused per try).
     rq: Vec<f64>,
+    /// The giver's TCP path with the receiver's arm base on it, when both hands are on one
+    /// robot and the base's joints start the TCP's path (both arms on one sampled hip): the
+    /// two poses per try from one pass over the shared joints.
+    shared_hip: Option<FkPathPair>,
     counters: IkCounters,
 }
 
@@ -568,9 +580,20 @@ impl GoalSampler for HandOffGoals {
             for &(w, i) in &self.sampled {
                 self.world_q[w] = lo[i] + (hi[i] - lo[i]) * rng.random::<f64>();
             }
-            let object = self.giver.tcp_pose(&self.world, &self.world_q) * self.held_inv;
             let rq = &self.world_q[roff..roff + rdof];
-            let inv = (rp.base * self.receiver.arm.base_path.pose(rq)).inverse();
+            let (tcp, arm_base) = match &self.shared_hip {
+                // One robot: the giver's configuration is the receiver's, `rq`.
+                Some(pair) => {
+                    let (tcp, arm_base) = pair.poses(rq);
+                    (rp.base * tcp, arm_base)
+                }
+                None => (
+                    self.giver.tcp_pose(&self.world, &self.world_q),
+                    self.receiver.arm.base_path.pose(rq),
+                ),
+            };
+            let object = tcp * self.held_inv;
+            let inv = (rp.base * arm_base).inverse();
             self.cand.clear();
             match self.grid.as_deref() {
                 Some(map) if rng.random::<f64>() < self.settings.reach_probability => {
