@@ -690,3 +690,36 @@ fn timing_report() {
         ik.stats.iterations
     );
 }
+
+/// `FkPathPair::poses` (the hand-off goal sampler's TCP and other arm base from one pass) gives
+/// bit for bit the two `FkPath::pose` calls, on ARMAR's right TCP with the left arm's base
+/// (shared base and hip); a path that does not start with the other's joints pairs with none.
+#[test]
+fn path_pair_poses_equal_the_two_paths() {
+    use manyhands::kinematics::randomized::ArmChain;
+    use manyhands::kinematics::FkPath;
+    let robot = armar();
+    let right = ArmChain::new(&robot, "torso_right_arm").expect("right arm");
+    let left = ArmChain::new(&robot, "torso_left_arm").expect("left arm");
+    let tcp = FkPath::new(&robot, right.chain.tip_link);
+    let pair = tcp
+        .with_prefix(&left.base_path)
+        .expect("the hip starts the TCP path");
+    let vars: Vec<usize> = (0..robot.dof()).collect();
+    let mut r = rng(27);
+    for _ in 0..200 {
+        let q = random_config(&robot, &vars, &mut r);
+        let (a, b) = pair.poses(&q);
+        assert_eq!(a, tcp.pose(&q));
+        assert_eq!(b, left.base_path.pose(&q));
+    }
+    let left_tcp = FkPath::new(&robot, left.chain.tip_link);
+    assert!(left_tcp.with_prefix(&tcp).is_none());
+    let whole = left
+        .base_path
+        .with_prefix(&left.base_path)
+        .expect("a path starts itself");
+    let q = random_config(&robot, &vars, &mut r);
+    let base = left.base_path.pose(&q);
+    assert_eq!(whole.poses(&q), (base, base));
+}
