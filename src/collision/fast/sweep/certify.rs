@@ -301,17 +301,8 @@ impl FastChecker {
             let pi = pi as usize;
             let p = self.pairs[pi];
             let d = scale * s.pair_len[pi];
-            let reach = s.pair_reach0[pi] + d;
             let (x, y) = (p.a as usize, p.b as usize);
-            let near = if p.b_static {
-                let st = &self.statics[y];
-                dist2_point_aabb(&self.body_bc[x], &st.lo, &st.hi) <= reach * reach
-                    && self.static_prims_hit_by(x, y, d)
-            } else {
-                (self.body_bc[x] - self.body_bc[y]).norm_squared() <= reach * reach
-                    && self.moving_prims_hit_by(x, y, d)
-            };
-            if !near {
+            if !self.pair_hits_by(s, pi, d) {
                 continue;
             }
             let plain = d <= 0.0
