@@ -505,8 +505,9 @@ impl FkModel {
     #[inline]
     pub fn compute(&self, base: &Frame, q: &[f64], out: &mut [Frame]) {
         out[0] = *base;
+        let mut t = Trig::new();
         for chunk in self.joints.chunks(TRIG_BATCH) {
-            let t = Trig::of(chunk, q);
+            t.set(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 out[j.child as usize] = j.apply_sc(&out[j.parent as usize], q, t.s[k], t.c[k]);
             }
@@ -536,13 +537,13 @@ impl FkModel {
             }
             if moved != 0 {
                 out[0] = *base;
+                let mut t = Trig::new();
                 for (chunk, deps) in self
                     .joints
                     .chunks(TRIG_BATCH)
                     .zip(self.deps.chunks(TRIG_BATCH))
                 {
                     // The moved joints' angles first, their sines and cosines in one batch.
-                    let mut t = Trig::new();
                     let mut n = 0;
                     for (j, &d) in chunk.iter().zip(deps) {
                         if d & moved != 0 {
@@ -592,15 +593,15 @@ impl Trig {
         }
     }
 
-    /// The angles of `joints` (at most [`TRIG_BATCH`]) at `q`, with their sines and cosines.
+    /// Takes the angles of `joints` (at most [`TRIG_BATCH`]) at `q`, with their sines and
+    /// cosines. One `Trig` serves every chunk of a pass (created, zeroed, once per pass; lanes
+    /// past the chunk's joints keep an earlier chunk's angles, whose results are never read).
     #[inline(always)]
-    fn of(joints: &[FkJoint], q: &[f64]) -> Trig {
-        let mut t = Trig::new();
-        for (x, j) in t.x.iter_mut().zip(joints) {
+    fn set(&mut self, joints: &[FkJoint], q: &[f64]) {
+        for (x, j) in self.x.iter_mut().zip(joints) {
             *x = j.angle(q);
         }
-        t.eval(joints.len());
-        t
+        self.eval(joints.len());
     }
 
     /// Sines and cosines of the first `n` angles.
@@ -717,8 +718,9 @@ impl FkPath {
     #[inline]
     pub fn frame(&self, q: &[f64]) -> Frame {
         let mut f = Frame::identity();
+        let mut t = Trig::new();
         for chunk in self.joints.chunks(TRIG_BATCH) {
-            let t = Trig::of(chunk, q);
+            t.set(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 f = j.apply_sc(&f, q, t.s[k], t.c[k]);
             }
@@ -761,8 +763,9 @@ impl FkPath {
         jac.fill(0.0);
         let mut f = Frame::identity();
         let mut k0 = 0;
+        let mut t = Trig::new();
         for chunk in self.joints.chunks(TRIG_BATCH) {
-            let t = Trig::of(chunk, q);
+            t.set(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 let (r0, p) = j.joint_frame(&f);
                 if let Some(&col) = cols.get(k0 + k).filter(|&&c| c < jac.ncols()) {
@@ -834,8 +837,9 @@ impl FkPathPair {
         let mut f = Frame::identity();
         let mut at_prefix = f;
         let mut k0 = 0;
+        let mut t = Trig::new();
         for chunk in joints.chunks(TRIG_BATCH) {
-            let t = Trig::of(chunk, q);
+            t.set(chunk, q);
             for (k, j) in chunk.iter().enumerate() {
                 if k0 + k == self.shared {
                     at_prefix = f;
