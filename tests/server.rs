@@ -559,6 +559,31 @@ async fn plans_wait_events_and_cancel() {
         paths.push(v["result"]["path"].clone());
     }
     assert_eq!(paths[0], paths[1]);
+    // More joints than the Halton sequence has bases: refused before planning, naming it.
+    let (s, mut four) = h.get("/v1/scenes/handoff").await;
+    assert_eq!(s, StatusCode::OK, "{four}");
+    four["name"] = json!("four_armars");
+    let robots = four["robots"].as_array().cloned().expect("robots");
+    let mut all = Vec::new();
+    for copy in 0..2 {
+        for r in &robots {
+            let mut r = r.clone();
+            r["name"] = json!(format!("{}_{copy}", r["name"].as_str().expect("name")));
+            r["base_pose"]["position"][1] =
+                json!(r["base_pose"]["position"][1].as_f64().unwrap_or(0.0) + 4.0 * copy as f64);
+            all.push(r);
+        }
+    }
+    four["robots"] = json!(all);
+    let (s, v) = h.put("/v1/scenes/four_armars", &four).await;
+    assert_eq!(s, StatusCode::CREATED, "{v}");
+    let names: Vec<Value> = all.iter().map(|r| r["name"].clone()).collect();
+    assert_eq!(names.len(), 4);
+    let wide = json!({"kind": "joint_space", "scene": "four_armars", "sampler": "halton",
+        "robots": names.iter().map(|n| json!({"name": n, "goal": {"right_elbow": -1.0}})).collect::<Vec<_>>()});
+    let (s, v) = h.post("/v1/plans", &wide).await;
+    assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert_eq!(field(&v), "sampler", "{v}");
     for (key, value) in [
         ("certify", json!(2.0)),
         ("dynamic_domain", json!(-1.0)),

@@ -66,7 +66,7 @@ pub struct RrtConnectSettings {
 }
 
 /// The sample source of [`RrtConnect`].
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Sampler {
     /// Uniform draws within the bounds from the seeded generator ([`PlannerRng`]): another

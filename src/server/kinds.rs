@@ -15,8 +15,8 @@ use serde_json::{json, Value};
 
 use crate::collision::{AutoChecker, BodyId, CollisionWorld, FastChecker};
 use crate::planning::{
-    JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, Sampler, ShortcutSettings,
-    Termination,
+    halton, JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, Sampler,
+    ShortcutSettings, Termination,
 };
 
 use super::api::{
@@ -219,6 +219,16 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
         base[off..off + start.len()].copy_from_slice(&start);
         goal_world[off..off + goal.len()].copy_from_slice(&goal);
         vars.extend(group_vars.iter().map(|v| off + v));
+    }
+    if r.sampler == Some(SamplerName::Halton) && vars.len() > halton::MAX_DIMS {
+        return Err(ApiError::invalid(
+            "sampler",
+            format!(
+                "the Halton sequence has at most {} dimensions; the request plans {} joints",
+                halton::MAX_DIMS,
+                vars.len()
+            ),
+        ));
     }
     let start: Vec<f64> = vars.iter().map(|&v| base[v]).collect();
     let goal: Vec<f64> = vars.iter().map(|&v| goal_world[v]).collect();
