@@ -377,41 +377,62 @@ impl SphereChecker {
         let ns = spheres.len();
         let n_nodes = steps.len();
         // Speed bounds: a sphere centre c riding on node k moves, per unit of a revolute
-        // variable of an ancestor node i, at most |c − o_i| ≤ D_i (o_i on i's axis), where
-        // D_k = max |c| in node k's frame and D_parent = D_i + |t_i| (+ prismatic travel).
-        // Per body, its movable ancestor joints from the body's node up to the root (`chain`,
-        // ranges in `chain_range`): the world variable and that bound (m/rad or m/m); summed
-        // per variable into `var_w` and, below each self pair's common ancestor, `pair_w`.
+        // variable of an ancestor node i, at most its distance to i's axis (a line through
+        // o_i). In node k's own frame that distance is exactly |c × a_k| (a_k the unit axis);
+        // for an ancestor i, whose child node j on the path sits at t_j (in i's frame), it is
+        // at most |t_j × a_i| + D_j, where D_j = max |c − o_j| in node j's frame and
+        // D_parent = D_j + |t_j| (+ prismatic travel): the part of the chain below j turns
+        // about j's axis, so its points stay within D_j of o_j, and only the part of t_j across
+        // i's axis counts (the Panda's first joint: 0.333 m of its 0.333 m offset lies along
+        // its axis). Per body, its movable ancestor joints from the body's node up to the root
+        // (`chain`, ranges in `chain_range`): the world variable and that bound (m/rad or
+        // m/m); summed per variable into `var_w` and, below each self pair's common ancestor,
+        // `pair_w`.
         let mut chain: Vec<(u32, f64)> = Vec::new();
         let mut chain_range = Vec::with_capacity(nb);
         let mut cum_off = Vec::with_capacity(nb);
         let mut certifiable = true;
         let mut cum_len = 0u32;
+        let v3 = |a: &[f32; 3]| Vector3::new(f64::from(a[0]), f64::from(a[1]), f64::from(a[2]));
+        // Distance of `p` to the line through the origin along `axis` (normalised here).
+        let across = |p: &Vector3<f64>, axis: &[f32; 3]| {
+            let a = v3(axis);
+            let n = a.norm();
+            if n > 0.0 {
+                p.cross(&(a / n)).norm()
+            } else {
+                p.norm()
+            }
+        };
         for body in &bodies {
             let first = chain.len() as u32;
-            let mut d = spheres[body.spheres.0 as usize..body.spheres.1 as usize]
+            let centres: Vec<Vector3<f64>> = spheres
+                [body.spheres.0 as usize..body.spheres.1 as usize]
                 .iter()
-                .map(|s| {
-                    f64::from(s[0])
-                        .hypot(f64::from(s[1]))
-                        .hypot(f64::from(s[2]))
-                })
-                .fold(0.0, f64::max);
+                .map(|s| v3(&[s[0], s[1], s[2]]))
+                .collect();
+            let mut d = centres.iter().map(|c| c.norm()).fold(0.0, f64::max);
             let mut k = body.node as usize;
+            // Bound on the distance of the centres to node k's axis.
+            let own = &steps[k];
+            let mut lever = centres
+                .iter()
+                .map(|c| across(c, &own.axis))
+                .fold(0.0, f64::max)
+                .min(d);
             loop {
                 let st = &steps[k];
                 let mul = f64::from(st.mul).abs();
                 let w = match st.kind {
                     StepKind::Root => break,
-                    StepKind::Revolute(_) => mul * d,
+                    StepKind::Revolute(_) => mul * lever,
                     StepKind::Prismatic => mul,
                 };
                 chain.push((st.var, w * (1.0 + 1e-5)));
-                let t =
-                    st.t.iter()
-                        .map(|&v| f64::from(v) * f64::from(v))
-                        .sum::<f64>();
-                d += t.sqrt() + st.travel;
+                let t = v3(&st.t);
+                let parent = &steps[st.parent as usize];
+                lever = (across(&t, &parent.axis) + d + st.travel).min(d + t.norm() + st.travel);
+                d += t.norm() + st.travel;
                 certifiable &= d.is_finite() && w.is_finite();
                 k = st.parent as usize;
             }
