@@ -11,6 +11,12 @@ fn mbm_robot(name: &str) -> Option<std::sync::Arc<crate::Robot>> {
     ))
 }
 
+/// The sphere checker of `robot` alone at the world origin, without padding.
+fn checker_of(robot: &std::sync::Arc<crate::Robot>) -> super::SphereChecker {
+    let world = super::CollisionWorld::single(robot.clone(), crate::geometry::Pose::identity());
+    super::SphereChecker::new(&world, 0.0).expect("spheres")
+}
+
 /// The suite's own sphere robot `tests/robots/twin_arms` (two arms with the Panda's
 /// kinematics, its truncated quarter turns included, on a torso).
 fn twin_arms() -> std::sync::Arc<crate::Robot> {
@@ -42,10 +48,8 @@ fn node_cull_bounds_every_pair_of_its_group_on_baxter() {
 
 fn node_cull_bounds_every_pair(robot: std::sync::Arc<crate::Robot>) {
     use super::*;
-    use crate::geometry::Pose;
     use rand::{Rng, SeedableRng};
-    let world = CollisionWorld::single(robot.clone(), Pose::identity());
-    let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut sc = checker_of(&robot);
     assert!(
         sc.pair_group_end.iter().any(|&e| e != 0),
         "{} has pair groups",
@@ -123,7 +127,6 @@ fn specialised_origins_give_the_general_frames_on_panda() {
 
 fn specialised_origins(robot: std::sync::Arc<crate::Robot>) {
     use super::*;
-    use crate::geometry::Pose;
     use nalgebra::Matrix3;
     use rand::{Rng, SeedableRng};
     // The URDF's truncated π/2 and π/4, as written there.
@@ -146,8 +149,7 @@ fn specialised_origins(robot: std::sync::Arc<crate::Robot>) {
         origin_terms(&Vector3::new(-0.0825, 3e-17, 0.384)),
         ([-0.0825, 0.0, 0.384], 0b101)
     );
-    let world = CollisionWorld::single(robot.clone(), Pose::identity());
-    let mut fast = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut fast = checker_of(&robot);
     let (mut perms, mut sparse) = (0, 0);
     for s in &fast.steps[1..] {
         perms += usize::from(matches!(s.rot_kind, OriginRot::Permutation(_)));
@@ -287,11 +289,9 @@ fn sincos_f32_is_accurate() {
 #[test]
 fn avx_step_is_the_generic_step_bit_for_bit() {
     use super::*;
-    use crate::geometry::Pose;
     use rand::{Rng, SeedableRng};
     let robot = twin_arms();
-    let world = CollisionWorld::single(robot.clone(), Pose::identity());
-    let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut sc = checker_of(&robot);
     if !sc.avx2 {
         return;
     }
@@ -442,10 +442,8 @@ fn speed_bounds_bound_the_travel_of_every_sphere_centre_on_panda() {
 
 fn speed_bounds_bound_travel(robot: std::sync::Arc<crate::Robot>) {
     use super::*;
-    use crate::geometry::Pose;
     use rand::{Rng, SeedableRng};
-    let world = CollisionWorld::single(robot.clone(), Pose::identity());
-    let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut sc = checker_of(&robot);
     let dof = sc.qv.len();
     let stride = sc.seg_len.len();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
