@@ -416,15 +416,6 @@ impl FkModel {
         centre: &nalgebra::Vector3<f64>,
         radius: f64,
     ) -> Option<Vec<(usize, f64)>> {
-        // Distance of point `p` from the line through the origin along `axis`.
-        let from_axis = |p: &nalgebra::Vector3<f64>, axis: &nalgebra::Vector3<f64>| {
-            let n = axis.norm();
-            if n > 0.0 {
-                p.cross(axis).norm() / n
-            } else {
-                p.norm()
-            }
-        };
         let mut out = Vec::new();
         let mut k = self.rep[link];
         // The ball lies within `d` of the current frame's origin; its points are within
@@ -445,7 +436,7 @@ impl FkModel {
                 }
                 JointKind::Fixed => (0.0, 0.0),
                 JointKind::Revolute | JointKind::Continuous => {
-                    let rho = (from_axis(&at, &j.axis) + base).min(d);
+                    let rho = (crate::geometry::distance_from_axis(&at, &j.axis) + base).min(d);
                     (j.mul.abs() * rho, 0.0)
                 }
             };
