@@ -487,13 +487,26 @@ fn speed_bounds_bound_travel(robot: std::sync::Arc<crate::Robot>) {
                 x.clamp(l.lower.max(-3.0), l.upper.min(3.0))
             })
             .collect();
-        let bound = |w: &[f64], stride: usize, i: usize| -> f64 {
+        // Σ_v |Δq_v| · w_v with `w_v = w[v · step + i]` (`var_w` is variable-major with the
+        // bodies' stride, `pair_w` pair-major with one entry per variable).
+        let bound = |w: &[f64], step: usize, i: usize| -> f64 {
             (0..dof)
-                .map(|v| (b[v] - a[v]).abs() * w[v * stride + i])
+                .map(|v| (b[v] - a[v]).abs() * w[v * step + i])
                 .sum()
         };
         let mut travel = vec![0.0f64; sc.spheres.len()];
-        let mut pair_travel = vec![0.0f64; sc.self_pairs.len()];
+        // Per self pair, per pair of their spheres (row-major), the total change of distance.
+        let mut pair_travel: Vec<Vec<f64>> = sc
+            .self_pairs
+            .iter()
+            .map(|&(ba, bb)| {
+                let (ra, rb) = (
+                    sc.bodies[ba as usize].spheres,
+                    sc.bodies[bb as usize].spheres,
+                );
+                vec![0.0; ((ra.1 - ra.0) * (rb.1 - rb.0)) as usize]
+            })
+            .collect();
         let mut prev: Option<Vec<[[f32; LANES]; 3]>> = None;
         for chunk in 0..STATES.div_ceil(LANES) {
             let ts: [f64; LANES] = std::array::from_fn(|l| {
@@ -524,10 +537,10 @@ fn speed_bounds_bound_travel(robot: std::sync::Arc<crate::Robot>) {
                     &sc.bodies[ba as usize].spheres,
                     &sc.bodies[bb as usize].spheres,
                 );
-                let mut most = 0.0f64;
+                let (i0, j0, nj) = (ra.0 as usize, rb.0 as usize, (rb.1 - rb.0) as usize);
                 for i in ra.0 as usize..ra.1 as usize {
                     for j in rb.0 as usize..rb.1 as usize {
-                        let mut len = 0.0;
+                        let len = &mut pair_travel[pi][(i - i0) * nj + (j - j0)];
                         for l in 0..LANES {
                             let rel =
                                 |c: &Vec<[[f32; LANES]; 3]>, l: usize| at(&c[i], l) - at(&c[j], l);
@@ -536,12 +549,10 @@ fn speed_bounds_bound_travel(robot: std::sync::Arc<crate::Robot>) {
                                 (0, None) => continue,
                                 _ => rel(&now, l - 1),
                             };
-                            len += (rel(&now, l).norm() - before.norm()).abs();
+                            *len += (rel(&now, l).norm() - before.norm()).abs();
                         }
-                        most = most.max(len);
                     }
                 }
-                pair_travel[pi] += most;
             }
             prev = Some(now);
         }
@@ -556,10 +567,9 @@ fn speed_bounds_bound_travel(robot: std::sync::Arc<crate::Robot>) {
                 worst = worst.max(len / lim);
             }
         }
-        for (pi, &len) in pair_travel.iter().enumerate() {
-            let lim = (0..dof)
-                .map(|v| (b[v] - a[v]).abs() * sc.pair_w[pi * dof + v])
-                .sum::<f64>();
+        for (pi, lens) in pair_travel.iter().enumerate() {
+            let len = lens.iter().fold(0.0f64, |m, &x| m.max(x));
+            let lim = bound(&sc.pair_w[pi * dof..], 1, 0);
             assert!(
                 len <= lim * (1.0 + 1e-4) + 1e-5,
                 "{}: self pair {pi} moves {len} m apart, bound {lim} m",
