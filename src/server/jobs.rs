@@ -181,7 +181,7 @@ impl Jobs {
                     lower_thread_priority(nice);
                     j.worker()
                 })
-                .map_err(|e| StoreError(format!("cannot start a planner thread: {e}")))?;
+                .map_err(|e| StoreError::Other(format!("cannot start a planner thread: {e}")))?;
             threads.push(h);
         }
         drop(threads);
@@ -191,7 +191,7 @@ impl Jobs {
     fn persist(&self, job: &Job) -> Result<(), StoreError> {
         match &*self.store.read().unwrap_or_else(|p| p.into_inner()) {
             Some(s) => s.put(job),
-            None => Err(StoreError("closed".into())),
+            None => Err(StoreError::Other("closed".into())),
         }
     }
 
@@ -292,6 +292,10 @@ impl Jobs {
             result: None,
             error: None,
             warnings,
+            attempt: None,
+            max_attempts: None,
+            priority: None,
+            replica: None,
         };
         let persisted = self.persist(&job);
         let mut q = lock(&self.queue);

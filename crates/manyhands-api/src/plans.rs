@@ -654,6 +654,18 @@ pub struct Job {
     /// What the server changed in the request, e.g. a `time_limit` capped to its maximum.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// Attempts started so far (a job whose replica died is run again while attempts remain).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attempt: Option<u32>,
+    /// Attempts the request allows (`max_attempts`, default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_attempts: Option<u32>,
+    /// Queue priority (higher first; default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub priority: Option<i32>,
+    /// The replica that runs (or ran) the job's current attempt.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub replica: Option<String>,
 }
 
 /// `GET /v1/plans`.

@@ -5,17 +5,14 @@ use std::path::Path;
 
 use redb::{Database, ReadableDatabase, ReadableTable, TableDefinition};
 
-use super::api::Job;
+use crate::server::api::Job;
 
 const JOBS: TableDefinition<&str, &[u8]> = TableDefinition::new("jobs");
 
-/// The job store could not be opened, read or written.
-#[derive(Debug, thiserror::Error)]
-#[error("job store: {0}")]
-pub struct StoreError(pub String);
+use super::StoreError;
 
 fn err(e: impl std::fmt::Display) -> StoreError {
-    StoreError(e.to_string())
+    StoreError::other(e)
 }
 
 /// Job records on disk.
@@ -27,7 +24,7 @@ impl Store {
     /// Opens (or creates) the store file.
     pub fn open(path: &Path) -> Result<Store, StoreError> {
         let db =
-            Database::create(path).map_err(|e| StoreError(format!("{}: {e}", path.display())))?;
+            Database::create(path).map_err(|e| StoreError::Other(format!("{}: {e}", path.display())))?;
         let txn = db.begin_write().map_err(err)?;
         txn.open_table(JOBS).map_err(err)?;
         txn.commit().map_err(err)?;
