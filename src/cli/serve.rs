@@ -59,6 +59,24 @@ pub struct ServeArgs {
     /// /readyz answering 503, so a load balancer sees the drain before connections fail.
     #[arg(long, env = "MANYHANDS_DRAIN", default_value_t = 5.0)]
     pub drain: f64,
+    /// The job store shared by every replica: a PostgreSQL URL (`postgres://user:pass@host:5432/db`).
+    /// Without it, jobs, results, events and uploads live in the embedded store under --data-dir.
+    #[arg(long, env = "MANYHANDS_STORE", hide_env_values = true)]
+    pub store: Option<String>,
+    /// This replica's name, the owner of the job leases it takes (default: host name and pid).
+    /// Must differ between replicas sharing a store.
+    #[arg(long, env = "MANYHANDS_REPLICA_ID")]
+    pub replica_id: Option<String>,
+    /// Seconds a claimed job stays this replica's without renewal (renewed every third of it).
+    /// A replica that dies or stalls longer loses its jobs to the others.
+    #[arg(long, env = "MANYHANDS_LEASE_SECONDS", default_value_t = 10.0)]
+    pub lease_seconds: f64,
+    /// Results of finished jobs kept at most, in MiB (oldest finished jobs removed first).
+    #[arg(long, env = "MANYHANDS_MAX_RESULTS_MB", default_value_t = 4096)]
+    pub max_results_mb: u64,
+    /// Connections to the shared store (PostgreSQL) per replica.
+    #[arg(long, env = "MANYHANDS_STORE_POOL", default_value_t = 8)]
+    pub store_pool: usize,
     /// Log format: `text` or `json`.
     #[arg(long, env = "MANYHANDS_LOG_FORMAT", default_value = "text")]
     pub log_format: String,
@@ -128,6 +146,16 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     cfg.retention = seconds("retention-hours", a.retention_hours * 3600.0)?;
     cfg.shutdown_grace = seconds("shutdown-grace", a.shutdown_grace)?;
     cfg.drain = seconds("drain", a.drain)?;
+    cfg.store = a.store.clone().filter(|s| !s.is_empty());
+    if let Some(r) = a.replica_id.clone().filter(|r| !r.is_empty()) {
+        cfg.replica = r;
+    }
+    cfg.lease = seconds("lease-seconds", a.lease_seconds)?;
+    cfg.max_result_bytes = a.max_results_mb.saturating_mul(1 << 20);
+    if a.store_pool == 0 {
+        bail!("--store-pool must be ≥ 1");
+    }
+    cfg.store_pool = a.store_pool;
     cfg.validate()?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()

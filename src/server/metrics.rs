@@ -67,6 +67,8 @@ pub struct Metrics {
     jobs_finished: Mutex<BTreeMap<(String, String), u64>>,
     /// kind → planner wall time histogram.
     planner: RwLock<HashMap<String, Arc<Histogram>>>,
+    /// reason (`age`, `size`) → finished jobs removed by retention.
+    expired: Mutex<BTreeMap<String, u64>>,
 }
 
 /// Gauges read at scrape time.
@@ -77,6 +79,14 @@ pub struct Gauges {
     pub jobs_by_state: BTreeMap<&'static str, usize>,
     pub robots: usize,
     pub scenes: usize,
+    /// Bytes of stored results (all finished jobs).
+    pub result_bytes: u64,
+    /// Is the job store reachable (1) or not (0)?
+    pub store_up: bool,
+    /// `embedded` or `postgres`.
+    pub store_backend: &'static str,
+    /// Jobs running on this replica.
+    pub running_here: usize,
 }
 
 fn histogram(
@@ -121,6 +131,19 @@ impl Metrics {
         if let Some(s) = planner_seconds {
             histogram(&self.planner, kind, &PLAN_BUCKETS).observe(s);
         }
+    }
+
+    /// Finished jobs removed by retention (`age`) or the size cap (`size`).
+    pub fn record_expired(&self, reason: &str, n: u64) {
+        if n == 0 {
+            return;
+        }
+        *self
+            .expired
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .entry(reason.to_string())
+            .or_insert(0) += n;
     }
 
     /// The Prometheus text exposition.
@@ -208,6 +231,32 @@ impl Metrics {
                 &format!("kind=\"{}\"", escape(&kind)),
             );
         }
+        out += "# HELP manyhands_jobs_expired_total Finished jobs removed by retention (age) or the result size cap (size).\n";
+        out += "# TYPE manyhands_jobs_expired_total counter\n";
+        for reason in ["age", "size"] {
+            let n = self
+                .expired
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .get(reason)
+                .copied()
+                .unwrap_or(0);
+            let _ = writeln!(out, "manyhands_jobs_expired_total{{reason=\"{reason}\"}} {n}");
+        }
+        out += "# HELP manyhands_job_result_bytes Bytes of stored results of finished jobs.\n";
+        out += "# TYPE manyhands_job_result_bytes gauge\n";
+        let _ = writeln!(out, "manyhands_job_result_bytes {}", g.result_bytes);
+        out += "# HELP manyhands_store_up Whether the job store is reachable (1) or not (0).\n";
+        out += "# TYPE manyhands_store_up gauge\n";
+        let _ = writeln!(
+            out,
+            "manyhands_store_up{{backend=\"{}\"}} {}",
+            g.store_backend,
+            u8::from(g.store_up)
+        );
+        out += "# HELP manyhands_jobs_running_here Jobs running on this replica's planner threads.\n";
+        out += "# TYPE manyhands_jobs_running_here gauge\n";
+        let _ = writeln!(out, "manyhands_jobs_running_here {}", g.running_here);
         out += "# HELP manyhands_models Robots and scenes loaded.\n";
         out += "# TYPE manyhands_models gauge\n";
         let _ = writeln!(out, "manyhands_models{{type=\"robot\"}} {}", g.robots);

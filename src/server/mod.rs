@@ -53,7 +53,9 @@ use self::error::ApiError;
 use self::jobs::{Jobs, RunnerConfig};
 use self::metrics::{Gauges, Metrics};
 use self::pool::{CpuPool, PoolConfig};
-use self::store::{Store, StoreError};
+use self::store::embedded::EmbeddedStore;
+use self::store::postgres::{PgOptions, PgStore};
+use self::store::{JobStore, StoreError};
 
 /// Nice value of the heavy query lane's threads: below the light lane (0), above the planner
 /// threads (`planner_nice`, default 10).
@@ -98,6 +100,27 @@ pub struct Config {
     /// At shutdown the listener stays open at least this long (capped by `shutdown_grace`),
     /// `/readyz` answering 503, so a load balancer sees the drain before connections fail.
     pub drain: Duration,
+    /// The shared job store (`postgres://…`); `None`: the embedded store under `data_dir`.
+    pub store: Option<String>,
+    /// This replica's name, the owner of the leases it takes (default: host name and pid).
+    pub replica: String,
+    /// How long a claimed job stays this replica's without a renewal.
+    pub lease: Duration,
+    /// Results of finished jobs kept at most (bytes); the oldest finished jobs go first.
+    pub max_result_bytes: u64,
+    /// Connections to a shared store (PostgreSQL).
+    pub store_pool: usize,
+}
+
+/// The default replica name: the host name and the process id.
+pub fn default_replica() -> String {
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .or_else(|| std::env::var("HOSTNAME").ok())
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "manyhands".into());
+    format!("{host}-{}", std::process::id())
 }
 
 impl Config {
@@ -124,6 +147,11 @@ impl Config {
             retention: Duration::from_secs(7 * 24 * 3600),
             shutdown_grace: Duration::from_secs(10),
             drain: Duration::from_secs(5),
+            store: None,
+            replica: default_replica(),
+            lease: Duration::from_secs(10),
+            max_result_bytes: 4 << 30,
+            store_pool: 8,
         }
     }
 
@@ -157,6 +185,23 @@ impl Config {
                 "planner nice {} is outside 0..=19",
                 self.planner_nice
             )));
+        }
+        if let Some(url) = self.store.as_deref() {
+            if !(url.starts_with("postgres://") || url.starts_with("postgresql://")) {
+                return Err(ServerError::Config(
+                    "the store must be a postgres:// (or postgresql://) URL; without one the embedded store under the data directory is used".into(),
+                ));
+            }
+        }
+        if self.lease < Duration::from_millis(300) {
+            return Err(ServerError::Config(
+                "the lease must be at least 0.3 s".into(),
+            ));
+        }
+        if self.replica.is_empty() || self.replica.len() > 128 {
+            return Err(ServerError::Config(
+                "the replica id must be 1-128 characters".into(),
+            ));
         }
         if !(self.max_plan_seconds.is_finite() && self.max_plan_seconds > 0.0) {
             return Err(ServerError::Config(
@@ -205,6 +250,10 @@ impl AppState {
             jobs_by_state: self.jobs.counts_by_state(),
             robots,
             scenes,
+            result_bytes: self.jobs.result_bytes(),
+            store_up: self.jobs.store_reachable(),
+            store_backend: self.jobs.store().backend(),
+            running_here: self.jobs.running_here(),
         }
     }
 
@@ -213,6 +262,8 @@ impl AppState {
         Health {
             status: if self.shutting_down.load(Ordering::Relaxed) {
                 "shutting_down"
+            } else if !self.jobs.store_reachable() {
+                "store_unreachable"
             } else {
                 "ok"
             }
@@ -233,7 +284,7 @@ async fn healthz(State(st): State<Arc<AppState>>) -> Json<Health> {
 }
 
 #[utoipa::path(get, path = "/readyz", tag = "operations", security(()),
-    responses((status = 200, body = Health, description = "accepting work"), (status = 503, body = Health, description = "shutting down")))]
+    responses((status = 200, body = Health, description = "accepting work"), (status = 503, body = Health, description = "shutting down, or the job store is unreachable")))]
 async fn readyz(State(st): State<Arc<AppState>>) -> Response {
     let h = st.health();
     let code = if h.status == "ok" {
@@ -376,7 +427,6 @@ pub struct Server {
     state: Arc<AppState>,
     stop_tx: watch::Sender<bool>,
     serve: tokio::task::JoinHandle<std::io::Result<()>>,
-    retention: tokio::task::JoinHandle<()>,
 }
 
 impl Server {
@@ -386,24 +436,59 @@ impl Server {
         cfg.validate()?;
         std::fs::create_dir_all(&cfg.data_dir)?;
         let c2 = cfg.clone();
-        let (catalog, store) = tokio::task::spawn_blocking(move || -> Result<_, ServerError> {
-            let catalog = Catalog::load(&c2.robots_dir, &c2.scenes_dir, &c2.data_dir)?;
-            let store = Store::open(&c2.data_dir.join("jobs.redb"))?;
-            Ok((catalog, store))
+        let catalog = tokio::task::spawn_blocking(move || -> Result<_, ServerError> {
+            Ok(Catalog::load(&c2.robots_dir, &c2.scenes_dir, &c2.data_dir)?)
         })
         .await
         .map_err(|e| ServerError::Config(format!("start-up task: {e}")))??;
+        let store: Arc<dyn JobStore> = match cfg.store.as_deref() {
+            Some(url) => Arc::new(
+                PgStore::connect(
+                    url,
+                    PgOptions {
+                        pool_size: cfg.store_pool,
+                        ..PgOptions::default()
+                    },
+                )
+                .await?,
+            ),
+            None => {
+                let path = cfg.data_dir.join("jobs.redb");
+                Arc::new(
+                    tokio::task::spawn_blocking(move || EmbeddedStore::open(&path))
+                        .await
+                        .map_err(|e| ServerError::Config(format!("start-up task: {e}")))??,
+                )
+            }
+        };
         let metrics = Arc::new(Metrics::default());
+        // Jobs claimed here that another replica accepted (or that a restart left queued) are
+        // prepared again from their stored request, against this replica's catalog.
+        let state_cell: Arc<std::sync::OnceLock<std::sync::Weak<AppState>>> =
+            Arc::new(std::sync::OnceLock::new());
+        let cell = state_cell.clone();
+        let preparer: jobs::Preparer = Arc::new(move |req| {
+            let st = cell
+                .get()
+                .and_then(std::sync::Weak::upgrade)
+                .ok_or_else(|| ApiError::unavailable("shutting_down", "the server is stopping", 5))?;
+            kinds::prepare(req, &st.catalog, st.cfg.max_plan_seconds)
+        });
         let jobs = Jobs::start(
             RunnerConfig {
                 workers: cfg.workers,
                 planner_nice: cfg.planner_nice,
                 max_queue: cfg.max_queue,
                 retention: cfg.retention,
+                max_result_bytes: cfg.max_result_bytes,
+                replica: cfg.replica.clone(),
+                lease: cfg.lease,
             },
             store,
+            preparer,
             metrics.clone(),
-        )?;
+        )
+        .await?;
         let pool = CpuPool::new(PoolConfig {
             light_threads: cfg.query_threads,
             light_max_in_flight: cfg.query_threads * 256,
@@ -427,9 +512,11 @@ impl Server {
             pool,
             shutting_down: AtomicBool::new(false),
         });
+        let _ = state_cell.set(Arc::downgrade(&state));
         let (robots, scenes) = state.catalog.counts();
         tracing::info!(%addr, robots, scenes, workers = state.cfg.workers, max_queue = state.cfg.max_queue,
-            data_dir = %state.cfg.data_dir.display(), "manyhands server listening");
+            data_dir = %state.cfg.data_dir.display(), store = state.jobs.store().backend(),
+            replica = %state.cfg.replica, "manyhands server listening");
         let (stop_tx, mut stop_rx) = watch::channel(false);
         let app = router(state.clone());
         let serve = tokio::spawn(async move {
@@ -439,23 +526,11 @@ impl Server {
                 })
                 .await
         });
-        let jobs = state.jobs.clone();
-        let period =
-            (state.cfg.retention / 10).clamp(Duration::from_millis(100), Duration::from_secs(60));
-        let retention = tokio::spawn(async move {
-            let mut tick = tokio::time::interval(period);
-            loop {
-                tick.tick().await;
-                let j = jobs.clone();
-                let _ = tokio::task::spawn_blocking(move || j.expire()).await;
-            }
-        });
         Ok(Server {
             addr,
             state,
             stop_tx,
             serve,
-            retention,
         })
     }
 
@@ -468,19 +543,16 @@ impl Server {
     }
 
     /// Graceful shutdown (drain): `/readyz` answers 503 and new jobs 503 + `Retry-After` at once,
-    /// queued jobs become `interrupted`, running ones get the grace period to finish while the
+    /// queued jobs stay queued in the store, running ones get the grace period to finish while the
     /// listener stays open (`/healthz`, `GET`, the jobs' event streams keep working) for at least
     /// the drain time; then the listener closes, open connections get 5 s, the store is closed.
     pub async fn shutdown(self) -> Result<(), ServerError> {
         tracing::info!("shutting down: draining");
         let t0 = tokio::time::Instant::now();
         self.state.shutting_down.store(true, Ordering::SeqCst);
-        self.retention.abort();
         let jobs = self.state.jobs.clone();
         let grace = self.state.cfg.shutdown_grace;
-        tokio::task::spawn_blocking(move || jobs.shutdown(grace))
-            .await
-            .map_err(|e| ServerError::Config(format!("shutdown task: {e}")))?;
+        jobs.shutdown(grace).await;
         tokio::time::sleep_until(t0 + self.state.cfg.drain.min(grace)).await;
         tracing::info!("closing the listener");
         let _ = self.stop_tx.send(true);

@@ -36,6 +36,15 @@ pub struct JointSpacePlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
@@ -98,6 +107,15 @@ pub struct CollisionSweep {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
 }
 
 /// `kind: grasp_list` — the single-grasp list of a multi-finger hand and an object (paper 003
@@ -128,6 +146,15 @@ pub struct GraspListPlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
 }
 
 /// Parameters of a single-grasp list; each unset field keeps its default.
@@ -202,6 +229,15 @@ pub struct ReachPlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
@@ -269,6 +305,15 @@ pub struct RegraspPlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
@@ -304,6 +349,15 @@ pub struct KitchenTaskPlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
@@ -346,6 +400,15 @@ pub struct BimanualPlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
@@ -421,6 +484,15 @@ pub struct MultiRobotRequest {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of every robot's `trajectories` entry (0.001..=10, default
@@ -477,6 +549,15 @@ pub struct ScheduleRequest {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of every robot's `trajectories` entry (0.001..=10, default
@@ -522,6 +603,15 @@ pub struct PickPlaceTaskPlan {
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Queue priority: higher runs first, equal priorities oldest first (default 0;
+    /// -1000..=1000).
+    #[serde(default)]
+    pub priority: Option<i32>,
+    /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
+    /// stalls past its lease, the job is run again while attempts remain, else it ends
+    /// `interrupted`.
+    #[serde(default)]
+    pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
@@ -566,6 +656,22 @@ impl PlanRequest {
         "grasp_list",
         "pick_place",
     ];
+
+    /// The request's queue settings: `priority` and `max_attempts` (unset ones `None`).
+    pub fn queue_settings(&self) -> (Option<i32>, Option<u32>) {
+        match self {
+            PlanRequest::JointSpace(r) => (r.priority, r.max_attempts),
+            PlanRequest::CollisionSweep(r) => (r.priority, r.max_attempts),
+            PlanRequest::Reach(r) => (r.priority, r.max_attempts),
+            PlanRequest::Regrasp(r) => (r.priority, r.max_attempts),
+            PlanRequest::KitchenTask(r) => (r.priority, r.max_attempts),
+            PlanRequest::Bimanual(r) => (r.priority, r.max_attempts),
+            PlanRequest::MultiRobot(r) => (r.priority, r.max_attempts),
+            PlanRequest::Schedule(r) => (r.priority, r.max_attempts),
+            PlanRequest::GraspList(r) => (r.priority, r.max_attempts),
+            PlanRequest::PickPlace(r) => (r.priority, r.max_attempts),
+        }
+    }
 
     /// The `kind` tag of this request.
     pub fn kind(&self) -> &'static str {
@@ -672,7 +778,11 @@ pub struct Job {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct JobList {
+    /// Newest first.
     pub jobs: Vec<JobSummary>,
+    /// Pass as `cursor` for the next page; absent on the last page.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub next_cursor: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]

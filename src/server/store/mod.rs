@@ -16,8 +16,9 @@
 //! allowed another attempt (`max_attempts`), else recorded `interrupted`.
 
 pub mod embedded;
+pub mod postgres;
 
-pub use embedded::Store;
+
 
 use std::time::Duration;
 
