@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use manyhands::server::api::{Job, JobState};
-use manyhands::server::store::Store;
+use manyhands::server::store::embedded::EmbeddedStore;
+use manyhands::server::store::{JobStore, NewJob};
 use manyhands::server::{Config, Server};
 use reqwest::StatusCode;
 use serde_json::{json, Value};
@@ -803,14 +804,27 @@ async fn restart_keeps_results_and_reports_interrupted_jobs() {
         t0.elapsed()
     );
 
-    // A crash leaves a record "running": simulate one in the store.
-    let store = Store::open(&dir.join("jobs.redb")).expect("store");
+    // A crash leaves a record "running": simulate one in the store (a job claimed by a process
+    // that died).
+    let store = EmbeddedStore::open(&dir.join("jobs.redb")).expect("store");
     let mut crashed: Job = serde_json::from_value(done.clone()).expect("job");
     crashed.id = "jcrashed".into();
-    crashed.state = JobState::Running;
+    crashed.state = JobState::Queued;
     crashed.result = None;
     crashed.finished_ms = None;
-    store.put(&crashed).expect("put");
+    crashed.created_ms = 1;
+    let new = NewJob {
+        job: crashed,
+        priority: 1000,
+        max_attempts: 1,
+    };
+    store.enqueue(&new, 100).await.expect("enqueue");
+    let c = store
+        .claim("a-process-that-died", Duration::from_secs(3600))
+        .await
+        .expect("claim")
+        .expect("the crashed job");
+    assert_eq!(c.fence.id, "jcrashed");
     drop(store);
 
     let h = Harness::start_in(dir, |c| c.workers = 1).await;
@@ -818,10 +832,19 @@ async fn restart_keeps_results_and_reports_interrupted_jobs() {
     assert_eq!(s, StatusCode::OK);
     assert_eq!(v["state"], "succeeded");
     assert_eq!(v["result"]["samples"], 500);
-    for id in [&running, &queued] {
-        let (_, v) = h.get(&format!("/v1/plans/{id}")).await;
-        assert_eq!(v["state"], "interrupted", "{v}");
-    }
+    // Stopped by the shutdown while it ran: interrupted (one attempt allowed).
+    let (_, v) = h.get(&format!("/v1/plans/{running}")).await;
+    assert_eq!(v["state"], "interrupted", "{v}");
+    // Accepted and still queued at the shutdown: it stays queued and runs after the restart.
+    let (_, v) = h.get(&format!("/v1/plans/{queued}")).await;
+    assert!(
+        v["state"] == "queued" || v["state"] == "running",
+        "a queued job survives a restart: {v}"
+    );
+    let (s, v) = h.delete(&format!("/v1/plans/{queued}")).await;
+    assert_eq!(s, StatusCode::OK);
+    assert_eq!(v["state"], "cancelled", "{v}");
+    // Left running by a process that died: its lease is reaped at start.
     let (_, v) = h.get("/v1/plans/jcrashed").await;
     assert_eq!(v["state"], "interrupted", "{v}");
     assert_eq!(code(&v), "interrupted");

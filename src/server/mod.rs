@@ -29,6 +29,7 @@ pub mod plans;
 pub mod pool;
 pub mod queries;
 pub mod resources;
+pub mod shared;
 pub mod store;
 pub mod trajectories;
 pub mod viewer;
@@ -238,6 +239,8 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     pub pool: CpuPool,
     pub shutting_down: AtomicBool,
+    /// Uploads of other replicas loaded into `catalog` (shared store only).
+    pub applied: shared::Applied,
 }
 
 impl AppState {
@@ -427,6 +430,7 @@ pub struct Server {
     state: Arc<AppState>,
     stop_tx: watch::Sender<bool>,
     serve: tokio::task::JoinHandle<std::io::Result<()>>,
+    uploads: Option<tokio::task::JoinHandle<()>>,
 }
 
 impl Server {
@@ -467,12 +471,21 @@ impl Server {
         let state_cell: Arc<std::sync::OnceLock<std::sync::Weak<AppState>>> =
             Arc::new(std::sync::OnceLock::new());
         let cell = state_cell.clone();
+        let rt = tokio::runtime::Handle::current();
         let preparer: jobs::Preparer = Arc::new(move |req| {
             let st = cell
                 .get()
                 .and_then(std::sync::Weak::upgrade)
                 .ok_or_else(|| ApiError::unavailable("shutting_down", "the server is stopping", 5))?;
-            kinds::prepare(req, &st.catalog, st.cfg.max_plan_seconds)
+            match kinds::prepare(req, &st.catalog, st.cfg.max_plan_seconds) {
+                // A robot or scene uploaded through another replica whose notice has not
+                // arrived yet: read the store, then try again.
+                Err(e) if e.status == StatusCode::NOT_FOUND && st.jobs.store().backend() != "embedded" => {
+                    let _ = rt.block_on(shared::sync_all(&st));
+                    kinds::prepare(req, &st.catalog, st.cfg.max_plan_seconds)
+                }
+                r => r,
+            }
         });
         let jobs = Jobs::start(
             RunnerConfig {
@@ -511,7 +524,12 @@ impl Server {
             metrics,
             pool,
             shutting_down: AtomicBool::new(false),
+            applied: shared::Applied::default(),
         });
+        if let Err(e) = shared::sync_all(&state).await {
+            tracing::warn!(error = %e.message, "cannot load the shared uploads now; they load as notices arrive");
+        }
+        let uploads = shared::spawn_listener(&state);
         let _ = state_cell.set(Arc::downgrade(&state));
         let (robots, scenes) = state.catalog.counts();
         tracing::info!(%addr, robots, scenes, workers = state.cfg.workers, max_queue = state.cfg.max_queue,
@@ -531,6 +549,7 @@ impl Server {
             state,
             stop_tx,
             serve,
+            uploads,
         })
     }
 
@@ -550,6 +569,9 @@ impl Server {
         tracing::info!("shutting down: draining");
         let t0 = tokio::time::Instant::now();
         self.state.shutting_down.store(true, Ordering::SeqCst);
+        if let Some(u) = &self.uploads {
+            u.abort();
+        }
         let jobs = self.state.jobs.clone();
         let grace = self.state.cfg.shutdown_grace;
         jobs.shutdown(grace).await;

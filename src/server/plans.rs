@@ -218,11 +218,21 @@ pub async fn submit(
     }
     let kind = req.kind();
     let request = serde_json::to_value(&req).map_err(|e| ApiError::internal(e.to_string()))?;
-    let st2 = st.clone();
-    let prepared = st
-        .pool
-        .run(move || kinds::prepare(&req, &st2.catalog, st2.cfg.max_plan_seconds))
-        .await?;
+    let req = Arc::new(req);
+    let prep = |st: Arc<AppState>, req: Arc<PlanRequest>| async move {
+        let st2 = st.clone();
+        st.pool
+            .run(move || kinds::prepare(&req, &st2.catalog, st2.cfg.max_plan_seconds))
+            .await
+    };
+    let prepared = match prep(st.clone(), req.clone()).await {
+        // A robot or scene uploaded through another replica whose notice has not arrived yet.
+        Err(e) if e.status == StatusCode::NOT_FOUND && st.jobs.store().backend() != "embedded" => {
+            super::shared::sync_all(&st).await?;
+            prep(st.clone(), req.clone()).await?
+        }
+        r => r?,
+    };
     let mut warnings = Vec::new();
     if let Some(t) = requested_limit.filter(|&t| t > prepared.time_limit) {
         warnings.push(format!(

@@ -146,6 +146,7 @@ pub async fn put_robot(
 ) -> ApiResult<Response> {
     let st2 = st.clone();
     let n = name.clone();
+    let stored = serde_json::to_vec(&body).map_err(|e| ApiError::internal(e.to_string()))?;
     let created = st
         .pool
         .run_heavy(move || {
@@ -157,6 +158,7 @@ pub async fn put_robot(
             )
         })
         .await?;
+    super::shared::publish(&st, "robot", &name, stored).await?;
     let e = st.catalog.robot(&name, "name")?;
     tracing::info!(robot = %name, created, "robot uploaded");
     let status = if created {
@@ -174,7 +176,9 @@ pub async fn delete_robot(
     Path(name): Path<String>,
 ) -> ApiResult<StatusCode> {
     let st2 = st.clone();
-    st.pool.run(move || st2.catalog.delete_robot(&name)).await?;
+    let n = name.clone();
+    st.pool.run(move || st2.catalog.delete_robot(&n)).await?;
+    super::shared::unpublish(&st, "robot", &name).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 
@@ -215,10 +219,12 @@ pub async fn put_scene(
 ) -> ApiResult<Response> {
     let st2 = st.clone();
     let n = name.clone();
+    let stored = serde_json::to_vec(&body).map_err(|e| ApiError::internal(e.to_string()))?;
     let created = st
         .pool
         .run_heavy(move || st2.catalog.put_scene(&n, body))
         .await?;
+    super::shared::publish(&st, "scene", &name, stored).await?;
     let e = st.catalog.scene(&name, "name")?;
     tracing::info!(scene = %name, created, "scene uploaded");
     let status = if created {
@@ -236,6 +242,8 @@ pub async fn delete_scene(
     Path(name): Path<String>,
 ) -> ApiResult<StatusCode> {
     let st2 = st.clone();
-    st.pool.run(move || st2.catalog.delete_scene(&name)).await?;
+    let n = name.clone();
+    st.pool.run(move || st2.catalog.delete_scene(&n)).await?;
+    super::shared::unpublish(&st, "scene", &name).await?;
     Ok(StatusCode::NO_CONTENT)
 }
