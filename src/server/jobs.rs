@@ -657,10 +657,10 @@ impl Jobs {
     /// Once a second: the reaper (leases that ran out), the gauges and the store's
     /// reachability; every tenth of the retention (at most a minute): retention and size cap.
     async fn maintain(self: Arc<Self>) {
-        let mut tick = tokio::time::interval(Duration::from_secs(1));
-        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let expire_every =
             (self.cfg.retention / 10).clamp(Duration::from_millis(100), Duration::from_secs(60));
+        let mut tick = tokio::time::interval(expire_every.min(Duration::from_secs(1)));
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut last_expire = tokio::time::Instant::now() - expire_every;
         loop {
             tick.tick().await;
@@ -764,6 +764,7 @@ impl Jobs {
             t.abort();
         }
         lock(&self.prepared).clear();
+        self.store.close().await;
         tracing::info!("job runner stopped");
     }
 }

@@ -26,6 +26,8 @@ async fn main() -> Result<(), ClientError> {
         samples: 20_000,
         seed: Some(1),
         time_limit: Some(5.0),
+        priority: None,
+        max_attempts: None,
     });
     let job = c.submit(&request, None).await?;
     c.events(&job.id, |ev| println!("{}: {}", ev.event, ev.data))

@@ -106,7 +106,9 @@ struct Inner {
 
 /// The embedded (redb) backend of [`JobStore`].
 pub struct EmbeddedStore {
-    inner: Arc<Inner>,
+    /// `None` once closed.
+    inner: std::sync::RwLock<Option<Arc<Inner>>>,
+    tx: broadcast::Sender<Notice>,
 }
 
 /// The tables one job change touches.
@@ -311,7 +313,8 @@ impl EmbeddedStore {
         txn.commit().map_err(err)?;
         let (tx, _) = broadcast::channel(1024);
         Ok(EmbeddedStore {
-            inner: Arc::new(Inner { db, tx }),
+            inner: std::sync::RwLock::new(Some(Arc::new(Inner { db, tx: tx.clone() }))),
+            tx,
         })
     }
 
@@ -320,7 +323,12 @@ impl EmbeddedStore {
         &self,
         f: impl FnOnce(&Inner) -> StoreResult<T> + Send + 'static,
     ) -> StoreResult<T> {
-        let inner = self.inner.clone();
+        let inner = self
+            .inner
+            .read()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+            .ok_or_else(|| StoreError::unavailable("the job store is closed"))?;
         match tokio::runtime::Handle::try_current() {
             Ok(_) => tokio::task::spawn_blocking(move || f(&inner))
                 .await
@@ -360,7 +368,31 @@ impl JobStore for EmbeddedStore {
     }
 
     fn subscribe(&self) -> broadcast::Receiver<Notice> {
-        self.inner.tx.subscribe()
+        self.tx.subscribe()
+    }
+
+    async fn close(&self) {
+        // Operations in flight hold their own reference; the file is released with the last.
+        let inner = self
+            .inner
+            .write()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        if let Some(mut held) = inner {
+            // Wait (briefly) for operations in flight, so the file is free when this returns.
+            for _ in 0..200 {
+                match Arc::try_unwrap(held) {
+                    Ok(i) => {
+                        drop(i);
+                        return;
+                    }
+                    Err(a) => {
+                        held = a;
+                        tokio::time::sleep(Duration::from_millis(5)).await;
+                    }
+                }
+            }
+        }
     }
 
     async fn ping(&self) -> StoreResult<()> {

@@ -337,6 +337,10 @@ pub trait JobStore: Send + Sync + 'static {
 
     /// Stores a cache entry (first writer wins: entries are content keyed, so equal).
     async fn put_blob(&self, kind: &str, key: &str, bytes: &[u8]) -> StoreResult<()>;
+
+    /// Closes the store (the embedded file is released for the next process); later calls
+    /// fail with [`StoreError::Unavailable`].
+    async fn close(&self) {}
 }
 
 /// Runs a store call from a thread outside the async runtime (planner threads).
