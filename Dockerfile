@@ -1,7 +1,8 @@
 # manyhands planning server: multi-stage build, slim non-root runtime with a health check.
 #   docker build -t manyhands .
-#   docker run -p 8080:8080 -e MANYHANDS_TOKEN=change-me -v manyhands-data:/var/lib/manyhands manyhands
-# (binding 0.0.0.0 in the container requires a token; clients send `Authorization: Bearer change-me`)
+#   docker run -p 8080:8080 -e MANYHANDS_TOKEN=change-me-long-random-token -v manyhands-data:/var/lib/manyhands manyhands
+# (binding 0.0.0.0 in the container requires a token of at least 16 characters; clients send
+# `Authorization: Bearer change-me-long-random-token`)
 
 FROM rust:1-slim-bookworm AS build
 # clang/libclang: for crates with bindgen build scripts (bundled C libraries).
