@@ -43,6 +43,9 @@ const FINISHED: TableDefinition<(u64, &str), u64> = TableDefinition::new("job_fi
 const RESOURCES: TableDefinition<(&str, &str), &[u8]> = TableDefinition::new("resources");
 const BLOBS: TableDefinition<(&str, &str), &[u8]> = TableDefinition::new("blobs");
 
+/// redb's page cache.
+const CACHE_BYTES: usize = 16 << 20;
+
 fn err(e: impl std::fmt::Display) -> StoreError {
     StoreError::other(e)
 }
@@ -242,7 +245,11 @@ fn fence_holds(h: &Head, f: &Fence) -> bool {
 impl EmbeddedStore {
     /// Opens (or creates) the store file; migrates records of the previous layout.
     pub fn open(path: &Path) -> StoreResult<EmbeddedStore> {
-        let db = Database::create(path)
+        // A small page cache: results are read once per GET and streamed out, so caching them
+        // would only hold memory (redb's default cache is 1 GiB).
+        let db = Database::builder()
+            .set_cache_size(CACHE_BYTES)
+            .create(path)
             .map_err(|e| StoreError::Other(format!("{}: {e}", path.display())))?;
         let txn = db.begin_write().map_err(err)?;
         {
