@@ -16,6 +16,7 @@
 //! allowed another attempt (`max_attempts`), else recorded `interrupted`.
 
 pub mod embedded;
+pub mod postgres;
 
 pub use embedded::Store;
 
