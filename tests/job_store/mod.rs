@@ -941,10 +941,10 @@ async fn resources_and_blobs(s: &dyn JobStore) {
     s.put_resource(&kitchen).await.expect("put");
     let mut robots = s.list_resources("robot").await.expect("list");
     robots.sort_by(|a, b| a.name.cmp(&b.name));
-    assert_eq!(robots, [arm0.clone(), arm2.clone()]);
+    assert_eq!(robots, [arm0, arm2]);
     assert_eq!(
         s.list_resources("scene").await.expect("list"),
-        [kitchen.clone()]
+        std::slice::from_ref(&kitchen)
     );
     assert!(s.list_resources("gripper").await.expect("list").is_empty());
     assert!(s.delete_resource("robot", "arm1").await.expect("delete"));
