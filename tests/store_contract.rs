@@ -38,7 +38,7 @@ async fn postgres_store_meets_the_contract() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn postgres_replicas_starting_together_migrate_once() {
-    let Some(cluster) = PgCluster::start("postgres_replicas_migrate") else {
+    let Some(cluster) = PgCluster::start("postgres_replicas_starting_together_migrate_once") else {
         return;
     };
     let url = cluster.url();

@@ -102,7 +102,9 @@ impl PgCluster {
             if std::env::var("MANYHANDS_REQUIRE_POSTGRES").is_ok_and(|v| v == "1") {
                 panic!("{SKIP}: {test_name} (MANYHANDS_REQUIRE_POSTGRES=1)");
             }
-            println!("{SKIP}: {test_name}");
+            // Straight to the stderr handle: println!/eprintln! are captured by the harness.
+            let line = format!("{SKIP}: {test_name}\n");
+            let _ = std::io::Write::write_all(&mut std::io::stderr().lock(), line.as_bytes());
             return None;
         };
         let user = is_root().then(|| {

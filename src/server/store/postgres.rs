@@ -15,9 +15,16 @@
 //! notices to [`JobStore::subscribe`]rs; when it is lost it reconnects (backoff 100 ms → 1 s)
 //! and then sends [`Notice::Resync`], since notices may have been missed meanwhile.
 //!
-//! `reap`: a running job whose lease ran out after a cancel was asked for becomes `cancelled`
-//! (not queued again) and is listed in [`Reaped::interrupted`] with the interrupted ones: that
-//! list holds every job the reap made final.
+//! What the trait leaves open, decided here:
+//! - `reap`: a running job whose lease ran out after a cancel was asked for becomes `cancelled`
+//!   (not queued again) and is listed in [`Reaped::interrupted`] with the interrupted ones: that
+//!   list holds every job the reap made final. An interrupted job keeps its owner on record.
+//! - `enqueue` records the job as queued whatever its record says (no start, end, progress or
+//!   error), with `max_attempts` at least 1.
+//! - `finish` with a state that is not final is an error; with a fence of another job, `false`.
+//! - `list` with `limit` 0 answers as with 1 (a page always makes progress).
+//! - `delete_resource` announces only a deletion that happened.
+//! - `expire`: among jobs finished in the same millisecond, the larger id counts as the newer.
 
 use std::pin::Pin;
 use std::str::FromStr;
