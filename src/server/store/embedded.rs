@@ -555,7 +555,7 @@ impl JobStore for EmbeddedStore {
                     return Ok(false);
                 };
                 let may = match &fence {
-                    Some(f) => fence_holds(&h, f),
+                    Some(f) => f.id == id && fence_holds(&h, f),
                     None => !h.job.state.is_final(),
                 };
                 if !may {
