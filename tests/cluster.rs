@@ -182,6 +182,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     const KILL_AT: usize = 200;
     let mut accepted: Vec<(String, u32)> = Vec::new();
     let mut acknowledged: BTreeMap<String, Value> = BTreeMap::new();
+    let mut on_a: Vec<(String, u32)> = Vec::new();
     for i in 0..JOBS {
         let attempts = if i % 2 == 0 { 2 } else { 1 };
         let body = if i % 3 == 0 {
@@ -194,6 +195,34 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
         assert_eq!(s, StatusCode::ACCEPTED, "{v}");
         accepted.push((v["id"].as_str().expect("id").to_string(), attempts));
         if i + 1 == KILL_AT {
+            // Eight long jobs keep all four planner threads busy, so A runs two of them when
+            // it dies: one may run again (two attempts), one may not.
+            let mut long = Vec::new();
+            for k in 0..8u32 {
+                let attempts = if k % 2 == 0 { 2 } else { 1 };
+                let (s, v) = c
+                    .post(&a, "/v1/plans", &sweep(1_000_000_000, k as u64, 2.0, attempts))
+                    .await;
+                assert_eq!(s, StatusCode::ACCEPTED, "{v}");
+                let id = v["id"].as_str().expect("id").to_string();
+                accepted.push((id.clone(), attempts));
+                long.push((id, attempts));
+            }
+            let t0 = Instant::now();
+            loop {
+                on_a.clear();
+                for (id, attempts) in &long {
+                    let (_, v) = c.get(&b, &format!("/v1/plans/{id}")).await;
+                    if v["state"] == "running" && v["replica"] == "a" {
+                        on_a.push((id.clone(), *attempts));
+                    }
+                }
+                if on_a.len() == 2 {
+                    break;
+                }
+                assert!(t0.elapsed() < Duration::from_secs(20), "A runs {on_a:?}");
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
             // What the clients were told before the kill: the final answers read through A.
             for (id, _) in accepted.iter().take(60) {
                 let (s, v) = c.get(&a, &format!("/v1/plans/{id}")).await;
@@ -232,6 +261,18 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
         assert!(started <= *attempts as u64, "{v}");
         if v["state"] == "interrupted" {
             assert_eq!(started, *attempts as u64, "{v}");
+        }
+    }
+    // The jobs A ran when it died: run again by B where allowed, else interrupted.
+    for (id, attempts) in &on_a {
+        let v = &finals[id];
+        if *attempts == 2 {
+            assert_eq!(v["state"], "succeeded", "{v}");
+            assert_eq!(v["attempt"], 2, "{v}");
+            assert_eq!(v["replica"], "b", "{v}");
+        } else {
+            assert_eq!(v["state"], "interrupted", "{v}");
+            assert_eq!(v["replica"], "a", "{v}");
         }
     }
     assert_eq!(states.get("failed"), None, "{states:?}");
@@ -273,8 +314,11 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
             None => break,
         }
     }
-    assert_eq!(seen.len(), JOBS + 1);
-    eprintln!("two replicas, {JOBS} jobs, one killed: {states:?}");
+    assert_eq!(seen.len(), accepted.len() + 1);
+    eprintln!(
+        "two replicas, {} jobs, one killed while running {on_a:?}: {states:?}",
+        accepted.len()
+    );
     drop(b);
     let _ = std::fs::remove_dir_all(dir);
 }
