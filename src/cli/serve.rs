@@ -160,6 +160,20 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .thread_name("manyhands-io")
+        // An I/O thread going idle returns the memory it freed (at most once a second): large
+        // results pass through these threads (database buffers, answers), and the allocator
+        // would otherwise keep their pages on the thread.
+        .on_thread_park(|| {
+            thread_local!(static LAST: std::cell::Cell<Option<std::time::Instant>> =
+                const { std::cell::Cell::new(None) });
+            LAST.with(|l| {
+                let now = std::time::Instant::now();
+                if l.get().is_none_or(|t| now.duration_since(t) >= Duration::from_secs(1)) {
+                    l.set(Some(now));
+                    server::store::release_freed_memory();
+                }
+            });
+        })
         .build()
         .context("starting the async runtime")?;
     rt.block_on(server::run(cfg))?;

@@ -391,6 +391,7 @@ impl Jobs {
                     self.running.fetch_add(1, Ordering::SeqCst);
                     self.run_one(c);
                     self.running.fetch_sub(1, Ordering::SeqCst);
+                    super::store::release_freed_memory();
                 }
                 Ok(None) => {
                     failures = 0;

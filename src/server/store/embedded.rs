@@ -564,6 +564,13 @@ impl JobStore for EmbeddedStore {
                 t.make_final(&mut h, &outcome)?;
                 Ok(true)
             })?;
+            if outcome
+                .result
+                .as_ref()
+                .is_some_and(|r| r.get().len() >= super::LARGE_RESULT)
+            {
+                super::release_freed_memory();
+            }
             if ok {
                 db.notify(Notice::Job { id });
             }
@@ -643,6 +650,10 @@ impl JobStore for EmbeddedStore {
             } else {
                 None
             };
+            if h.result_bytes as usize >= super::LARGE_RESULT {
+                drop((heads, txn));
+                super::release_freed_memory();
+            }
             Ok(Some(StoredJob {
                 job: h.record(),
                 result,

@@ -343,6 +343,20 @@ pub trait JobStore: Send + Sync + 'static {
     async fn close(&self) {}
 }
 
+/// Returns what the calling thread freed to the OS now. A planner builds its result in memory
+/// (tens of megabytes for a long, finely sampled trajectory) and the store reads and writes it
+/// whole; mimalloc (the server's allocator) keeps freed pages on the thread that freed them
+/// until it allocates again, so idle threads would hold the peak of the last large jobs. Called
+/// by planner threads after each job and by the embedded store's threads after moving a large
+/// result. A no-op under another allocator.
+pub fn release_freed_memory() {
+    // SAFETY: mi_collect takes no pointers; it only returns this thread's free pages.
+    unsafe { libmimalloc_sys::mi_collect(true) };
+}
+
+/// Results at least this large (bytes) make the threads that moved them release memory.
+pub const LARGE_RESULT: usize = 1 << 20;
+
 /// Runs a store call from a thread outside the async runtime (planner threads).
 pub fn block_on<F: std::future::Future>(rt: &tokio::runtime::Handle, f: F) -> F::Output {
     rt.block_on(f)
@@ -395,5 +409,14 @@ pub fn job_json(s: &StoredJob) -> String {
         priority: j.priority,
         replica: j.replica.as_deref(),
     };
-    serde_json::to_string(&head).unwrap_or_else(|_| "{}".into())
+    // One allocation of the final size: a large result is then one block the allocator returns
+    // to the OS when the answer is sent, not a series of doubled buffers left behind.
+    let size = s.result.as_deref().map_or(0, |r| r.get().len())
+        + serde_json::to_string(&j.request).map_or(0, |r| r.len())
+        + 4096;
+    let mut out = Vec::with_capacity(size);
+    if serde_json::to_writer(&mut out, &head).is_err() {
+        return "{}".into();
+    }
+    String::from_utf8(out).unwrap_or_else(|_| "{}".into())
 }

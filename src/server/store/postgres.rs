@@ -83,6 +83,16 @@ impl Default for PgOptions {
     }
 }
 
+/// A result larger than this (bytes) passed through a connection retires it: the driver keeps
+/// its read and write buffers at their largest size, so a pooled connection that carried an
+/// 18 MB result would hold that much memory for as long as it lives.
+const LARGE_BYTES: i64 = 1 << 20;
+
+/// Closes a pooled connection instead of returning it to the pool (its buffers go with it).
+fn retire(client: deadpool_postgres::Client) {
+    drop(deadpool_postgres::Object::take(client));
+}
+
 /// The job store in a PostgreSQL database.
 pub struct PgStore {
     pool: Pool,
@@ -733,6 +743,9 @@ impl JobStore for PgStore {
         append_event(&tx, id, col(&row, "last_seq")?, "end", "").await?;
         notify(&tx, &[job_notice(id)]).await?;
         tx.commit().await.map_err(pg_err)?;
+        if result_bytes > LARGE_BYTES {
+            retire(client);
+        }
         Ok(true)
     }
 
@@ -805,6 +818,10 @@ impl JobStore for PgStore {
                 RawValue::from_string(text).map_err(|e| StoreError::Other(format!("result: {e}")))
             })
             .transpose()?;
+        drop(row);
+        if result.as_ref().is_some_and(|r| r.get().len() as i64 > LARGE_BYTES) {
+            retire(client);
+        }
         Ok(Some(StoredJob { job, result, meta }))
     }
 
