@@ -6,6 +6,7 @@
 //! the `manyhands-api` crate (re-exported in [`server::api`]); the Rust client is the separate
 //! `manyhands-client` crate, which depends on none of this one.
 
+pub mod cache_tier;
 pub mod collision;
 pub mod geometry;
 pub mod grasp;

@@ -7,14 +7,16 @@
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
+use manyhands::cache_tier::{MemoryTier, GRASPS};
 use manyhands::collision::{
     BodyId, CollisionChecker, CollisionWorld, ExactChecker, StaticBody, StaticKind,
 };
 use manyhands::geometry::{Geometry, Mesh, Pose, Shape};
 use manyhands::grasp::list::workspace_params;
+use manyhands::grasp::list_cache::list_file_name;
 use manyhands::grasp::{
     build_grasp_list, grasp_quality, load_grasp_list, save_grasp_list, Contact, GraspList,
-    GraspListParams, GraspObject, Hand, ListFileError, WrenchSpaceSettings,
+    GraspListCache, GraspListParams, GraspObject, Hand, ListFileError, WrenchSpaceSettings,
 };
 use manyhands::kinematics::link_pose;
 use manyhands::model::Robot;
@@ -469,6 +471,67 @@ fn a_list_is_reproducible_and_bad_parameters_name_their_field() {
     let e = build_grasp_list(&h, &obj, &p, &|_, _| {}, &|| true).unwrap_err();
     assert_eq!(e, manyhands::grasp::GraspListError::Stopped);
     let _ = Point3::<f64>::origin();
+}
+
+/// Two list caches with their own folders and one shared tier (two server replicas): the
+/// first builds the list and publishes it, the second fetches it (`find` too) instead of
+/// building; an entry of the tier that does not load is rebuilt, not served, and replaced.
+#[test]
+fn list_caches_sharing_a_tier_build_a_list_once() {
+    let p = GraspListParams {
+        positions: 8,
+        seed: 3,
+        ..Default::default()
+    };
+    let h = hand("left_hand", &p);
+    let obj = statuette();
+    let dirs: Vec<_> = (1..=3)
+        .map(|i| {
+            let d = std::env::temp_dir()
+                .join(format!("manyhands-grasp-tier-{}-{i}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&d);
+            d
+        })
+        .collect();
+    let tier = Arc::new(MemoryTier::new());
+    let counts = |t: &MemoryTier| (t.fetches(), t.misses(), t.publishes(), t.replaces());
+    let none = |_: usize, _: usize| {};
+    let a = GraspListCache::new(Some(dirs[0].clone())).with_tier(tier.clone());
+    let (la, built) = a.get_or_build(&h, &obj, &p, &none, &|| false).unwrap();
+    assert!(built);
+    assert_eq!(counts(&tier), (0, 1, 1, 0));
+    let name = list_file_name(&h, &obj, &p);
+    assert_eq!(tier.names(GRASPS), [name.as_str()]);
+    // In memory: the tier is not asked.
+    let (again, built) = a.get_or_build(&h, &obj, &p, &none, &|| false).unwrap();
+    assert!(!built && Arc::ptr_eq(&again, &la));
+    assert_eq!(counts(&tier), (0, 1, 1, 0));
+
+    // "Process 2": an empty folder, the same tier. `find` (which never builds) fetches it.
+    let b = GraspListCache::new(Some(dirs[1].clone()));
+    assert!(b.set_tier(tier.clone()));
+    let lb = b.find(&h, &obj, &p).expect("fetched");
+    assert_eq!(counts(&tier), (1, 1, 1, 0), "fetched, not built");
+    assert_eq!(*lb, *la);
+    let (lb2, built) = b.get_or_build(&h, &obj, &p, &none, &|| false).unwrap();
+    assert!(!built && Arc::ptr_eq(&lb, &lb2));
+    assert_eq!(counts(&tier), (1, 1, 1, 0));
+
+    // A damaged entry is not served: rebuilt (the same grasps) and replaced.
+    tier.insert(GRASPS, &name, b"{\"format\": \"something else\"}".to_vec());
+    let c = GraspListCache::new(Some(dirs[2].clone())).with_tier(tier.clone());
+    assert!(c.find(&h, &obj, &p).is_none());
+    let (lc, built) = c.get_or_build(&h, &obj, &p, &none, &|| false).unwrap();
+    assert!(built);
+    assert_eq!(lc.grasps, la.grasps);
+    assert_eq!((tier.publishes(), tier.replaces()), (1, 1));
+    assert_eq!(
+        tier.get(GRASPS, &name).unwrap(),
+        std::fs::read(dirs[2].join(&name)).unwrap()
+    );
+    for d in &dirs {
+        let _ = std::fs::remove_dir_all(d);
+    }
 }
 
 mod common;

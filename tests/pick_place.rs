@@ -380,6 +380,7 @@ fn offline() -> &'static PickPlaceOffline {
         let settings = PickPlaceSettings::default();
         let (g, _, _) = load_or_build(
             None,
+            None,
             &world,
             &dec,
             &p.rest,

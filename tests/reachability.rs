@@ -4,11 +4,14 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use manyhands::cache_tier::{MemoryTier, REACH};
 use manyhands::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use manyhands::geometry::Pose;
 use manyhands::kinematics::Chain;
 use manyhands::model::load_robot_dir;
-use manyhands::reachability::{slice_svg, GridParams, ReachError, ReachabilityGrid, SliceAxes};
+use manyhands::reachability::{
+    slice_svg, GridCache, GridParams, GridRecipe, ReachError, ReachabilityGrid, SliceAxes,
+};
 use manyhands::Robot;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -311,4 +314,68 @@ fn svg_slice_has_cells() {
     );
     assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
     assert!(svg.matches("<rect").count() > 20, "few cells drawn");
+}
+
+/// Two grid caches with their own folders and one shared tier (two server replicas): the
+/// first builds the grid and publishes it, the second fetches it instead of building; an entry
+/// of the tier that does not load (damaged) is rebuilt, not served, and replaced.
+#[test]
+fn grid_caches_sharing_a_tier_build_a_grid_once() {
+    let robot = armar();
+    let recipe = GridRecipe {
+        resolution: 0.08,
+        rot_bins: 6,
+        samples: 20_000,
+        seed: 3,
+    };
+    let dirs = [tmp("tier-1"), tmp("tier-2"), tmp("tier-3")];
+    for d in &dirs {
+        let _ = std::fs::remove_dir_all(d);
+    }
+    let tier = Arc::new(MemoryTier::new());
+    let counts = |t: &MemoryTier| (t.fetches(), t.misses(), t.publishes(), t.replaces());
+    let a = GridCache::new(Some(dirs[0].clone())).with_tier(tier.clone());
+    let ga = a.get(&robot, "left_arm", recipe).expect("built");
+    assert_eq!(counts(&tier), (0, 1, 1, 0));
+    let names = tier.names(REACH);
+    assert_eq!(names.len(), 1, "{names:?}");
+    let name = &names[0];
+    assert_eq!(
+        tier.get(REACH, name).unwrap(),
+        std::fs::read(dirs[0].join(name)).unwrap()
+    );
+    // In memory: the tier is not asked.
+    assert!(Arc::ptr_eq(
+        &a.get(&robot, "left_arm", recipe).unwrap(),
+        &ga
+    ));
+    assert_eq!(counts(&tier), (0, 1, 1, 0));
+
+    // "Process 2": an empty folder, the same tier (set on a cache already shared).
+    let b = Arc::new(GridCache::new(Some(dirs[1].clone())));
+    assert!(b.set_tier(tier.clone()));
+    assert!(!b.set_tier(tier.clone()), "a tier is set once");
+    let gb = b.get(&robot, "left_arm", recipe).expect("fetched");
+    assert_eq!(counts(&tier), (1, 1, 1, 0), "fetched, not built");
+    assert_eq!(gb.data(), ga.data());
+    assert_eq!(gb.params(), ga.params());
+    assert_eq!(gb.stats().free, ga.stats().free);
+    assert!(dirs[1].join(name).exists());
+
+    // A damaged entry (one cell flipped: the checksum refuses it) is rebuilt and replaced.
+    let mut bytes = tier.get(REACH, name).unwrap();
+    let n = bytes.len();
+    bytes[n - 20] ^= 0xff;
+    tier.insert(REACH, name, bytes);
+    let c = GridCache::new(Some(dirs[2].clone())).with_tier(tier.clone());
+    let gc = c.get(&robot, "left_arm", recipe).expect("rebuilt");
+    assert_eq!(counts(&tier), (2, 1, 1, 1));
+    assert_eq!(gc.data(), ga.data());
+    assert_eq!(
+        tier.get(REACH, name).unwrap(),
+        std::fs::read(dirs[0].join(name)).unwrap()
+    );
+    for d in &dirs {
+        let _ = std::fs::remove_dir_all(d);
+    }
 }

@@ -7,6 +7,7 @@ mod common;
 
 use std::sync::Arc;
 
+use manyhands::cache_tier::{MemoryTier, ROADMAPS};
 use manyhands::collision::{
     CollisionWorld, ExactChecker, FastChecker, MotionValidator, StaticBody, StaticKind,
 };
@@ -200,12 +201,12 @@ fn roadmap_files_are_refused_for_another_robot_scene_or_parameters() {
     let _ = std::fs::remove_dir_all(&dir);
     let mut term = Termination::new();
     let (g, file, src) =
-        load_or_build(Some(&dir), &s.world, &s.dec, &s.base, &p, &mut term).unwrap();
+        load_or_build(Some(&dir), None, &s.world, &s.dec, &s.base, &p, &mut term).unwrap();
     assert_eq!(src, RoadmapSource::Built);
     let file = file.unwrap();
     assert!(file.exists());
     let (g2, _, src2) =
-        load_or_build(Some(&dir), &s.world, &s.dec, &s.base, &p, &mut term).unwrap();
+        load_or_build(Some(&dir), None, &s.world, &s.dec, &s.base, &p, &mut term).unwrap();
     assert_eq!(src2, RoadmapSource::Loaded);
     assert_eq!(shape(&g), shape(&g2));
     let key = RoadmapKey::of(&s.world, &s.dec, &s.base, &p).unwrap();
@@ -242,10 +243,75 @@ fn roadmap_files_are_refused_for_another_robot_scene_or_parameters() {
     // A changed file on disk under the old name is rebuilt, not served.
     save_super_graph(&build(&s, &params(2)), &k, &file).unwrap();
     let (g3, _, src3) =
-        load_or_build(Some(&dir), &s.world, &s.dec, &s.base, &p, &mut term).unwrap();
+        load_or_build(Some(&dir), None, &s.world, &s.dec, &s.base, &p, &mut term).unwrap();
     assert_eq!(src3, RoadmapSource::Built);
     assert_eq!(shape(&g3), shape(&g));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Two processes with their own roadmap folders and one shared tier (two server replicas):
+/// the first builds the roadmap and publishes it, the second loads it from the tier instead of
+/// building; an entry of the tier that does not load (truncated) is rebuilt and replaced.
+#[test]
+fn roadmaps_are_built_once_by_processes_sharing_a_tier() {
+    let s = setup();
+    let p = params(3);
+    let dirs: Vec<_> = (1..=3)
+        .map(|i| {
+            let d = std::env::temp_dir()
+                .join(format!("manyhands-roadmap-tier-{}-{i}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&d);
+            d
+        })
+        .collect();
+    let tier = MemoryTier::new();
+    let counts = |t: &MemoryTier| (t.fetches(), t.misses(), t.publishes(), t.replaces());
+    let mut term = Termination::new();
+    let mut run = |dir: &std::path::Path| {
+        load_or_build(
+            Some(dir),
+            Some(&tier),
+            &s.world,
+            &s.dec,
+            &s.base,
+            &p,
+            &mut term,
+        )
+        .unwrap()
+    };
+    let (g1, f1, src) = run(&dirs[0]);
+    assert_eq!(src, RoadmapSource::Built);
+    let f1 = f1.unwrap();
+    let name = f1.file_name().unwrap().to_str().unwrap().to_string();
+    assert_eq!(counts(&tier), (0, 1, 1, 0));
+    assert_eq!(tier.names(ROADMAPS), [name.as_str()]);
+
+    // "Process 2": an empty folder, the same tier.
+    let (g2, f2, src) = run(&dirs[1]);
+    assert_eq!(src, RoadmapSource::Loaded);
+    assert_eq!(counts(&tier), (1, 1, 1, 0), "fetched, not built");
+    assert_eq!(shape(&g2), shape(&g1));
+    let key = RoadmapKey::of(&s.world, &s.dec, &s.base, &p).unwrap();
+    assert_eq!(load_super_graph(&f1, &key).unwrap(), g2);
+    assert!(f2.unwrap().exists());
+    // Now in its folder: the tier is not asked again.
+    assert_eq!(run(&dirs[1]).2, RoadmapSource::Loaded);
+    assert_eq!(counts(&tier), (1, 1, 1, 0));
+
+    // A truncated entry is not served: rebuilt (the same graph) and replaced.
+    let bytes = tier.get(ROADMAPS, &name).unwrap();
+    tier.insert(ROADMAPS, &name, bytes[..bytes.len() / 2].to_vec());
+    let (g3, f3, src) = run(&dirs[2]);
+    assert_eq!(src, RoadmapSource::Built);
+    assert_eq!(shape(&g3), shape(&g1));
+    assert_eq!(counts(&tier), (2, 1, 1, 1));
+    assert_eq!(
+        tier.get(ROADMAPS, &name).unwrap(),
+        std::fs::read(f3.unwrap()).unwrap()
+    );
+    for d in &dirs {
+        let _ = std::fs::remove_dir_all(d);
+    }
 }
 
 #[test]

@@ -73,6 +73,7 @@ fn setup(ctx: &Ctx, a: &PickPlaceArgs) -> Result<Setup> {
         &settings,
         &cache,
         Some(&a.roadmaps),
+        None,
         &|| false,
         &mut Termination::new(),
         &mut |_| {},

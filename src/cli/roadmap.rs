@@ -170,7 +170,8 @@ pub fn build(ctx: &Ctx, a: &BuildArgs) -> Result<()> {
         );
         return Ok(());
     }
-    let (g, file, src) = load_or_build(Some(&a.dir), &world, &dec, &base, &params, &mut term)?;
+    let (g, file, src) =
+        load_or_build(Some(&a.dir), None, &world, &dec, &base, &params, &mut term)?;
     let src = match src {
         RoadmapSource::Built => "built",
         RoadmapSource::Loaded => "loaded",

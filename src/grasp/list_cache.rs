@@ -4,16 +4,19 @@
 //! of the object (its geometry: vertex coordinates bit for bit, triangles, poses) and of the
 //! parameters. [`load_grasp_list`] refuses a file whose keys differ from the hand, object and
 //! parameters it is asked for, naming which, so a changed robot model, mesh or setting never
-//! serves a stale list. [`GraspListCache`] keeps lists in memory and in a folder.
+//! serves a stale list. [`GraspListCache`] keeps lists in memory and in a folder, and with a
+//! [`CacheTier`] fetches a list file missing from the folder from the tier and publishes the
+//! lists it builds to it.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use sha2::{Digest, Sha256};
 
 use super::hand::Hand;
 use super::list::{build_grasp_list, GraspList, GraspListError, GraspListParams, GraspObject};
+use crate::cache_tier::{self, CacheTier, Lookup};
 use crate::geometry::Shape;
 
 /// The `format` tag of a list file.
@@ -131,9 +134,7 @@ pub fn save_grasp_list(list: &GraspList, path: &Path) -> Result<(), ListFileErro
         file: path.display().to_string(),
         reason: e.to_string(),
     })?;
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, body).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    cache_tier::write_atomic(path, &body).map_err(io)
 }
 
 /// Reads a list file without checking it against a hand or object.
@@ -222,39 +223,90 @@ pub fn list_file_name(hand: &Hand, object: &GraspObject, params: &GraspListParam
     )
 }
 
-/// Lists in memory, then in a folder, else built and saved; keyed by the three hashes.
-#[derive(Debug, Default)]
+/// Lists in memory, then in a folder, then in the tier (if set), else built, saved and
+/// published; keyed by the three hashes.
+#[derive(Default)]
 pub struct GraspListCache {
     dir: Option<PathBuf>,
+    tier: OnceLock<Arc<dyn CacheTier>>,
     lists: Mutex<HashMap<String, Arc<GraspList>>>,
+}
+
+impl std::fmt::Debug for GraspListCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GraspListCache")
+            .field("dir", &self.dir)
+            .field("tier", &self.tier.get().is_some())
+            .field("lists", &self.lock().len())
+            .finish()
+    }
 }
 
 impl GraspListCache {
     pub fn new(dir: Option<PathBuf>) -> GraspListCache {
         GraspListCache {
             dir,
+            tier: OnceLock::new(),
             lists: Mutex::new(HashMap::new()),
         }
     }
 
-    /// The cached list, if built before (memory or folder); never builds.
+    /// This cache with a shared second tier ([`cache_tier`], kind [`cache_tier::GRASPS`])
+    /// behind its folder; without a folder the tier is not used.
+    pub fn with_tier(self, tier: Arc<dyn CacheTier>) -> GraspListCache {
+        self.set_tier(tier);
+        self
+    }
+
+    /// Sets the tier of a cache already shared; false (and unchanged) when it has one.
+    pub fn set_tier(&self, tier: Arc<dyn CacheTier>) -> bool {
+        self.tier.set(tier).is_ok()
+    }
+
+    fn tier(&self) -> Option<&dyn CacheTier> {
+        self.tier.get().map(|t| &**t as &dyn CacheTier)
+    }
+
+    /// The cached list, if built before (memory, folder or tier); never builds.
     pub fn find(
         &self,
         hand: &Hand,
         object: &GraspObject,
         params: &GraspListParams,
     ) -> Option<Arc<GraspList>> {
-        let name = list_file_name(hand, object, params);
-        if let Some(l) = self.lock().get(&name) {
-            return Some(l.clone());
-        }
-        let path = self.dir.as_ref()?.join(&name);
-        let list = Arc::new(load_grasp_list(&path, hand, object, params).ok()?);
-        self.lock().insert(name, list.clone());
-        Some(list)
+        self.lookup(hand, object, params).ok()
     }
 
-    /// The list, built (and saved) if not cached; the second value is true when it was built.
+    /// The list from memory, the folder or the tier; else (`Err`) whether the tier's entry was
+    /// refused.
+    fn lookup(
+        &self,
+        hand: &Hand,
+        object: &GraspObject,
+        params: &GraspListParams,
+    ) -> Result<Arc<GraspList>, bool> {
+        let name = list_file_name(hand, object, params);
+        if let Some(l) = self.lock().get(&name) {
+            return Ok(l.clone());
+        }
+        let Some(dir) = &self.dir else {
+            return Err(false);
+        };
+        let found = cache_tier::load_or_fetch(self.tier(), cache_tier::GRASPS, dir, &name, |f| {
+            load_grasp_list(f, hand, object, params).ok()
+        });
+        match found {
+            Lookup::Local(l) | Lookup::Fetched(l) => {
+                let list = Arc::new(l);
+                self.lock().insert(name, list.clone());
+                Ok(list)
+            }
+            Lookup::Missing { tier_refused } => Err(tier_refused),
+        }
+    }
+
+    /// The list, built (and saved, and published) if not cached; the second value is true
+    /// when it was built.
     pub fn get_or_build(
         &self,
         hand: &Hand,
@@ -263,15 +315,17 @@ impl GraspListCache {
         progress: &(dyn Fn(usize, usize) + Sync),
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<(Arc<GraspList>, bool), GraspListError> {
-        if let Some(l) = self.find(hand, object, params) {
-            return Ok((l, false));
-        }
+        let tier_refused = match self.lookup(hand, object, params) {
+            Ok(l) => return Ok((l, false)),
+            Err(refused) => refused,
+        };
         let list = Arc::new(build_grasp_list(hand, object, params, progress, stop)?);
         let name = list_file_name(hand, object, params);
         if let Some(dir) = &self.dir {
-            // A cache that cannot be written is only slower next time.
-            if std::fs::create_dir_all(dir).is_ok() {
-                let _ = save_grasp_list(&list, &dir.join(&name));
+            // A cache that cannot be written (or shared) is only slower next time.
+            let f = dir.join(&name);
+            if std::fs::create_dir_all(dir).is_ok() && save_grasp_list(&list, &f).is_ok() {
+                cache_tier::share_built(self.tier(), cache_tier::GRASPS, &f, tier_refused);
             }
         }
         self.lock().insert(name, list.clone());

@@ -4,7 +4,8 @@
 //! the roadmap world (robot placements and every obstacle's pose and geometry) and of the
 //! parameters (Visibility-PRM settings, decomposition groups, base configuration).
 //! [`load_super_graph`] refuses a file whose keys differ, naming which, so a changed robot,
-//! scene or setting never serves a stale roadmap.
+//! scene or setting never serves a stale roadmap. [`load_or_build`] with a [`CacheTier`] fetches
+//! a roadmap file missing from its folder from the tier and publishes the roadmaps it builds.
 
 use std::path::{Path, PathBuf};
 
@@ -14,6 +15,7 @@ use super::super_graph::{
     build_super_graph, roadmap_world, Decomposition, SuperGraph, SuperGraphParams,
 };
 use super::{PlanError, Termination};
+use crate::cache_tier::{self, CacheTier, Lookup};
 use crate::collision::CollisionWorld;
 use crate::model::Robot;
 
@@ -151,9 +153,7 @@ pub fn save_super_graph(
         file: path.display().to_string(),
         reason: e.to_string(),
     })?;
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, body).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    cache_tier::write_atomic(path, &body).map_err(io)
 }
 
 /// Reads a roadmap file and refuses it unless its keys are `expected`.
@@ -197,14 +197,18 @@ pub fn load_super_graph(
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RoadmapSource {
     Built,
+    /// From the folder (possibly fetched there from the tier).
     Loaded,
 }
 
 /// The roadmap of `dec` in `world` from `dir` when a file with the right keys is there, else
-/// built (and saved there when `dir` is given). Returns the graph, its file and where it came
-/// from. A file that cannot be written is only slower next time.
+/// from `tier` (kind [`cache_tier::ROADMAPS`], fetched into `dir`) when it has one, else built
+/// (and saved in `dir` and published to `tier` when `dir` is given; without `dir` the tier is
+/// not used). Returns the graph, its file and where it came from. A file that cannot be
+/// written or shared is only slower next time.
 pub fn load_or_build(
     dir: Option<&Path>,
+    tier: Option<&dyn CacheTier>,
     world: &CollisionWorld,
     dec: &Decomposition,
     base: &[f64],
@@ -212,16 +216,24 @@ pub fn load_or_build(
     term: &mut Termination,
 ) -> Result<(SuperGraph, Option<PathBuf>, RoadmapSource), RoadmapFileError> {
     let key = RoadmapKey::of(world, dec, base, params)?;
-    let file = dir.map(|d| d.join(key.file_name(&world.robots[dec.robot].robot.name)));
-    if let Some(f) = file.as_ref().filter(|f| f.exists()) {
-        if let Ok(g) = load_super_graph(f, &key) {
-            return Ok((g, file, RoadmapSource::Loaded));
-        }
-    }
+    let name = key.file_name(&world.robots[dec.robot].robot.name);
+    let found = match dir {
+        Some(d) => cache_tier::load_or_fetch(tier, cache_tier::ROADMAPS, d, &name, |f| {
+            load_super_graph(f, &key).ok()
+        }),
+        None => Lookup::Missing {
+            tier_refused: false,
+        },
+    };
+    let file = dir.map(|d| d.join(&name));
+    let tier_refused = match found {
+        Lookup::Local(g) | Lookup::Fetched(g) => return Ok((g, file, RoadmapSource::Loaded)),
+        Lookup::Missing { tier_refused } => tier_refused,
+    };
     let g = build_super_graph(world, dec, base, params, term)?;
     if let (Some(d), Some(f)) = (dir, &file) {
-        if std::fs::create_dir_all(d).is_ok() {
-            let _ = save_super_graph(&g, &key, f);
+        if std::fs::create_dir_all(d).is_ok() && save_super_graph(&g, &key, f).is_ok() {
+            cache_tier::share_built(tier, cache_tier::ROADMAPS, f, tier_refused);
         }
     }
     Ok((g, file, RoadmapSource::Built))

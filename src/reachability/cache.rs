@@ -1,14 +1,16 @@
 //! A cache of reachability grids for planners that need them on demand (Bimanual IK-RRT's
 //! inverse maps, 002 §III): in memory, then a folder of grid files, else built (in parallel) and
 //! saved. Keyed by robot, chain group, kinematics hash and the build parameters, so a changed
-//! model or other parameters never reuse a stale grid.
+//! model or other parameters never reuse a stale grid. With a [`CacheTier`], a grid file missing
+//! from the folder is fetched from the tier and a grid built here is published to it.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use super::grid::{chain_hash, GridParams, ReachError, ReachabilityGrid};
 use super::queries::arm_grid_group;
+use crate::cache_tier::{self, CacheTier, Lookup};
 use crate::kinematics::randomized::ArmChain;
 use crate::kinematics::Chain;
 use crate::model::Robot;
@@ -50,10 +52,21 @@ impl GridRecipe {
 type Key = (String, String, u64, u64, u32, u64, u64);
 
 /// Grids by (robot, group, kinematics, recipe); safe to share between threads.
-#[derive(Debug, Default)]
+#[derive(Default)]
 pub struct GridCache {
     dir: Option<PathBuf>,
+    tier: OnceLock<Arc<dyn CacheTier>>,
     grids: Mutex<HashMap<Key, Arc<ReachabilityGrid>>>,
+}
+
+impl std::fmt::Debug for GridCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GridCache")
+            .field("dir", &self.dir)
+            .field("tier", &self.tier.get().is_some())
+            .field("grids", &self.lock().len())
+            .finish()
+    }
 }
 
 impl GridCache {
@@ -61,8 +74,21 @@ impl GridCache {
     pub fn new(dir: Option<PathBuf>) -> GridCache {
         GridCache {
             dir,
+            tier: OnceLock::new(),
             grids: Mutex::new(HashMap::new()),
         }
+    }
+
+    /// This cache with a shared second tier ([`cache_tier`], kind [`cache_tier::REACH`]) behind
+    /// its folder; without a folder the tier is not used.
+    pub fn with_tier(self, tier: Arc<dyn CacheTier>) -> GridCache {
+        self.set_tier(tier);
+        self
+    }
+
+    /// Sets the tier of a cache already shared; false (and unchanged) when it has one.
+    pub fn set_tier(&self, tier: Arc<dyn CacheTier>) -> bool {
+        self.tier.set(tier).is_ok()
     }
 
     /// The grid of an arm chain (shoulder → TCP, [`GridRecipe::arm`]): the randomized IK's
@@ -135,30 +161,34 @@ impl GridCache {
             recipe.samples,
             recipe.seed,
         )?;
-        let file = self.dir.as_ref().map(|d| {
-            d.join(format!(
-                "{}-{}-{:016x}-{}mm-{}-{}-{}.reach",
-                robot.name,
-                group,
-                hash,
-                (recipe.resolution * 1000.0).round() as u64,
-                recipe.rot_bins,
-                recipe.samples,
-                recipe.seed
-            ))
-        });
-        let loaded = file
-            .as_ref()
-            .filter(|f| f.exists())
-            .and_then(|f| ReachabilityGrid::load(f, robot, group, Some(&params)).ok());
-        let grid = match loaded {
-            Some(g) => g,
-            None => {
+        let name = format!(
+            "{}-{}-{:016x}-{}mm-{}-{}-{}.reach",
+            robot.name,
+            group,
+            hash,
+            (recipe.resolution * 1000.0).round() as u64,
+            recipe.rot_bins,
+            recipe.samples,
+            recipe.seed
+        );
+        let tier = self.tier.get().map(|t| &**t as &dyn CacheTier);
+        let found = match &self.dir {
+            Some(dir) => cache_tier::load_or_fetch(tier, cache_tier::REACH, dir, &name, |f| {
+                ReachabilityGrid::load(f, robot, group, Some(&params)).ok()
+            }),
+            None => Lookup::Missing {
+                tier_refused: false,
+            },
+        };
+        let grid = match found {
+            Lookup::Local(g) | Lookup::Fetched(g) => g,
+            Lookup::Missing { tier_refused } => {
                 let g = ReachabilityGrid::build_until(robot, group, &params, &|_| {}, stop)?;
-                if let (Some(dir), Some(f)) = (&self.dir, &file) {
-                    // A cache that cannot be written is only slower next time.
-                    if std::fs::create_dir_all(dir).is_ok() {
-                        let _ = g.save(f);
+                if let Some(dir) = &self.dir {
+                    // A cache that cannot be written (or shared) is only slower next time.
+                    let f = dir.join(&name);
+                    if std::fs::create_dir_all(dir).is_ok() && g.save(&f).is_ok() {
+                        cache_tier::share_built(tier, cache_tier::REACH, &f, tier_refused);
                     }
                 }
                 g

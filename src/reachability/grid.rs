@@ -12,7 +12,7 @@
 //! are summed, so the result does not depend on the number of threads.
 
 use std::f64::consts::PI;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -756,9 +756,8 @@ impl ReachabilityGrid {
         out.extend_from_slice(&(self.data.len() as u64).to_le_bytes());
         out.extend_from_slice(&self.data);
         out.extend_from_slice(&fnv(&self.data, FNV_OFFSET).to_le_bytes());
-        let mut f = std::fs::File::create(path).map_err(io)?;
-        f.write_all(&out).map_err(io)?;
-        Ok(())
+        // Atomically: a reader (or a publisher to a shared cache tier) never sees part of it.
+        crate::cache_tier::write_atomic(path, &out).map_err(io)
     }
 
     /// Reads a grid written by [`ReachabilityGrid::save`] without checking it against a model.

@@ -160,6 +160,7 @@ impl JobWork for PickPlaceWork {
             &w.settings,
             &w.lists,
             w.roadmap_dir.as_deref(),
+            None,
             &stop,
             &mut term,
             &mut progress,

@@ -51,6 +51,7 @@ use super::configurations::{within_limits, ConfigParams, KeyConfigurations};
 pub use super::hands::finger_preshape;
 use super::hands::{approachable, fingers_of, with_fingers};
 use super::{exchange_grid, key_configurations, ArmHand, PickPlaceError, PickPlaceProblem};
+use crate::cache_tier::CacheTier;
 use crate::collision::{
     CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
 };
@@ -292,12 +293,15 @@ pub fn decomposition(
 }
 
 /// The offline part (module docs): grasp lists from `lists` (built when absent; `stop` ends a
-/// build) and the super graph from `roadmap_dir` (built when absent, saved there).
+/// build) and the super graph from `roadmap_dir`, else from `roadmap_tier` (a shared
+/// [`CacheTier`]), else built (saved there and published to the tier).
+#[allow(clippy::too_many_arguments)]
 pub fn prepare_pick_place(
     p: &PickPlaceProblem,
     settings: &PickPlaceSettings,
     lists: &GraspListCache,
     roadmap_dir: Option<&Path>,
+    roadmap_tier: Option<&dyn CacheTier>,
     stop: &(dyn Fn() -> bool + Sync),
     term: &mut Termination,
     progress: &mut dyn FnMut(TaskProgress),
@@ -341,9 +345,16 @@ pub fn prepare_pick_place(
     let world = task_world(p);
     let dec = decomposition(p, &world)?;
     let t = Instant::now();
-    let (graph, file, src) =
-        load_or_build(roadmap_dir, &world, &dec, &p.rest, &settings.roadmap, term)
-            .map_err(|e| PickPlaceTaskError::Roadmap(e.to_string()))?;
+    let (graph, file, src) = load_or_build(
+        roadmap_dir,
+        roadmap_tier,
+        &world,
+        &dec,
+        &p.rest,
+        &settings.roadmap,
+        term,
+    )
+    .map_err(|e| PickPlaceTaskError::Roadmap(e.to_string()))?;
     stats.roadmap_ms = t.elapsed().as_secs_f64() * 1e3;
     stats.roadmap_built = src == RoadmapSource::Built;
     stats.roadmap_file = file.map(|f| f.display().to_string());
