@@ -490,3 +490,79 @@ async fn replicas_ride_out_a_database_restart() {
     drop((a, b));
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// The expensive caches are shared: a grasp list built by the replica that ran the first job is
+/// fetched from the store by the other replica, never built again (and the same holds for
+/// reachability grids and roadmaps, which go through the same tier).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn caches_are_built_once_per_cluster() {
+    let Some(pgc) = pg::PgCluster::start("caches_are_built_once_per_cluster") else {
+        return;
+    };
+    let dir = temp_dir("caches");
+    let url = pgc.url();
+    let a = replica(&url, "a", "5", &dir);
+    let b = replica(&url, "b", "5", &dir);
+    let c = Client::new();
+    let req = json!({"kind": "grasp_list", "robot": "justin", "hand": "left_hand",
+        "mesh": "statuette", "params": {"positions": 27, "mu": 1.0}});
+    // Whichever replica runs it builds the list once…
+    let (s, first) = c.post(&a, "/v1/plans?wait=60", &req).await;
+    assert_eq!(s, StatusCode::OK, "{first}");
+    assert_eq!(first["state"], "succeeded", "{first}");
+    assert_eq!(first["result"]["built"], true, "{first}");
+    let builder = first["replica"].as_str().expect("replica").to_string();
+    // …and the other replica, whose own cache folder is empty, finds it in the store.
+    let other = if builder == "a" { "b" } else { "a" };
+    assert!(
+        !dir.join(other).join("grasps").exists()
+            || std::fs::read_dir(dir.join(other).join("grasps"))
+                .map(|d| d.count() == 0)
+                .unwrap_or(true),
+        "the other replica has no local copy yet"
+    );
+    // Stop the builder's planner threads from taking it: make it busy with long jobs.
+    let busy = if builder == "a" { &a } else { &b };
+    let mut long = Vec::new();
+    for i in 0..2 {
+        let (s, v) = c.post(busy, "/v1/plans", &sweep(1_000_000_000, i, 20.0, 1)).await;
+        assert_eq!(s, StatusCode::ACCEPTED);
+        long.push(v["id"].as_str().expect("id").to_string());
+    }
+    let t0 = Instant::now();
+    loop {
+        let mut on_builder = 0;
+        for id in &long {
+            let (_, v) = c.get(busy, &format!("/v1/plans/{id}")).await;
+            if v["state"] == "running" && v["replica"] == builder.as_str() {
+                on_builder += 1;
+            }
+        }
+        if on_builder == 2 {
+            break;
+        }
+        // The other replica took one: the builder is not yet full; add another.
+        assert!(t0.elapsed() < Duration::from_secs(10), "the builder never got busy");
+        let (_, v) = c.post(busy, "/v1/plans", &sweep(1_000_000_000, 9, 20.0, 1)).await;
+        long.push(v["id"].as_str().expect("id").to_string());
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    // Long jobs the other replica took are cancelled: it has a free thread, the builder none.
+    for id in &long {
+        let (_, v) = c.get(busy, &format!("/v1/plans/{id}")).await;
+        if v["replica"] != builder.as_str() {
+            let _ = c.delete(busy, &format!("/v1/plans/{id}")).await;
+        }
+    }
+    let (s, second) = c.post(busy, "/v1/plans?wait=60", &req).await;
+    assert_eq!(s, StatusCode::OK, "{second}");
+    assert_eq!(second["state"], "succeeded", "{second}");
+    assert_eq!(second["replica"], other, "{second}");
+    assert_eq!(second["result"]["built"], false, "fetched, not rebuilt: {second}");
+    assert_eq!(second["result"]["id"], first["result"]["id"]);
+    for id in &long {
+        let _ = c.delete(busy, &format!("/v1/plans/{id}")).await;
+    }
+    drop((a, b));
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -90,6 +90,8 @@ pub struct Catalog {
     grasp_dir: PathBuf,
     /// The built-in scenes' `meshes/` folder (objects of `kind: grasp_list` by name).
     meshes_dir: PathBuf,
+    /// The shared store behind the caches (grids, grasp lists, roadmaps), with a shared store.
+    tier: std::sync::OnceLock<Arc<dyn crate::cache_tier::CacheTier>>,
 }
 
 /// A name usable as a file stem: 1..=64 of `[A-Za-z0-9_.-]`, not starting with a dot.
@@ -282,6 +284,7 @@ impl Catalog {
             ))),
             grasp_dir: data_dir.join("grasps"),
             meshes_dir: scenes_dir.join("meshes"),
+            tier: std::sync::OnceLock::new(),
         })
     }
 
@@ -303,6 +306,18 @@ impl Catalog {
     /// Reachability grids built on demand (Bimanual IK-RRT), kept under `<data-dir>/reach`.
     pub fn grids(&self) -> Arc<GridCache> {
         self.grids.clone()
+    }
+
+    /// Puts `tier` behind the grid, grasp-list and roadmap caches (once).
+    pub fn set_cache_tier(&self, tier: Arc<dyn crate::cache_tier::CacheTier>) {
+        self.grids.set_tier(tier.clone());
+        self.grasp_lists.set_tier(tier.clone());
+        let _ = self.tier.set(tier);
+    }
+
+    /// The tier behind the caches, if any.
+    pub fn cache_tier(&self) -> Option<Arc<dyn crate::cache_tier::CacheTier>> {
+        self.tier.get().cloned()
     }
 
     pub fn robots(&self) -> Vec<(String, Arc<RobotEntry>)> {

@@ -465,6 +465,12 @@ impl Server {
                 )
             }
         };
+        if store.backend() != "embedded" {
+            catalog.set_cache_tier(Arc::new(shared::StoreTier {
+                store: store.clone(),
+                rt: tokio::runtime::Handle::current(),
+            }));
+        }
         let metrics = Arc::new(Metrics::default());
         // Jobs claimed here that another replica accepted (or that a restart left queued) are
         // prepared again from their stored request, against this replica's catalog.

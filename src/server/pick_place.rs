@@ -29,6 +29,8 @@ struct PickPlaceWork {
     settings: PickPlaceSettings,
     lists: std::sync::Arc<GraspListCache>,
     roadmap_dir: Option<PathBuf>,
+    /// The shared store behind the roadmap cache (several replicas build each roadmap once).
+    tier: Option<std::sync::Arc<dyn crate::cache_tier::CacheTier>>,
     seed: u64,
     timing: TimingOptions,
 }
@@ -114,6 +116,7 @@ pub(super) fn prepare_pick_place(
             settings,
             lists: catalog.grasp_lists(),
             roadmap_dir: catalog.grasp_dir().parent().map(|d| d.join("roadmaps")),
+            tier: catalog.cache_tier(),
             seed: r.seed.unwrap_or(1),
             timing,
         }),
@@ -160,7 +163,7 @@ impl JobWork for PickPlaceWork {
             &w.settings,
             &w.lists,
             w.roadmap_dir.as_deref(),
-            None,
+            w.tier.as_deref(),
             &stop,
             &mut term,
             &mut progress,

@@ -7,6 +7,10 @@
 //! asked for a robot or scene it does not know yet (a request that raced the notice) reads the
 //! store before it answers 404. With the embedded store the data directory is the record, as
 //! it always was.
+//!
+//! The expensive caches (reachability grids, grasp lists, super-graph roadmaps; all content
+//! keyed files) go through [`StoreTier`]: a replica that lacks one fetches it from the store
+//! before building, and one that built it publishes it, so a cluster builds each once.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -17,6 +21,54 @@ use super::jobs::store_error;
 use super::store::{JobStore, Notice, Resource};
 use super::AppState;
 use crate::model::SceneJson;
+
+/// The shared store as the second tier of the file caches (see [`crate::cache_tier`]). Its
+/// calls come from planner and pool threads; each runs on a short-lived thread of its own, so
+/// it is safe from any thread (a cache miss costs far more than that thread).
+pub struct StoreTier {
+    pub store: Arc<dyn JobStore>,
+    pub rt: tokio::runtime::Handle,
+}
+
+impl StoreTier {
+    fn run<T: Send>(&self, f: impl std::future::Future<Output = T> + Send) -> Option<T> {
+        std::thread::scope(|s| {
+            std::thread::Builder::new()
+                .name("manyhands-cache".into())
+                .spawn_scoped(s, || self.rt.block_on(f))
+                .ok()?
+                .join()
+                .ok()
+        })
+    }
+}
+
+impl crate::cache_tier::CacheTier for StoreTier {
+    fn fetch(&self, kind: &str, name: &str) -> Option<Vec<u8>> {
+        match self.run(self.store.get_blob(kind, name))? {
+            Ok(b) => {
+                if b.is_some() {
+                    tracing::info!(kind, name, "cache entry fetched from the shared store");
+                }
+                b
+            }
+            Err(e) => {
+                tracing::warn!(kind, name, error = %e, "cannot read the shared cache");
+                None
+            }
+        }
+    }
+
+    fn publish(&self, kind: &str, name: &str, bytes: &[u8]) {
+        match self.run(self.store.put_blob(kind, name, bytes)) {
+            Some(Ok(())) => {
+                tracing::info!(kind, name, bytes = bytes.len(), "cache entry shared")
+            }
+            Some(Err(e)) => tracing::warn!(kind, name, error = %e, "cannot share a cache entry"),
+            None => {}
+        }
+    }
+}
 
 /// Kinds of shared resources, in the order they load (scenes name robots).
 pub const KINDS: [&str; 2] = ["robot", "scene"];
