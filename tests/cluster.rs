@@ -64,7 +64,13 @@ impl Client {
         }
     }
 
-    async fn call(&self, m: reqwest::Method, p: &Proc, path: &str, body: Option<&Value>) -> (StatusCode, Value) {
+    async fn call(
+        &self,
+        m: reqwest::Method,
+        p: &Proc,
+        path: &str,
+        body: Option<&Value>,
+    ) -> (StatusCode, Value) {
         let mut r = self.http.request(m, format!("http://{}{path}", p.addr));
         if let Some(b) = body {
             r = r.json(b);
@@ -101,7 +107,12 @@ impl Client {
     }
 
     /// The job's event stream (from the start) until `end`: (event name, data) pairs.
-    async fn events(&self, p: &Proc, id: &str, last_event_id: Option<u64>) -> Vec<(String, u64, Value)> {
+    async fn events(
+        &self,
+        p: &Proc,
+        id: &str,
+        last_event_id: Option<u64>,
+    ) -> Vec<(String, u64, Value)> {
         let mut r = self
             .http
             .get(format!("http://{}/v1/plans/{id}/events", p.addr))
@@ -166,12 +177,21 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     let mut up = scene.clone();
     up["name"] = json!("kitchen_copy");
     let (s, v) = c
-        .call(reqwest::Method::PUT, &a, "/v1/scenes/kitchen_copy", Some(&up))
+        .call(
+            reqwest::Method::PUT,
+            &a,
+            "/v1/scenes/kitchen_copy",
+            Some(&up),
+        )
         .await;
     assert_eq!(s, StatusCode::CREATED, "{v}");
     let (s, v) = c
-        .post(&b, "/v1/plans?wait=30", &json!({"kind": "collision_sweep", "scene": "kitchen_copy",
-            "samples": 100, "time_limit": 5}))
+        .post(
+            &b,
+            "/v1/plans?wait=30",
+            &json!({"kind": "collision_sweep", "scene": "kitchen_copy",
+            "samples": 100, "time_limit": 5}),
+        )
         .await;
     assert_eq!(s, StatusCode::OK, "{v}");
     assert_eq!(v["state"], "succeeded", "{v}");
@@ -201,7 +221,11 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
             for k in 0..8u32 {
                 let attempts = if k % 2 == 0 { 2 } else { 1 };
                 let (s, v) = c
-                    .post(&a, "/v1/plans", &sweep(1_000_000_000, k as u64, 2.0, attempts))
+                    .post(
+                        &a,
+                        "/v1/plans",
+                        &sweep(1_000_000_000, k as u64, 2.0, attempts),
+                    )
                     .await;
                 assert_eq!(s, StatusCode::ACCEPTED, "{v}");
                 let id = v["id"].as_str().expect("id").to_string();
@@ -239,7 +263,12 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     let deadline = Instant::now() + Duration::from_secs(240);
     let mut finals: BTreeMap<String, Value> = BTreeMap::new();
     while finals.len() < accepted.len() {
-        assert!(Instant::now() < deadline, "{} of {} jobs final", finals.len(), accepted.len());
+        assert!(
+            Instant::now() < deadline,
+            "{} of {} jobs final",
+            finals.len(),
+            accepted.len()
+        );
         for (id, _) in &accepted {
             if finals.contains_key(id) {
                 continue;
@@ -255,7 +284,9 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     let mut states: BTreeMap<String, usize> = BTreeMap::new();
     for (id, attempts) in &accepted {
         let v = &finals[id];
-        *states.entry(v["state"].as_str().unwrap_or("").to_string()).or_insert(0) += 1;
+        *states
+            .entry(v["state"].as_str().unwrap_or("").to_string())
+            .or_insert(0) += 1;
         // Never more attempts than allowed; interrupted only when none was left.
         let started = v["attempt"].as_u64().unwrap_or(0);
         assert!(started <= *attempts as u64, "{v}");
@@ -276,7 +307,10 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
         }
     }
     assert_eq!(states.get("failed"), None, "{states:?}");
-    assert!(states.get("succeeded").copied().unwrap_or(0) >= JOBS - 8, "{states:?}");
+    assert!(
+        states.get("succeeded").copied().unwrap_or(0) >= JOBS - 8,
+        "{states:?}"
+    );
     // Acknowledged answers are served unchanged by the survivor.
     for (id, v) in &acknowledged {
         assert_eq!(&finals[id], v, "{id} changed after the kill");
@@ -328,7 +362,8 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
 /// job ends it within 100 ms.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
-    let Some(pgc) = pg::PgCluster::start("a_stalled_replica_is_fenced_and_cancel_reaches_across") else {
+    let Some(pgc) = pg::PgCluster::start("a_stalled_replica_is_fenced_and_cancel_reaches_across")
+    else {
         return;
     };
     let dir = temp_dir("stall");
@@ -340,7 +375,9 @@ async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
     // submit until A holds one).
     let mut job = None;
     for i in 0..20 {
-        let (s, v) = c.post(&a, "/v1/plans", &sweep(1_000_000_000, i, 30.0, 2)).await;
+        let (s, v) = c
+            .post(&a, "/v1/plans", &sweep(1_000_000_000, i, 30.0, 2))
+            .await;
         assert_eq!(s, StatusCode::ACCEPTED, "{v}");
         let id = v["id"].as_str().expect("id").to_string();
         let t0 = Instant::now();
@@ -398,7 +435,9 @@ async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
     assert_eq!(v["state"], "cancelled", "{v}");
     assert!(took < Duration::from_millis(100), "cancel took {took:?}");
     // B's planner thread is freed: a short job through B runs at once.
-    let (s, v) = c.post(&b, "/v1/plans?wait=20", &sweep(200, 1, 5.0, 1)).await;
+    let (s, v) = c
+        .post(&b, "/v1/plans?wait=20", &sweep(200, 1, 5.0, 1))
+        .await;
     assert_eq!(s, StatusCode::OK, "{v}");
     assert_eq!(v["state"], "succeeded", "{v}");
     let ev = c.events(&b, &id, Some(0)).await;
@@ -450,7 +489,10 @@ async fn replicas_ride_out_a_database_restart() {
             if c.ready(p).await == Some(StatusCode::SERVICE_UNAVAILABLE) {
                 break;
             }
-            assert!(t0.elapsed() < Duration::from_secs(5), "still ready with the database down");
+            assert!(
+                t0.elapsed() < Duration::from_secs(5),
+                "still ready with the database down"
+            );
             tokio::time::sleep(Duration::from_millis(100)).await;
         }
     }
@@ -465,7 +507,10 @@ async fn replicas_ride_out_a_database_restart() {
             if c.ready(p).await == Some(StatusCode::OK) {
                 break;
             }
-            assert!(t0.elapsed() < Duration::from_secs(20), "not ready again after the database came back");
+            assert!(
+                t0.elapsed() < Duration::from_secs(20),
+                "not ready again after the database came back"
+            );
             tokio::time::sleep(Duration::from_millis(100)).await;
         }
     }
@@ -525,7 +570,9 @@ async fn caches_are_built_once_per_cluster() {
     let busy = if builder == "a" { &a } else { &b };
     let mut long = Vec::new();
     for i in 0..2 {
-        let (s, v) = c.post(busy, "/v1/plans", &sweep(1_000_000_000, i, 20.0, 1)).await;
+        let (s, v) = c
+            .post(busy, "/v1/plans", &sweep(1_000_000_000, i, 20.0, 1))
+            .await;
         assert_eq!(s, StatusCode::ACCEPTED);
         long.push(v["id"].as_str().expect("id").to_string());
     }
@@ -542,8 +589,13 @@ async fn caches_are_built_once_per_cluster() {
             break;
         }
         // The other replica took one: the builder is not yet full; add another.
-        assert!(t0.elapsed() < Duration::from_secs(10), "the builder never got busy");
-        let (_, v) = c.post(busy, "/v1/plans", &sweep(1_000_000_000, 9, 20.0, 1)).await;
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the builder never got busy"
+        );
+        let (_, v) = c
+            .post(busy, "/v1/plans", &sweep(1_000_000_000, 9, 20.0, 1))
+            .await;
         long.push(v["id"].as_str().expect("id").to_string());
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
@@ -558,7 +610,10 @@ async fn caches_are_built_once_per_cluster() {
     assert_eq!(s, StatusCode::OK, "{second}");
     assert_eq!(second["state"], "succeeded", "{second}");
     assert_eq!(second["replica"], other, "{second}");
-    assert_eq!(second["result"]["built"], false, "fetched, not rebuilt: {second}");
+    assert_eq!(
+        second["result"]["built"], false,
+        "fetched, not rebuilt: {second}"
+    );
     assert_eq!(second["result"]["id"], first["result"]["id"]);
     for id in &long {
         let _ = c.delete(busy, &format!("/v1/plans/{id}")).await;

@@ -41,12 +41,16 @@ async fn fill(store: Arc<dyn JobStore>) {
         let store = store.clone();
         tasks.push(tokio::spawn(async move {
             for i in (lane..RECORDS).step_by(8) {
-                let kind = if i % 2 == 0 { "joint_space" } else { "collision_sweep" };
+                let kind = if i % 2 == 0 {
+                    "joint_space"
+                } else {
+                    "collision_sweep"
+                };
                 let id = format!("j{i:016x}");
                 let nj = job_store::new_job(&id, kind, base + i as u64, 0, 1);
                 store.enqueue(&nj, usize::MAX).await.expect("enqueue");
-                let result = RawValue::from_string(format!("{{\"n\":{i},\"x\":[0.1,0.2]}}"))
-                    .expect("raw");
+                let result =
+                    RawValue::from_string(format!("{{\"n\":{i},\"x\":[0.1,0.2]}}")).expect("raw");
                 let o = Outcome {
                     state: JobState::Succeeded,
                     result: Some(result),
@@ -61,7 +65,10 @@ async fn fill(store: Arc<dyn JobStore>) {
     for t in tasks {
         t.await.expect("fill task");
     }
-    eprintln!("{RECORDS} records written in {:.1} s", t0.elapsed().as_secs_f64());
+    eprintln!(
+        "{RECORDS} records written in {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
 }
 
 /// The first page's answer time (median of 5) through a server on `cfg`, and that the pages
@@ -228,14 +235,20 @@ async fn memory_stays_flat(extra: &[&str], name: &str) {
         bytes as f64 / 1e6
     );
     assert!(bytes > 50 * 15_000_000, "results of {bytes} bytes");
-    assert!(after - idle <= 100.0, "idle {idle:.0} MiB, after {after:.0} MiB");
+    assert!(
+        after - idle <= 100.0,
+        "idle {idle:.0} MiB, after {after:.0} MiB"
+    );
     drop(p);
     // A restart reads no result: its memory is as at the first start.
     let p = process::spawn(&dir, extra);
     tokio::time::sleep(Duration::from_millis(500)).await;
     let restarted = rss_mib(p.child.id());
     eprintln!("{name}: restarted with them stored: {restarted:.0} MiB");
-    assert!(restarted - idle <= 100.0, "idle {idle:.0} MiB, restarted {restarted:.0} MiB");
+    assert!(
+        restarted - idle <= 100.0,
+        "idle {idle:.0} MiB, restarted {restarted:.0} MiB"
+    );
     let r = http
         .get(format!("http://{}/v1/plans/{}", p.addr, ids[0]))
         .send()

@@ -168,7 +168,9 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
                 const { std::cell::Cell::new(None) });
             LAST.with(|l| {
                 let now = std::time::Instant::now();
-                if l.get().is_none_or(|t| now.duration_since(t) >= Duration::from_secs(1)) {
+                if l.get()
+                    .is_none_or(|t| now.duration_since(t) >= Duration::from_secs(1))
+                {
                     l.set(Some(now));
                     server::store::release_freed_memory();
                 }

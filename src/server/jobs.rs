@@ -327,11 +327,7 @@ impl Jobs {
     /// it (told through the store), and recorded `cancelled` here if it has not ended within
     /// `wait`. Final jobs are left as they are. `None`: no such job.
     pub async fn cancel(&self, id: &str, wait: Duration) -> ApiResult<Option<StoredJob>> {
-        let r = self
-            .store
-            .cancel(id, now_ms())
-            .await
-            .map_err(store_error)?;
+        let r = self.store.cancel(id, now_ms()).await.map_err(store_error)?;
         match r {
             None => return Ok(None),
             Some(CancelResult::CancelledQueued) => {
@@ -364,8 +360,7 @@ impl Jobs {
                         .map_err(store_error)?
                     {
                         let kind = here.as_ref().map(|l| l.kind.clone()).unwrap_or_default();
-                        self.metrics
-                            .record_job(&kind, outcome.state.name(), None);
+                        self.metrics.record_job(&kind, outcome.state.name(), None);
                         tracing::info!(job = %id, state = outcome.state.name(), "job finished");
                     }
                 }
@@ -511,9 +506,9 @@ impl Jobs {
         }
         drop(ptx);
         // The last progress is written before the final state (nothing is written after it).
-        let _ = self.rt.block_on(async {
-            tokio::time::timeout(Duration::from_secs(5), writer).await
-        });
+        let _ = self
+            .rt
+            .block_on(async { tokio::time::timeout(Duration::from_secs(5), writer).await });
         let finished_ms = now_ms();
         let fail = |state: JobState, code: &str, message: String, stats: Option<Value>| Outcome {
             state,
@@ -770,7 +765,11 @@ impl Jobs {
     }
 }
 
-async fn wait_notice(rx: &mut broadcast::Receiver<Notice>, id: &str, deadline: tokio::time::Instant) {
+async fn wait_notice(
+    rx: &mut broadcast::Receiver<Notice>,
+    id: &str,
+    deadline: tokio::time::Instant,
+) {
     let until = deadline.min(tokio::time::Instant::now() + Duration::from_secs(1));
     loop {
         match tokio::time::timeout_at(until, rx.recv()).await {

@@ -241,7 +241,10 @@ impl Metrics {
                 .get(reason)
                 .copied()
                 .unwrap_or(0);
-            let _ = writeln!(out, "manyhands_jobs_expired_total{{reason=\"{reason}\"}} {n}");
+            let _ = writeln!(
+                out,
+                "manyhands_jobs_expired_total{{reason=\"{reason}\"}} {n}"
+            );
         }
         out += "# HELP manyhands_job_result_bytes Bytes of stored results of finished jobs.\n";
         out += "# TYPE manyhands_job_result_bytes gauge\n";
@@ -254,7 +257,8 @@ impl Metrics {
             g.store_backend,
             u8::from(g.store_up)
         );
-        out += "# HELP manyhands_jobs_running_here Jobs running on this replica's planner threads.\n";
+        out +=
+            "# HELP manyhands_jobs_running_here Jobs running on this replica's planner threads.\n";
         out += "# TYPE manyhands_jobs_running_here gauge\n";
         let _ = writeln!(out, "manyhands_jobs_running_here {}", g.running_here);
         out += "# HELP manyhands_models Robots and scenes loaded.\n";

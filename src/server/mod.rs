@@ -482,11 +482,16 @@ impl Server {
             let st = cell
                 .get()
                 .and_then(std::sync::Weak::upgrade)
-                .ok_or_else(|| ApiError::unavailable("shutting_down", "the server is stopping", 5))?;
+                .ok_or_else(|| {
+                    ApiError::unavailable("shutting_down", "the server is stopping", 5)
+                })?;
             match kinds::prepare(req, &st.catalog, st.cfg.max_plan_seconds) {
                 // A robot or scene uploaded through another replica whose notice has not
                 // arrived yet: read the store, then try again.
-                Err(e) if e.status == StatusCode::NOT_FOUND && st.jobs.store().backend() != "embedded" => {
+                Err(e)
+                    if e.status == StatusCode::NOT_FOUND
+                        && st.jobs.store().backend() != "embedded" =>
+                {
                     let _ = rt.block_on(shared::sync_all(&st));
                     kinds::prepare(req, &st.catalog, st.cfg.max_plan_seconds)
                 }

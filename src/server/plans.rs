@@ -273,12 +273,18 @@ fn parse_list_query(q: Option<String>) -> ApiResult<ListQuery> {
                     .ok()
                     .filter(|n| (1..=MAX_PAGE).contains(n))
                     .ok_or_else(|| {
-                        ApiError::invalid("limit", format!("'{v}' is not an integer in 1..={MAX_PAGE}"))
+                        ApiError::invalid(
+                            "limit",
+                            format!("'{v}' is not an integer in 1..={MAX_PAGE}"),
+                        )
                     })?;
             }
             "cursor" => {
                 out.after = Some(Cursor::decode(&v).ok_or_else(|| {
-                    ApiError::invalid("cursor", format!("'{v}' is not a cursor of this list (use next_cursor)"))
+                    ApiError::invalid(
+                        "cursor",
+                        format!("'{v}' is not a cursor of this list (use next_cursor)"),
+                    )
                 })?);
             }
             "state" => {
@@ -319,7 +325,10 @@ fn parse_list_query(q: Option<String>) -> ApiResult<ListQuery> {
     responses((status = 200, body = JobList, description = "newest first; `next_cursor` when more follow"),
               (status = 400, body = ErrorBody), (status = 422, body = ErrorBody),
               (status = 503, body = ErrorBody, description = "the job store is unreachable")))]
-pub async fn list(State(st): State<Arc<AppState>>, RawQuery(q): RawQuery) -> ApiResult<Json<JobList>> {
+pub async fn list(
+    State(st): State<Arc<AppState>>,
+    RawQuery(q): RawQuery,
+) -> ApiResult<Json<JobList>> {
     let q = parse_list_query(q)?;
     let page = st.jobs.store().list(&q).await.map_err(store_error)?;
     Ok(Json(JobList {
@@ -469,7 +478,9 @@ pub async fn events(
                     continue;
                 }
                 Ok(_) => {}
-                Err(e) => tracing::debug!(job = %s.id, error = %e, "event stream: store read failed"),
+                Err(e) => {
+                    tracing::debug!(job = %s.id, error = %e, "event stream: store read failed")
+                }
             }
             // Nothing new: wait for a notice of this job (or a second, in case one was missed).
             let until = tokio::time::Instant::now() + Duration::from_secs(1);

@@ -186,7 +186,11 @@ async fn apply(st: &Arc<AppState>, kind: &str, name: &str, r: Option<Resource>) 
                 })
                 .await;
             st.applied.set(kind, name, None);
-            tracing::info!(kind, name, "upload removed (deleted through another replica)");
+            tracing::info!(
+                kind,
+                name,
+                "upload removed (deleted through another replica)"
+            );
         }
     }
     Ok(())

@@ -147,7 +147,9 @@ impl<'t> Tables<'t> {
 
     fn put_head(&mut self, h: &Head) -> StoreResult<()> {
         let b = serde_json::to_vec(h).map_err(err)?;
-        self.heads.insert(h.job.id.as_str(), b.as_slice()).map_err(err)?;
+        self.heads
+            .insert(h.job.id.as_str(), b.as_slice())
+            .map_err(err)?;
         self.order
             .insert(
                 (h.job.created_ms, h.job.id.as_str()),
@@ -182,7 +184,11 @@ impl<'t> Tables<'t> {
     }
 
     fn queue_key(h: &Head) -> (i64, u64, &str) {
-        (-(h.meta.priority as i64), h.job.created_ms, h.job.id.as_str())
+        (
+            -(h.meta.priority as i64),
+            h.job.created_ms,
+            h.job.id.as_str(),
+        )
     }
 
     /// Makes `h` final with `outcome` (indexes, result, `end` event) and stores it.
@@ -223,9 +229,7 @@ impl<'t> Tables<'t> {
         };
         self.heads.remove(id).map_err(err)?;
         self.results.remove(id).map_err(err)?;
-        self.order
-            .remove((h.job.created_ms, id))
-            .map_err(err)?;
+        self.order.remove((h.job.created_ms, id)).map_err(err)?;
         if let Some(f) = h.job.finished_ms {
             self.finished.remove((f, id)).map_err(err)?;
         }
@@ -380,11 +384,7 @@ impl JobStore for EmbeddedStore {
 
     async fn close(&self) {
         // Operations in flight hold their own reference; the file is released with the last.
-        let inner = self
-            .inner
-            .write()
-            .unwrap_or_else(|p| p.into_inner())
-            .take();
+        let inner = self.inner.write().unwrap_or_else(|p| p.into_inner()).take();
         if let Some(mut held) = inner {
             // Wait (briefly) for operations in flight, so the file is free when this returns.
             for _ in 0..200 {
@@ -669,9 +669,7 @@ impl JobStore for EmbeddedStore {
             let txn = db.db.begin_read().map_err(err)?;
             let order = txn.open_table(ORDER).map_err(err)?;
             let range = match &q.after {
-                Some(c) => order
-                    .range(..(c.created_ms, c.id.as_str()))
-                    .map_err(err)?,
+                Some(c) => order.range(..(c.created_ms, c.id.as_str())).map_err(err)?,
                 None => order.range::<(u64, &str)>(..).map_err(err)?,
             };
             let mut page = Page::default();
@@ -709,12 +707,7 @@ impl JobStore for EmbeddedStore {
         .await
     }
 
-    async fn events_after(
-        &self,
-        id: &str,
-        after: u64,
-        limit: usize,
-    ) -> StoreResult<Vec<EventRec>> {
+    async fn events_after(&self, id: &str, after: u64, limit: usize) -> StoreResult<Vec<EventRec>> {
         let id = id.to_string();
         self.blocking(move |db| {
             let txn = db.db.begin_read().map_err(err)?;
@@ -910,10 +903,7 @@ impl JobStore for EmbeddedStore {
             let txn = db.db.begin_read().map_err(err)?;
             let t = txn.open_table(RESOURCES).map_err(err)?;
             let mut out = Vec::new();
-            for item in t
-                .range((kind.as_str(), "")..)
-                .map_err(err)?
-            {
+            for item in t.range((kind.as_str(), "")..).map_err(err)? {
                 let (k, v) = item.map_err(err)?;
                 let (k_kind, name) = k.value();
                 if k_kind != kind {

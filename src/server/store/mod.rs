@@ -18,8 +18,6 @@
 pub mod embedded;
 pub mod postgres;
 
-
-
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
@@ -113,7 +111,9 @@ pub struct NewJob {
 pub enum Enqueued {
     Accepted,
     /// The cluster-wide queue already holds this many queued jobs (≥ its bound).
-    QueueFull { depth: usize },
+    QueueFull {
+        depth: usize,
+    },
 }
 
 /// How a job ends.
@@ -204,11 +204,12 @@ impl Cursor {
     pub fn decode(s: &str) -> Option<Cursor> {
         let (ms, id) = s.split_once('.')?;
         let created_ms = ms.parse().ok()?;
-        (!id.is_empty() && id.len() <= 64 && id.bytes().all(|b| b.is_ascii_alphanumeric()))
-            .then(|| Cursor {
+        (!id.is_empty() && id.len() <= 64 && id.bytes().all(|b| b.is_ascii_alphanumeric())).then(
+            || Cursor {
                 created_ms,
                 id: id.to_string(),
-            })
+            },
+        )
     }
 }
 
@@ -304,8 +305,7 @@ pub trait JobStore: Send + Sync + 'static {
     async fn list(&self, q: &ListQuery) -> StoreResult<Page>;
 
     /// The job's events with `seq > after`, oldest first, at most `limit`.
-    async fn events_after(&self, id: &str, after: u64, limit: usize)
-        -> StoreResult<Vec<EventRec>>;
+    async fn events_after(&self, id: &str, after: u64, limit: usize) -> StoreResult<Vec<EventRec>>;
 
     /// Running jobs whose lease ran out before `now_ms` (every running job with `all`, for an
     /// embedded store opened after a crash): queued again while attempts remain, else

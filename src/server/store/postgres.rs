@@ -819,7 +819,10 @@ impl JobStore for PgStore {
             })
             .transpose()?;
         drop(row);
-        if result.as_ref().is_some_and(|r| r.get().len() as i64 > LARGE_BYTES) {
+        if result
+            .as_ref()
+            .is_some_and(|r| r.get().len() as i64 > LARGE_BYTES)
+        {
             retire(client);
         }
         Ok(Some(StoredJob { job, result, meta }))
