@@ -204,6 +204,23 @@ async fn client_covers_every_endpoint_kind() {
         .jobs
         .iter()
         .any(|j| j.id == job.id));
+    // Paged and filtered: one job a page, only succeeded sweeps.
+    let page = c
+        .jobs_page(Some(1), None, Some(JobState::Succeeded), Some("collision_sweep"))
+        .await
+        .expect("jobs page");
+    assert_eq!(page.jobs.len(), 1);
+    assert!(page
+        .jobs
+        .iter()
+        .all(|j| j.state == JobState::Succeeded && j.kind == "collision_sweep"));
+    if let Some(next) = page.next_cursor.as_deref() {
+        let more = c
+            .jobs_page(Some(1), Some(next), None, None)
+            .await
+            .expect("next page");
+        assert!(more.jobs.iter().all(|j| j.id != page.jobs[0].id));
+    }
     let long = json!({"kind": "collision_sweep", "scene": "kitchen", "samples": 1_000_000_000u64, "time_limit": 0.5});
     let job = c.submit_json(&long, None).await.expect("submit");
     let mut seen = 0;

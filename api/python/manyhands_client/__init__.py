@@ -210,8 +210,24 @@ class Client:
     def job(self, job_id: str) -> Json:
         return self._get(f"/v1/plans/{_segment(job_id)}")
 
-    def jobs(self) -> List[Json]:
-        return self._get("/v1/plans")["jobs"]
+    def jobs_page(self, limit: Optional[int] = None, cursor: Optional[str] = None,
+                  state: Optional[str] = None, kind: Optional[str] = None) -> Json:
+        """One page of ``GET /v1/plans`` (newest first): ``{"jobs": [...], "next_cursor"?}``."""
+        q = {k: v for k, v in (("limit", limit), ("cursor", cursor), ("state", state),
+                               ("kind", kind)) if v is not None}
+        path = "/v1/plans" + ("?" + urllib.parse.urlencode(q) if q else "")
+        return self._get(path)
+
+    def jobs(self, state: Optional[str] = None, kind: Optional[str] = None) -> List[Json]:
+        """Every job (newest first), page by page."""
+        out: List[Json] = []
+        cursor: Optional[str] = None
+        while True:
+            page = self.jobs_page(limit=1000, cursor=cursor, state=state, kind=kind)
+            out.extend(page["jobs"])
+            cursor = page.get("next_cursor")
+            if not cursor:
+                return out
 
     def cancel(self, job_id: str) -> Json:
         return self._request("DELETE", f"/v1/plans/{_segment(job_id)}")[2]

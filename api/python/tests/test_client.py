@@ -160,6 +160,12 @@ class ClientTest(unittest.TestCase):
         self.assertEqual(events[-1].event, "end")
         job = self.c.submit({**SWEEP, "samples": 10**9, "time_limit": 30})
         self.assertEqual(self.c.cancel(job["id"])["state"], "cancelled")
+        # The list is paged: every job once, newest first; filters by state.
+        everything = self.c.jobs()
+        self.assertIn(job["id"], [j["id"] for j in everything])
+        page = self.c.jobs_page(limit=1, state="cancelled")
+        self.assertEqual(len(page["jobs"]), 1)
+        self.assertEqual(page["jobs"][0]["state"], "cancelled")
 
     def test_wait_timeout_raises_with_the_job(self) -> None:
         job = self.c.submit({**SWEEP, "samples": 10**9, "time_limit": 30})

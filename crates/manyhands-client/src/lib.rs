@@ -357,9 +357,38 @@ impl Client {
             .await
     }
 
-    /// `GET /v1/plans`: every job.
+    /// `GET /v1/plans`: the first page (newest first, 100 jobs; `next_cursor` when more follow).
     pub async fn jobs(&self) -> ClientResult<JobList> {
         self.get("/v1/plans").await
+    }
+
+    /// `GET /v1/plans?limit=&cursor=&state=&kind=`: one page of the job list (newest first).
+    pub async fn jobs_page(
+        &self,
+        limit: Option<usize>,
+        cursor: Option<&str>,
+        state: Option<manyhands_api::JobState>,
+        kind: Option<&str>,
+    ) -> ClientResult<JobList> {
+        let mut q = Vec::new();
+        if let Some(l) = limit {
+            q.push(format!("limit={l}"));
+        }
+        if let Some(c) = cursor {
+            q.push(format!("cursor={}", segment(c)));
+        }
+        if let Some(s) = state {
+            q.push(format!("state={}", s.name()));
+        }
+        if let Some(k) = kind {
+            q.push(format!("kind={}", segment(k)));
+        }
+        let path = if q.is_empty() {
+            "/v1/plans".to_string()
+        } else {
+            format!("/v1/plans?{}", q.join("&"))
+        };
+        self.get(&path).await
     }
 
     /// `DELETE /v1/plans/{id}`: the job after the cancel request.
