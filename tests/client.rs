@@ -206,7 +206,12 @@ async fn client_covers_every_endpoint_kind() {
         .any(|j| j.id == job.id));
     // Paged and filtered: one job a page, only succeeded sweeps.
     let page = c
-        .jobs_page(Some(1), None, Some(JobState::Succeeded), Some("collision_sweep"))
+        .jobs_page(
+            Some(1),
+            None,
+            Some(JobState::Succeeded),
+            Some("collision_sweep"),
+        )
         .await
         .expect("jobs page");
     assert_eq!(page.jobs.len(), 1);

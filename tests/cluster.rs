@@ -153,6 +153,34 @@ fn plan(seed: u64, attempts: u32) -> Value {
                        "goal": {"right_elbow": -1.0, "right_shoulder_1": -0.4}}]})
 }
 
+/// Submits long jobs through `via` until one runs on replica `name` (any idle thread of either
+/// replica may claim a job); cancels the others. The id of the one on `name`.
+async fn long_job_on(c: &Client, via: &Proc, other: &Proc, name: &str, attempts: u32) -> String {
+    for i in 0..20 {
+        let (s, v) = c
+            .post(via, "/v1/plans", &sweep(1_000_000_000, i, 30.0, attempts))
+            .await;
+        assert_eq!(s, StatusCode::ACCEPTED, "{v}");
+        let id = v["id"].as_str().expect("id").to_string();
+        let t0 = Instant::now();
+        let mut owner = Value::Null;
+        while t0.elapsed() < Duration::from_secs(5) {
+            let (_, v) = c.get(other, &format!("/v1/plans/{id}")).await;
+            if v["state"] == "running" {
+                owner = v["replica"].clone();
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        if owner == name {
+            return id;
+        }
+        let (_, v) = c.delete(via, &format!("/v1/plans/{id}")).await;
+        assert!(final_state(v["state"].as_str().unwrap_or("")), "{v}");
+    }
+    panic!("replica {name} never ran one of the jobs");
+}
+
 fn final_state(s: &str) -> bool {
     matches!(s, "succeeded" | "failed" | "cancelled" | "interrupted")
 }
@@ -371,33 +399,8 @@ async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
     let a = replica(&url, "a", "1", &dir);
     let b = replica(&url, "b", "1", &dir);
     let c = Client::new();
-    // A long job with a second attempt allowed, run by A (any idle thread may claim it, so
-    // submit until A holds one).
-    let mut job = None;
-    for i in 0..20 {
-        let (s, v) = c
-            .post(&a, "/v1/plans", &sweep(1_000_000_000, i, 30.0, 2))
-            .await;
-        assert_eq!(s, StatusCode::ACCEPTED, "{v}");
-        let id = v["id"].as_str().expect("id").to_string();
-        let t0 = Instant::now();
-        let mut owner = Value::Null;
-        while t0.elapsed() < Duration::from_secs(5) {
-            let (_, v) = c.get(&b, &format!("/v1/plans/{id}")).await;
-            if v["state"] == "running" {
-                owner = v["replica"].clone();
-                break;
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-        if owner == "a" {
-            job = Some(id);
-            break;
-        }
-        let (_, v) = c.delete(&a, &format!("/v1/plans/{id}")).await;
-        assert!(final_state(v["state"].as_str().unwrap_or("")), "{v}");
-    }
-    let id = job.expect("replica a runs one of the jobs");
+    // A long job with a second attempt allowed, run by A.
+    let id = long_job_on(&c, &a, &b, "a", 2).await;
     let pid = a.child.id().to_string();
     let sig = |s: &str| {
         let ok = std::process::Command::new("kill")
@@ -619,5 +622,46 @@ async fn caches_are_built_once_per_cluster() {
         let _ = c.delete(busy, &format!("/v1/plans/{id}")).await;
     }
     drop((a, b));
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// A replica shutting down (SIGTERM, as in a rolling update) gives the job it runs back to the
+/// queue: the other replica runs it at once, and the attempt given back does not count.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replica_shutting_down_hands_its_job_over() {
+    let Some(pgc) = pg::PgCluster::start("a_replica_shutting_down_hands_its_job_over") else {
+        return;
+    };
+    let dir = temp_dir("handover");
+    let url = pgc.url();
+    let mut a = replica(&url, "a", "5", &dir);
+    let b = replica(&url, "b", "5", &dir);
+    let c = Client::new();
+    let id = long_job_on(&c, &a, &b, "a", 1).await;
+    let ok = std::process::Command::new("kill")
+        .args(["-TERM", &a.child.id().to_string()])
+        .status()
+        .expect("kill")
+        .success();
+    assert!(ok);
+    let t0 = Instant::now();
+    let mut v = Value::Null;
+    while t0.elapsed() < Duration::from_secs(10) {
+        v = c.get(&b, &format!("/v1/plans/{id}")).await.1;
+        if v["replica"] == "b" && v["state"] == "running" {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(v["replica"], "b", "{v}");
+    assert_eq!(v["state"], "running", "{v}");
+    assert_eq!(v["attempt"], 2, "{v}");
+    assert_eq!(v["max_attempts"], 2, "{v}");
+    let status = a.child.wait().expect("a exits");
+    assert!(status.success(), "{status:?}");
+    eprintln!("handed over in {:.2} s", t0.elapsed().as_secs_f64());
+    let (_, v) = c.delete(&b, &format!("/v1/plans/{id}")).await;
+    assert_eq!(v["state"], "cancelled", "{v}");
+    drop(b);
     let _ = std::fs::remove_dir_all(dir);
 }

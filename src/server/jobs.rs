@@ -455,6 +455,19 @@ impl Jobs {
         let secs = job
             .started_ms
             .map(|s| outcome.finished_ms.saturating_sub(s) as f64 / 1e3);
+        // Stopped by this replica's shutdown: the job goes back to the queue (another replica,
+        // or this one after its restart, runs it again), unless its cancel was asked for.
+        if outcome.state == JobState::Interrupted && local.interrupt.load(Ordering::SeqCst) {
+            match self.rt.block_on(self.store.release(&local.fence)) {
+                Ok(true) => {
+                    tracing::info!(job = %id, "job given back to the queue at shutdown");
+                    lock(&self.local).remove(&id);
+                    return;
+                }
+                Ok(false) => {}
+                Err(e) => tracing::warn!(job = %id, error = %e, "cannot give the job back"),
+            }
+        }
         self.finish_fenced(&local, &outcome, secs);
         lock(&self.local).remove(&id);
     }
@@ -735,9 +748,10 @@ impl Jobs {
         }
     }
 
-    /// Stops taking jobs; jobs running here get `grace` to finish and are then stopped
-    /// (`interrupted`). Queued jobs stay queued in the store (another replica, or this one at
-    /// its next start, runs them). Joins the planner threads.
+    /// Stops taking jobs; jobs running here get `grace` to finish and are then stopped and given
+    /// back to the queue (another replica, or this one at its next start, runs them again; the
+    /// attempt given back does not count against `max_attempts`). Queued jobs stay queued.
+    /// Joins the planner threads.
     pub async fn shutdown(self: &Arc<Self>, grace: Duration) {
         self.closed.store(true, Ordering::SeqCst);
         self.wake_workers(true);

@@ -210,6 +210,8 @@ pub async fn contract(store: Arc<dyn JobStore>) {
     lap("reap to final");
     finish_once(s).await;
     lap("finish once");
+    release_at_shutdown(s).await;
+    lap("release");
     cancel_cases(s).await;
     lap("cancel");
     events_and_notices(s).await;
@@ -613,6 +615,48 @@ async fn reap_to_final(s: &dyn JobStore) {
         Some(CancelResult::CancelledQueued)
     );
     assert_idle(s, "reap").await;
+}
+
+/// A replica shutting down gives its running job back: queued again with one more attempt
+/// allowed, a new claim gets a new attempt number (the old fence stays dead); never a cancelled
+/// one, never with a stale fence.
+async fn release_at_shutdown(s: &dyn JobStore) {
+    enqueue(s, new_job("rel1", "reach", now_ms(), 0, 1)).await;
+    let c1 = claim(s, "leaving", LONG).await;
+    assert_eq!(c1.job.id, "rel1");
+    assert!(s.release(&c1.fence).await.expect("release"));
+    let j = get(s, "rel1").await;
+    assert_eq!(j.job.state, JobState::Queued);
+    assert_eq!(j.meta.owner, None);
+    assert_eq!(j.meta.max_attempts, 2);
+    assert!(!s.release(&c1.fence).await.expect("release twice"));
+    let c2 = claim(s, "staying", LONG).await;
+    assert_eq!(c2.job.id, "rel1");
+    assert_eq!(c2.fence.attempt, 2);
+    assert!(!s
+        .progress(&c1.fence, &serde_json::json!({"old": true}))
+        .await
+        .expect("progress"));
+    // A job asked to cancel is not given back.
+    assert!(matches!(
+        s.cancel("rel1", now_ms()).await.expect("cancel"),
+        Some(CancelResult::Requested { .. })
+    ));
+    assert!(!s.release(&c2.fence).await.expect("release"));
+    assert!(s
+        .finish(
+            "rel1",
+            Some(&c2.fence),
+            &outcome(JobState::Cancelled, now_ms())
+        )
+        .await
+        .expect("finish"));
+    let names = event_names(s, "rel1").await;
+    assert_eq!(
+        names,
+        ["state", "state", "state", "state", "end"],
+        "{names:?}"
+    );
 }
 
 async fn finish_once(s: &dyn JobStore) {

@@ -728,6 +728,35 @@ impl JobStore for EmbeddedStore {
         .await
     }
 
+    async fn release(&self, fence: &Fence) -> StoreResult<bool> {
+        let fence = fence.clone();
+        self.blocking(move |db| {
+            let ok = db.write(true, |t| {
+                let Some(mut h) = t.head(&fence.id)? else {
+                    return Ok(false);
+                };
+                if !fence_holds(&h, &fence) || h.meta.cancel_requested {
+                    return Ok(false);
+                }
+                t.running.remove(fence.id.as_str()).map_err(err)?;
+                h.job.state = JobState::Queued;
+                h.meta.owner = None;
+                h.meta.lease_until_ms = None;
+                h.meta.max_attempts += 1;
+                t.queue.insert(Tables::queue_key(&h), ()).map_err(err)?;
+                t.state_event(&mut h)?;
+                t.put_head(&h)?;
+                Ok(true)
+            })?;
+            if ok {
+                db.notify(Notice::Queued);
+                db.notify(Notice::Job { id: fence.id });
+            }
+            Ok(ok)
+        })
+        .await
+    }
+
     async fn reap(&self, now: u64, all: bool) -> StoreResult<Reaped> {
         self.blocking(move |db| {
             let r = db.write(true, |t| {

@@ -307,6 +307,12 @@ pub trait JobStore: Send + Sync + 'static {
     /// The job's events with `seq > after`, oldest first, at most `limit`.
     async fn events_after(&self, id: &str, after: u64, limit: usize) -> StoreResult<Vec<EventRec>>;
 
+    /// Gives a running job back to the queue (its replica is shutting down): state `queued`,
+    /// no owner, a `state` event, and one more attempt allowed (the one given back does not count
+    /// against `max_attempts`; attempt numbers only grow, so fences stay unique). Only while the
+    /// fence holds and no cancel was asked for (`false`: nothing written).
+    async fn release(&self, fence: &Fence) -> StoreResult<bool>;
+
     /// Running jobs whose lease ran out before `now_ms` (every running job with `all`, for an
     /// embedded store opened after a crash): queued again while attempts remain, else
     /// `interrupted`.

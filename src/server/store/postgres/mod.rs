@@ -49,8 +49,16 @@ use super::{
 use crate::server::api::{Job, JobState, JobSummary};
 use manyhands_api::ErrorDetail;
 
+mod listen;
+mod migrate;
+mod rows;
+
+use listen::*;
+use migrate::*;
+use rows::*;
+
 /// The schema, in order; each runs once per database.
-const MIGRATIONS: &[(i32, &str)] = &[(1, include_str!("../../../migrations/0001_jobs.sql"))];
+const MIGRATIONS: &[(i32, &str)] = &[(1, include_str!("../../../../migrations/0001_jobs.sql"))];
 
 /// The LISTEN/NOTIFY channel.
 const CHANNEL: &str = "manyhands";
@@ -160,332 +168,6 @@ fn pg_config(url: &str, opts: &PgOptions) -> StoreResult<tokio_postgres::Config>
     cfg.keepalives_idle(Duration::from_secs(30));
     Ok(cfg)
 }
-
-// ---------------------------------------------------------------------------------------------
-// Errors and conversions
-
-/// Connection trouble (lost, refused, the server shutting down or not accepting connections
-/// yet) is `Unavailable`; SQL errors and undecodable values are `Other`.
-fn pg_err(e: tokio_postgres::Error) -> StoreError {
-    let source = std::error::Error::source(&e);
-    // The driver's own text names the step ("error serializing parameter 0"); its source
-    // says what went wrong.
-    let text = match source {
-        Some(s) if e.as_db_error().is_none() => format!("{e}: {s}"),
-        _ => e.to_string(),
-    };
-    if let Some(db) = e.as_db_error() {
-        let code = db.code().code();
-        // 08: connection exception; 57P: operator intervention (shutdown, crash, starting up);
-        // 53300: too many connections.
-        return if code.starts_with("08") || code.starts_with("57P") || code == "53300" {
-            StoreError::Unavailable(text)
-        } else {
-            StoreError::Other(text)
-        };
-    }
-    let io = source.is_some_and(|s| s.is::<std::io::Error>());
-    if e.is_closed() || io {
-        StoreError::Unavailable(text)
-    } else {
-        StoreError::Other(text)
-    }
-}
-
-fn pool_err(e: PoolError) -> StoreError {
-    match e {
-        PoolError::Backend(e) => pg_err(e),
-        PoolError::NoRuntimeSpecified => StoreError::other(e),
-        e => StoreError::unavailable(e),
-    }
-}
-
-fn now_ms() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map(|d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX))
-        .unwrap_or(0)
-}
-
-/// Unsigned values are stored in signed columns (saturating: a time past year 292 million
-/// reads back as the largest one).
-fn to_i64(v: u64) -> i64 {
-    i64::try_from(v).unwrap_or(i64::MAX)
-}
-
-fn to_u64(v: i64) -> u64 {
-    u64::try_from(v).unwrap_or(0)
-}
-
-fn to_i32(v: u32) -> i32 {
-    i32::try_from(v).unwrap_or(i32::MAX)
-}
-
-fn to_u32(v: i32) -> u32 {
-    u32::try_from(v).unwrap_or(0)
-}
-
-fn parse_state(s: &str) -> StoreResult<JobState> {
-    JobState::ALL
-        .into_iter()
-        .find(|st| st.name() == s)
-        .ok_or_else(|| StoreError::Other(format!("unknown job state {s:?}")))
-}
-
-fn error_json(code: &str, message: &str) -> StoreResult<String> {
-    serde_json::to_string(&ErrorDetail {
-        code: code.into(),
-        message: message.into(),
-        field: None,
-    })
-    .map_err(StoreError::other)
-}
-
-fn cutoff(policy: &RetentionPolicy, now_ms: u64) -> u64 {
-    let keep = u64::try_from(policy.retention.as_millis()).unwrap_or(u64::MAX);
-    now_ms.saturating_sub(keep)
-}
-
-// ---------------------------------------------------------------------------------------------
-// Rows
-
-/// The columns a job's record is read from (everything but the result).
-macro_rules! job_cols {
-    () => {
-        "id, kind, state, priority, created_ms, started_ms, finished_ms, time_limit, request, \
-         progress, error, warnings, max_attempts, attempt, owner, \
-         (extract(epoch FROM lease_until) * 1000)::bigint AS lease_ms, cancel_requested, last_seq"
-    };
-}
-
-fn col<'a, T: tokio_postgres::types::FromSql<'a>>(row: &'a Row, name: &str) -> StoreResult<T> {
-    row.try_get(name)
-        .map_err(|e| StoreError::Other(format!("column {name}: {e}")))
-}
-
-fn json_col<T: serde::de::DeserializeOwned>(row: &Row, name: &str) -> StoreResult<Option<T>> {
-    col::<Option<&str>>(row, name)?
-        .map(|s| serde_json::from_str(s).map_err(|e| StoreError::Other(format!("{name}: {e}"))))
-        .transpose()
-}
-
-/// A row of [`job_cols!`] as the job's record (without result) and its bookkeeping.
-fn job_of_row(row: &Row) -> StoreResult<(Job, JobMeta)> {
-    let owner: Option<String> = col(row, "owner")?;
-    let meta = JobMeta {
-        priority: col(row, "priority")?,
-        max_attempts: to_u32(col(row, "max_attempts")?),
-        attempt: to_u32(col(row, "attempt")?),
-        owner: owner.clone(),
-        lease_until_ms: col::<Option<i64>>(row, "lease_ms")?.map(to_u64),
-        cancel_requested: col(row, "cancel_requested")?,
-        last_seq: to_u64(col(row, "last_seq")?),
-    };
-    let job = Job {
-        id: col(row, "id")?,
-        kind: col(row, "kind")?,
-        state: parse_state(col(row, "state")?)?,
-        created_ms: to_u64(col(row, "created_ms")?),
-        started_ms: col::<Option<i64>>(row, "started_ms")?.map(to_u64),
-        finished_ms: col::<Option<i64>>(row, "finished_ms")?.map(to_u64),
-        time_limit: col(row, "time_limit")?,
-        request: json_col(row, "request")?.unwrap_or(Value::Null),
-        progress: json_col(row, "progress")?,
-        result: None,
-        error: json_col(row, "error")?,
-        warnings: json_col(row, "warnings")?.unwrap_or_default(),
-        attempt: Some(meta.attempt),
-        max_attempts: Some(meta.max_attempts),
-        priority: Some(meta.priority),
-        replica: owner,
-    };
-    Ok((job, meta))
-}
-
-// ---------------------------------------------------------------------------------------------
-// Writes inside a transaction
-
-async fn append_event(
-    tx: &Transaction<'_>,
-    id: &str,
-    seq: i64,
-    name: &str,
-    data: &str,
-) -> StoreResult<()> {
-    let st = tx
-        .prepare_cached("INSERT INTO events (job_id, seq, name, data) VALUES ($1, $2, $3, $4)")
-        .await
-        .map_err(pg_err)?;
-    tx.execute(&st, &[&id, &seq, &name, &data])
-        .await
-        .map_err(pg_err)?;
-    Ok(())
-}
-
-/// A `state` event carrying the job's record as it is now.
-async fn state_event(tx: &Transaction<'_>, job: &Job, meta: &JobMeta) -> StoreResult<()> {
-    let data = serde_json::to_string(job).map_err(StoreError::other)?;
-    append_event(tx, &job.id, to_i64(meta.last_seq), "state", &data).await
-}
-
-/// Sends the notices at commit.
-async fn notify(tx: &Transaction<'_>, notices: &[Notice]) -> StoreResult<()> {
-    let payloads = notices
-        .iter()
-        .map(serde_json::to_string)
-        .collect::<Result<Vec<String>, _>>()
-        .map_err(StoreError::other)?;
-    let st = tx
-        .prepare_cached("SELECT pg_notify($1, n) FROM unnest($2::text[]) AS n")
-        .await
-        .map_err(pg_err)?;
-    tx.execute(&st, &[&CHANNEL, &payloads])
-        .await
-        .map_err(pg_err)?;
-    Ok(())
-}
-
-fn job_notice(id: &str) -> Notice {
-    Notice::Job { id: id.to_string() }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Migrations
-
-async fn migrate(pool: &Pool) -> StoreResult<()> {
-    let mut client = pool.get().await.map_err(pool_err)?;
-    let tx = client.transaction().await.map_err(pg_err)?;
-    // Replicas starting together wait here for the first one's migrations.
-    tx.batch_execute(&format!("SELECT pg_advisory_xact_lock({MIGRATION_LOCK})"))
-        .await
-        .map_err(pg_err)?;
-    tx.batch_execute(
-        "CREATE TABLE IF NOT EXISTS manyhands_migrations \
-         (version int PRIMARY KEY, applied_ms bigint NOT NULL)",
-    )
-    .await
-    .map_err(pg_err)?;
-    let done: Vec<i32> = tx
-        .query("SELECT version FROM manyhands_migrations", &[])
-        .await
-        .map_err(pg_err)?
-        .iter()
-        .map(|r| col(r, "version"))
-        .collect::<StoreResult<_>>()?;
-    for (version, sql) in MIGRATIONS {
-        if done.contains(version) {
-            continue;
-        }
-        tx.batch_execute(sql)
-            .await
-            .map_err(|e| StoreError::Other(format!("migration {version}: {e}")))?;
-        tx.execute(
-            "INSERT INTO manyhands_migrations (version, applied_ms) VALUES ($1, $2)",
-            &[version, &to_i64(now_ms())],
-        )
-        .await
-        .map_err(pg_err)?;
-    }
-    tx.commit().await.map_err(pg_err)
-}
-
-// ---------------------------------------------------------------------------------------------
-// LISTEN
-
-type Messages =
-    Pin<Box<dyn Stream<Item = Result<AsyncMessage, tokio_postgres::Error>> + Send + 'static>>;
-
-/// The listening connection: its client (kept: dropping it closes the connection) and the
-/// connection's messages (polling them drives the connection).
-struct Listener {
-    _client: tokio_postgres::Client,
-    messages: Messages,
-    /// Notifications that came while `LISTEN` was being sent.
-    early: Vec<tokio_postgres::Notification>,
-}
-
-async fn listen(cfg: &tokio_postgres::Config) -> Result<Listener, String> {
-    let (client, mut conn) = cfg.connect(NoTls).await.map_err(|e| e.to_string())?;
-    let mut messages: Messages = Box::pin(futures_util::stream::poll_fn(move |cx| {
-        conn.poll_message(cx)
-    }));
-    let mut early = Vec::new();
-    {
-        let sql = format!("LISTEN {CHANNEL}");
-        let listen = client.batch_execute(&sql);
-        tokio::pin!(listen);
-        loop {
-            tokio::select! {
-                r = &mut listen => {
-                    r.map_err(|e| e.to_string())?;
-                    break;
-                }
-                m = messages.next() => match m {
-                    Some(Ok(AsyncMessage::Notification(n))) => early.push(n),
-                    Some(Ok(_)) => {}
-                    Some(Err(e)) => return Err(e.to_string()),
-                    None => return Err("connection closed".into()),
-                },
-            }
-        }
-    }
-    Ok(Listener {
-        _client: client,
-        messages,
-        early,
-    })
-}
-
-fn forward(tx: &broadcast::Sender<Notice>, n: &tokio_postgres::Notification) {
-    match serde_json::from_str::<Notice>(n.payload()) {
-        // No subscriber is not an error.
-        Ok(notice) => drop(tx.send(notice)),
-        Err(e) => tracing::warn!(payload = n.payload(), error = %e, "undecodable job store notice"),
-    }
-}
-
-/// Forwards notices until the store is dropped (which aborts this task), reconnecting whenever
-/// the connection is lost.
-async fn run_listener(
-    cfg: tokio_postgres::Config,
-    tx: broadcast::Sender<Notice>,
-    mut listener: Listener,
-) {
-    loop {
-        for n in std::mem::take(&mut listener.early) {
-            forward(&tx, &n);
-        }
-        loop {
-            match listener.messages.next().await {
-                Some(Ok(AsyncMessage::Notification(n))) => forward(&tx, &n),
-                Some(Ok(_)) => {}
-                Some(Err(e)) => {
-                    tracing::warn!(error = %e, "job store: notice connection lost");
-                    break;
-                }
-                None => {
-                    tracing::warn!("job store: notice connection closed");
-                    break;
-                }
-            }
-        }
-        drop(listener);
-        let mut delay = Duration::from_millis(100);
-        listener = loop {
-            tokio::time::sleep(delay).await;
-            match listen(&cfg).await {
-                Ok(l) => break l,
-                Err(e) => {
-                    tracing::debug!(error = %e, "job store: notice connection not back yet");
-                    delay = (delay * 2).min(Duration::from_secs(1));
-                }
-            }
-        };
-        tracing::info!("job store: notice connection back");
-        drop(tx.send(Notice::Resync));
-    }
-}
-
 // ---------------------------------------------------------------------------------------------
 // The trait
 
@@ -913,6 +595,34 @@ impl JobStore for PgStore {
                 })
             })
             .collect()
+    }
+
+    async fn release(&self, fence: &Fence) -> StoreResult<bool> {
+        let mut client = self.client().await?;
+        let tx = client.transaction().await.map_err(pg_err)?;
+        let st = tx
+            .prepare_cached(concat!(
+                "UPDATE jobs SET state = 'queued', owner = NULL, lease_until = NULL, \
+                 max_attempts = max_attempts + 1, last_seq = last_seq + 1 \
+                 WHERE id = $1 AND state = 'running' AND owner = $2 AND attempt = $3 \
+                 AND NOT cancel_requested RETURNING ",
+                job_cols!()
+            ))
+            .await
+            .map_err(pg_err)?;
+        let row = tx
+            .query_opt(&st, &[&fence.id, &fence.owner, &to_i32(fence.attempt)])
+            .await
+            .map_err(pg_err)?;
+        let Some(row) = row else {
+            tx.rollback().await.map_err(pg_err)?;
+            return Ok(false);
+        };
+        let (job, meta) = job_of_row(&row)?;
+        state_event(&tx, &job, &meta).await?;
+        notify(&tx, &[Notice::Queued, job_notice(&fence.id)]).await?;
+        tx.commit().await.map_err(pg_err)?;
+        Ok(true)
     }
 
     async fn reap(&self, now_ms: u64, all: bool) -> StoreResult<Reaped> {
