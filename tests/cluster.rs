@@ -50,6 +50,40 @@ fn replica(url: &str, name: &str, lease: &str, dir: &std::path::Path) -> Proc {
     )
 }
 
+/// Two replicas `a` and `b` on a fresh PostgreSQL, with a lease of `lease` seconds, and a
+/// client. `None` (after a SKIPPED line) without PostgreSQL. Dropped: the replicas stop, then
+/// the database, and the folder goes.
+struct Cell {
+    a: Proc,
+    b: Proc,
+    c: Client,
+    pgc: pg::PgCluster,
+    dir: PathBuf,
+}
+
+impl Cell {
+    fn start(test: &str, lease: &str) -> Option<Cell> {
+        let pgc = pg::PgCluster::start(test)?;
+        let dir = temp_dir(test);
+        let url = pgc.url();
+        Some(Cell {
+            a: replica(&url, "a", lease, &dir),
+            b: replica(&url, "b", lease, &dir),
+            c: Client::new(),
+            pgc,
+            dir,
+        })
+    }
+}
+
+impl Drop for Cell {
+    fn drop(&mut self) {
+        let _ = self.a.child.kill();
+        let _ = self.b.child.kill();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
 struct Client {
     http: reqwest::Client,
 }
@@ -190,24 +224,20 @@ fn final_state(s: &str) -> bool {
 /// what was acknowledged (final answers read before the kill) is what the survivor serves.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_replicas_share_one_queue_and_survive_a_kill() {
-    let Some(pgc) = pg::PgCluster::start("two_replicas_share_one_queue_and_survive_a_kill") else {
+    let Some(mut cell) = Cell::start("two_replicas_share_one_queue_and_survive_a_kill", "2") else {
         return;
     };
-    let dir = temp_dir("kill");
-    let url = pgc.url();
-    let mut a = replica(&url, "a", "2", &dir);
-    let b = replica(&url, "b", "2", &dir);
-    let c = Client::new();
+    let Cell { a, b, c, .. } = &mut cell;
 
     // An upload through one replica is usable through the other.
-    let (s, scene) = c.get(&a, "/v1/scenes/kitchen").await;
+    let (s, scene) = c.get(a, "/v1/scenes/kitchen").await;
     assert_eq!(s, StatusCode::OK);
     let mut up = scene.clone();
     up["name"] = json!("kitchen_copy");
     let (s, v) = c
         .call(
             reqwest::Method::PUT,
-            &a,
+            a,
             "/v1/scenes/kitchen_copy",
             Some(&up),
         )
@@ -215,7 +245,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     assert_eq!(s, StatusCode::CREATED, "{v}");
     let (s, v) = c
         .post(
-            &b,
+            b,
             "/v1/plans?wait=30",
             &json!({"kind": "collision_sweep", "scene": "kitchen_copy",
             "samples": 100, "time_limit": 5}),
@@ -223,7 +253,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
         .await;
     assert_eq!(s, StatusCode::OK, "{v}");
     assert_eq!(v["state"], "succeeded", "{v}");
-    let (s, _) = c.get(&b, "/v1/scenes/kitchen_copy").await;
+    let (s, _) = c.get(b, "/v1/scenes/kitchen_copy").await;
     assert_eq!(s, StatusCode::OK);
 
     const JOBS: usize = 500;
@@ -250,7 +280,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
                 let attempts = if k % 2 == 0 { 2 } else { 1 };
                 let (s, v) = c
                     .post(
-                        &a,
+                        a,
                         "/v1/plans",
                         &sweep(1_000_000_000, k as u64, 2.0, attempts),
                     )
@@ -264,7 +294,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
             loop {
                 on_a.clear();
                 for (id, attempts) in &long {
-                    let (_, v) = c.get(&b, &format!("/v1/plans/{id}")).await;
+                    let (_, v) = c.get(b, &format!("/v1/plans/{id}")).await;
                     if v["state"] == "running" && v["replica"] == "a" {
                         on_a.push((id.clone(), *attempts));
                     }
@@ -277,7 +307,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
             }
             // What the clients were told before the kill: the final answers read through A.
             for (id, _) in accepted.iter().take(60) {
-                let (s, v) = c.get(&a, &format!("/v1/plans/{id}")).await;
+                let (s, v) = c.get(a, &format!("/v1/plans/{id}")).await;
                 assert_eq!(s, StatusCode::OK);
                 if final_state(v["state"].as_str().unwrap_or("")) {
                     acknowledged.insert(id.clone(), v);
@@ -301,7 +331,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
             if finals.contains_key(id) {
                 continue;
             }
-            let (s, v) = c.get(&b, &format!("/v1/plans/{id}")).await;
+            let (s, v) = c.get(b, &format!("/v1/plans/{id}")).await;
             assert_eq!(s, StatusCode::OK, "{id}: {v}");
             if final_state(v["state"].as_str().unwrap_or("")) {
                 finals.insert(id.clone(), v);
@@ -345,7 +375,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     }
     // Each job's record of events: one `end`, last; at most max_attempts starts; read through B.
     for (id, attempts) in accepted.iter().step_by(25) {
-        let ev = c.events(&b, id, Some(0)).await;
+        let ev = c.events(b, id, Some(0)).await;
         let ends = ev.iter().filter(|e| e.0 == "end").count();
         assert_eq!(ends, 1, "{id}: {ev:?}");
         assert_eq!(ev.last().map(|e| e.0.as_str()), Some("end"));
@@ -366,7 +396,7 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
             Some(c) => format!("/v1/plans?limit=97&cursor={c}"),
             None => "/v1/plans?limit=97".to_string(),
         };
-        let (s, v) = c.get(&b, &path).await;
+        let (s, v) = c.get(b, &path).await;
         assert_eq!(s, StatusCode::OK, "{v}");
         for j in v["jobs"].as_array().expect("jobs") {
             assert!(seen.insert(j["id"].as_str().expect("id").to_string()));
@@ -381,8 +411,6 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
         "two replicas, {} jobs, one killed while running {on_a:?}: {states:?}",
         accepted.len()
     );
-    drop(b);
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// A replica stopped with SIGSTOP past its lease loses its job to the other replica; once
@@ -390,17 +418,13 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
 /// job ends it within 100 ms.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
-    let Some(pgc) = pg::PgCluster::start("a_stalled_replica_is_fenced_and_cancel_reaches_across")
+    let Some(mut cell) = Cell::start("a_stalled_replica_is_fenced_and_cancel_reaches_across", "1")
     else {
         return;
     };
-    let dir = temp_dir("stall");
-    let url = pgc.url();
-    let a = replica(&url, "a", "1", &dir);
-    let b = replica(&url, "b", "1", &dir);
-    let c = Client::new();
+    let Cell { a, b, c, .. } = &mut cell;
     // A long job with a second attempt allowed, run by A.
-    let id = long_job_on(&c, &a, &b, "a", 2).await;
+    let id = long_job_on(c, a, b, "a", 2).await;
     let pid = a.child.id().to_string();
     let sig = |s: &str| {
         let ok = std::process::Command::new("kill")
@@ -415,7 +439,7 @@ async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
     let t0 = Instant::now();
     let mut v = Value::Null;
     while t0.elapsed() < Duration::from_secs(10) {
-        v = c.get(&b, &format!("/v1/plans/{id}")).await.1;
+        v = c.get(b, &format!("/v1/plans/{id}")).await.1;
         if v["replica"] == "b" && v["state"] == "running" {
             break;
         }
@@ -426,24 +450,22 @@ async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
     sig("-CONT");
     // A wakes up: its lease is lost, its writes are refused; the record stays B's.
     tokio::time::sleep(Duration::from_secs(2)).await;
-    let (_, v) = c.get(&a, &format!("/v1/plans/{id}")).await;
+    let (_, v) = c.get(a, &format!("/v1/plans/{id}")).await;
     assert_eq!(v["replica"], "b", "{v}");
     assert_eq!(v["attempt"], 2, "{v}");
     assert_eq!(v["state"], "running", "{v}");
     // Cancel through A, which does not run the job: final within 100 ms.
     let t0 = Instant::now();
-    let (s, v) = c.delete(&a, &format!("/v1/plans/{id}")).await;
+    let (s, v) = c.delete(a, &format!("/v1/plans/{id}")).await;
     let took = t0.elapsed();
     assert_eq!(s, StatusCode::OK);
     assert_eq!(v["state"], "cancelled", "{v}");
     assert!(took < Duration::from_millis(100), "cancel took {took:?}");
     // B's planner thread is freed: a short job through B runs at once.
-    let (s, v) = c
-        .post(&b, "/v1/plans?wait=20", &sweep(200, 1, 5.0, 1))
-        .await;
+    let (s, v) = c.post(b, "/v1/plans?wait=20", &sweep(200, 1, 5.0, 1)).await;
     assert_eq!(s, StatusCode::OK, "{v}");
     assert_eq!(v["state"], "succeeded", "{v}");
-    let ev = c.events(&b, &id, Some(0)).await;
+    let ev = c.events(b, &id, Some(0)).await;
     assert_eq!(ev.iter().filter(|e| e.0 == "end").count(), 1, "{ev:?}");
     let runs: Vec<&Value> = ev
         .iter()
@@ -460,22 +482,16 @@ async fn a_stalled_replica_is_fenced_and_cancel_reaches_across() {
         .iter()
         .filter(|e| e.0 == "progress")
         .all(|e| e.2["state"] == "running"));
-    drop((a, b));
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// PostgreSQL stopped for 5 s under load: both replicas report not ready meanwhile, recover
 /// without a restart, and lose no accepted job.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn replicas_ride_out_a_database_restart() {
-    let Some(pgc) = pg::PgCluster::start("replicas_ride_out_a_database_restart") else {
+    let Some(mut cell) = Cell::start("replicas_ride_out_a_database_restart", "10") else {
         return;
     };
-    let dir = temp_dir("pgrestart");
-    let url = pgc.url();
-    let a = replica(&url, "a", "10", &dir);
-    let b = replica(&url, "b", "10", &dir);
-    let c = Client::new();
+    let Cell { a, b, c, pgc, .. } = &mut cell;
     let mut accepted = Vec::new();
     for i in 0..40u64 {
         let p = if i % 2 == 0 { &a } else { &b };
@@ -499,7 +515,7 @@ async fn replicas_ride_out_a_database_restart() {
             tokio::time::sleep(Duration::from_millis(100)).await;
         }
     }
-    let (s, v) = c.post(&a, "/v1/plans", &sweep(100, 1, 5.0, 1)).await;
+    let (s, v) = c.post(a, "/v1/plans", &sweep(100, 1, 5.0, 1)).await;
     assert_eq!(s, StatusCode::SERVICE_UNAVAILABLE, "{v}");
     let rest = Duration::from_secs(5).saturating_sub(down.elapsed());
     tokio::time::sleep(rest).await;
@@ -526,7 +542,7 @@ async fn replicas_ride_out_a_database_restart() {
     let deadline = Instant::now() + Duration::from_secs(120);
     for id in &accepted {
         loop {
-            let (s, v) = c.get(&a, &format!("/v1/plans/{id}?wait=5")).await;
+            let (s, v) = c.get(a, &format!("/v1/plans/{id}?wait=5")).await;
             assert_eq!(s, StatusCode::OK, "{id} lost: {v}");
             if final_state(v["state"].as_str().unwrap_or("")) {
                 assert_eq!(v["state"], "succeeded", "{v}");
@@ -535,8 +551,6 @@ async fn replicas_ride_out_a_database_restart() {
             assert!(Instant::now() < deadline, "{id} not final: {v}");
         }
     }
-    drop((a, b));
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// The expensive caches are shared: a grasp list built by the replica that ran the first job is
@@ -544,18 +558,14 @@ async fn replicas_ride_out_a_database_restart() {
 /// reachability grids and roadmaps, which go through the same tier).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn caches_are_built_once_per_cluster() {
-    let Some(pgc) = pg::PgCluster::start("caches_are_built_once_per_cluster") else {
+    let Some(mut cell) = Cell::start("caches_are_built_once_per_cluster", "5") else {
         return;
     };
-    let dir = temp_dir("caches");
-    let url = pgc.url();
-    let a = replica(&url, "a", "5", &dir);
-    let b = replica(&url, "b", "5", &dir);
-    let c = Client::new();
+    let Cell { a, b, c, dir, .. } = &mut cell;
     let req = json!({"kind": "grasp_list", "robot": "justin", "hand": "left_hand",
         "mesh": "statuette", "params": {"positions": 27, "mu": 1.0}});
     // Whichever replica runs it builds the list once…
-    let (s, first) = c.post(&a, "/v1/plans?wait=60", &req).await;
+    let (s, first) = c.post(a, "/v1/plans?wait=60", &req).await;
     assert_eq!(s, StatusCode::OK, "{first}");
     assert_eq!(first["state"], "succeeded", "{first}");
     assert_eq!(first["result"]["built"], true, "{first}");
@@ -621,23 +631,17 @@ async fn caches_are_built_once_per_cluster() {
     for id in &long {
         let _ = c.delete(busy, &format!("/v1/plans/{id}")).await;
     }
-    drop((a, b));
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// A replica shutting down (SIGTERM, as in a rolling update) gives the job it runs back to the
 /// queue: the other replica runs it at once, and the attempt given back does not count.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replica_shutting_down_hands_its_job_over() {
-    let Some(pgc) = pg::PgCluster::start("a_replica_shutting_down_hands_its_job_over") else {
+    let Some(mut cell) = Cell::start("a_replica_shutting_down_hands_its_job_over", "5") else {
         return;
     };
-    let dir = temp_dir("handover");
-    let url = pgc.url();
-    let mut a = replica(&url, "a", "5", &dir);
-    let b = replica(&url, "b", "5", &dir);
-    let c = Client::new();
-    let id = long_job_on(&c, &a, &b, "a", 1).await;
+    let Cell { a, b, c, .. } = &mut cell;
+    let id = long_job_on(c, a, b, "a", 1).await;
     let ok = std::process::Command::new("kill")
         .args(["-TERM", &a.child.id().to_string()])
         .status()
@@ -647,7 +651,7 @@ async fn a_replica_shutting_down_hands_its_job_over() {
     let t0 = Instant::now();
     let mut v = Value::Null;
     while t0.elapsed() < Duration::from_secs(10) {
-        v = c.get(&b, &format!("/v1/plans/{id}")).await.1;
+        v = c.get(b, &format!("/v1/plans/{id}")).await.1;
         if v["replica"] == "b" && v["state"] == "running" {
             break;
         }
@@ -660,8 +664,6 @@ async fn a_replica_shutting_down_hands_its_job_over() {
     let status = a.child.wait().expect("a exits");
     assert!(status.success(), "{status:?}");
     eprintln!("handed over in {:.2} s", t0.elapsed().as_secs_f64());
-    let (_, v) = c.delete(&b, &format!("/v1/plans/{id}")).await;
+    let (_, v) = c.delete(b, &format!("/v1/plans/{id}")).await;
     assert_eq!(v["state"], "cancelled", "{v}");
-    drop(b);
-    let _ = std::fs::remove_dir_all(dir);
 }
