@@ -1,5 +1,7 @@
 //! `manyhands loadtest` against the real server: a short run with IK queries and planning jobs
-//! reports throughput, only 2xx answers, and every accepted job in a final state.
+//! reports throughput, only 2xx answers, and every accepted job in a final state with its
+//! submit-to-running and end-to-end times and the replica that ran it; with several URLs the
+//! clients are spread round-robin over them.
 
 mod common;
 use common::server::start;
@@ -11,17 +13,15 @@ use serde_json::Value;
 #[path = "../src/cli/load_http.rs"]
 mod load_http;
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn loadtest_drives_a_live_server_and_accounts_for_every_job() {
-    let h = start("loadtest").await;
-    let base = h.base.clone();
+/// Runs `manyhands --json loadtest --url URLS` for 1.5 s with 4 clients; the JSON report.
+async fn loadtest(urls: String) -> Value {
     let out = tokio::task::spawn_blocking(move || {
         std::process::Command::new(env!("CARGO_BIN_EXE_manyhands"))
             .args([
                 "--json",
                 "loadtest",
                 "--url",
-                &base,
+                &urls,
                 "--clients",
                 "4",
                 "--duration",
@@ -42,7 +42,11 @@ async fn loadtest_drives_a_live_server_and_accounts_for_every_job() {
         "loadtest failed: {stdout}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let r: Value = serde_json::from_str(&stdout).expect("JSON report");
+    serde_json::from_str(&stdout).expect("JSON report")
+}
+
+/// Every answer a 2xx, every accepted job final with its times and replica on record.
+fn check_report(r: &Value) {
     let ik = r["ik"]["count"].as_u64().expect("ik count");
     assert!(ik > 50, "only {ik} IK answers in 1.5 s");
     assert_eq!(r["errors_5xx"], 0);
@@ -50,15 +54,73 @@ async fn loadtest_drives_a_live_server_and_accounts_for_every_job() {
     assert_eq!(r["status"]["200"].as_u64(), Some(ik), "{r}");
     let accepted = r["jobs"]["accepted"].as_u64().expect("accepted");
     assert!(accepted > 0, "no job submitted: {r}");
-    let finished: u64 = r["jobs"]["final"]
-        .as_object()
-        .expect("final")
-        .values()
-        .filter_map(Value::as_u64)
-        .sum();
-    assert_eq!(finished, accepted, "{r}");
+    let sum = |v: &Value| -> u64 {
+        v.as_object()
+            .expect("map")
+            .values()
+            .filter_map(Value::as_u64)
+            .sum()
+    };
+    assert_eq!(sum(&r["jobs"]["final"]), accepted, "{r}");
     assert_eq!(r["jobs"]["lost"], 0);
     assert!(r["ik"]["p99_ms"].as_f64().expect("p99") > 0.0);
+    // Every job ran (a sweep of 2000 samples ends well within its limit) on this one replica.
+    let jobs = &r["jobs"];
+    assert_eq!(
+        jobs["submit_to_running"]["count"].as_u64(),
+        Some(accepted),
+        "{r}"
+    );
+    assert_eq!(jobs["end_to_end"]["count"].as_u64(), Some(accepted), "{r}");
+    let p99 = |k: &str| jobs[k]["p99_ms"].as_u64().expect("p99");
+    assert!(p99("submit_to_running") <= p99("end_to_end"), "{r}");
+    assert!(jobs["end_to_end"]["max_ms"].as_u64() >= Some(p99("end_to_end")));
+    let replicas = jobs["replicas"].as_object().expect("replicas");
+    assert_eq!(replicas.len(), 1, "{r}");
+    assert!(!replicas.contains_key("(none)"), "{r}");
+    assert_eq!(sum(&jobs["replicas"]), accepted, "{r}");
+    assert_eq!(jobs["attempts"]["1"].as_u64(), Some(accepted), "{r}");
+    // Per URL: the requests add up to the total.
+    let urls = r["urls"].as_array().expect("urls");
+    let requests: u64 = urls
+        .iter()
+        .map(|u| u["requests"].as_u64().expect("requests"))
+        .sum();
+    assert_eq!(Some(requests), r["requests"].as_u64(), "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn loadtest_drives_a_live_server_and_accounts_for_every_job() {
+    let h = start("loadtest").await;
+    let r = loadtest(h.base.clone()).await;
+    check_report(&r);
+    assert_eq!(r["url"].as_str(), Some(h.base.as_str()));
+    let urls = r["urls"].as_array().expect("urls");
+    assert_eq!(urls.len(), 1, "{r}");
+    assert_eq!(urls[0]["clients"], 4);
+}
+
+/// Two URLs (two names of one server: the store is its own, so any URL reads any job): two
+/// clients on each, both carrying load.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn loadtest_spreads_clients_over_several_urls() {
+    let h = start("loadtest-urls").await;
+    let port = h.base.rsplit_once(':').expect("port").1.to_string();
+    let second = format!("http://localhost:{port}");
+    let r = loadtest(format!("{}, {second}/", h.base)).await;
+    check_report(&r);
+    assert_eq!(
+        r["url"].as_str(),
+        Some(format!("{},{second}", h.base).as_str())
+    );
+    let urls = r["urls"].as_array().expect("urls");
+    assert_eq!(urls.len(), 2, "{r}");
+    for (u, want) in urls.iter().zip([&h.base, &second]) {
+        assert_eq!(u["url"].as_str(), Some(want.as_str()), "{r}");
+        assert_eq!(u["clients"], 2, "{r}");
+        assert!(u["ik"].as_u64().expect("ik") > 10, "{r}");
+        assert_eq!(u["transport_errors"], 0, "{r}");
+    }
 }
 
 #[test]
@@ -75,6 +137,63 @@ fn loadtest_refuses_non_loopback_urls() {
         .expect("run");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("loopback"));
+}
+
+// The URL list: loopback only, each URL once, clients round-robin.
+
+use load_http::{parse_targets, target_of, Target};
+
+#[test]
+fn url_lists_parse_into_loopback_targets() {
+    let t = parse_targets("http://127.0.0.1:18101, http://localhost:18102/api/ ,http://[::1]")
+        .expect("three URLs");
+    let want = |base: &str, addr: &str, prefix: &str| Target {
+        base: base.into(),
+        addr: addr.into(),
+        prefix: prefix.into(),
+    };
+    assert_eq!(
+        t,
+        vec![
+            want("http://127.0.0.1:18101", "127.0.0.1:18101", ""),
+            want("http://localhost:18102/api", "localhost:18102", "/api"),
+            want("http://[::1]", "[::1]:80", ""),
+        ]
+    );
+    assert_eq!(
+        parse_targets("http://[::1]:9/").expect("one")[0],
+        want("http://[::1]:9", "[::1]:9", "")
+    );
+    for (bad, why) in [
+        ("http://127.0.0.1:1,http://10.0.0.1:1", "loopback"),
+        ("http://127.0.0.1:1,,http://127.0.0.1:2", "empty"),
+        ("http://127.0.0.1:1,", "empty"),
+        ("https://127.0.0.1:1", "http://"),
+        ("http://127.0.0.1:1,http://127.0.0.1:1/", "twice"),
+        ("http://127.0.0.1:port", "port"),
+        ("", "empty"),
+    ] {
+        let e = parse_targets(bad).expect_err(bad);
+        assert!(e.contains(why), "{bad}: {e}");
+    }
+}
+
+#[test]
+fn clients_go_round_robin_over_the_urls() {
+    let spread = |clients: usize, n: usize| {
+        let mut per = vec![0; n];
+        for i in 0..clients {
+            per[target_of(i, n)] += 1;
+        }
+        per
+    };
+    assert_eq!(spread(16, 1), vec![16]);
+    assert_eq!(spread(16, 2), vec![8, 8]);
+    assert_eq!(spread(5, 3), vec![2, 2, 1]);
+    assert_eq!(
+        (0..4).map(|i| target_of(i, 2)).collect::<Vec<_>>(),
+        vec![0, 1, 0, 1]
+    );
 }
 
 // The client against canned answers: framing, reconnection, malformed answers.

@@ -1,5 +1,7 @@
 //! The load test's own HTTP/1.1 client: one keep-alive connection per simulated client,
-//! requests encoded once up front, answers framed by `Content-Length` or chunked encoding.
+//! requests encoded once up front, answers framed by `Content-Length` or chunked encoding; and
+//! the servers it drives (`--url`, a comma-separated list of loopback base URLs, the clients
+//! spread round-robin over them).
 //! The load generator shares the machine with the server it measures; a general-purpose client
 //! (reqwest) spent ~90 µs of CPU per request here, this one a few, so the measurement reflects
 //! the server rather than the generator.
@@ -8,6 +10,69 @@ use std::io;
 
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
+
+/// One server the load goes to, from an `http://host[:port][/prefix]` base URL.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Target {
+    /// The base URL without a trailing `/`.
+    pub base: String,
+    /// `host:port` to connect to (port 80 when the URL names none).
+    pub addr: String,
+    /// Path prefix of the API (`""` or `/something`).
+    pub prefix: String,
+}
+
+/// The servers of `--url`: a comma-separated list of `http://` base URLs on the loopback
+/// interface (blanks around the commas ignored), each named once.
+pub fn parse_targets(urls: &str) -> Result<Vec<Target>, String> {
+    let mut out: Vec<Target> = Vec::new();
+    for url in urls.split(',').map(str::trim) {
+        if url.is_empty() {
+            return Err(format!("--url: an empty entry in '{urls}'"));
+        }
+        let t = parse_target(url)?;
+        if out.iter().any(|o| o.base == t.base) {
+            return Err(format!("--url: '{}' is named twice", t.base));
+        }
+        out.push(t);
+    }
+    Ok(out)
+}
+
+fn parse_target(url: &str) -> Result<Target, String> {
+    let base = url.trim_end_matches('/').to_string();
+    let rest = base
+        .strip_prefix("http://")
+        .ok_or_else(|| format!("--url: only http:// URLs of a local server (got '{url}')"))?;
+    let (host, path) = rest.split_once('/').unwrap_or((rest, ""));
+    // `[::1]` alone has colons but no port.
+    let (name, port) = match host.rsplit_once(':') {
+        Some((h, p)) if !host.ends_with(']') => (h, Some(p)),
+        _ => (host, None),
+    };
+    if !matches!(name, "127.0.0.1" | "localhost" | "[::1]") {
+        return Err(format!(
+            "--url: the load test only drives a server on the loopback interface (got host '{name}')"
+        ));
+    }
+    let addr = match port {
+        Some(p) if p.parse::<u16>().is_ok() => host.to_string(),
+        Some(p) => return Err(format!("--url: bad port '{p}' in '{url}'")),
+        None => format!("{host}:80"),
+    };
+    let prefix = path.trim_end_matches('/');
+    let prefix = if prefix.is_empty() {
+        String::new()
+    } else {
+        format!("/{prefix}")
+    };
+    Ok(Target { base, addr, prefix })
+}
+
+/// The server of client `i` among `n`: round-robin.
+pub fn target_of(client: usize, n: usize) -> usize {
+    client % n.max(1)
+}
 
 /// Largest head (status line + headers) and body accepted from the server.
 const MAX_HEAD: usize = 64 * 1024;

@@ -1,6 +1,9 @@
-//! `manyhands loadtest`: N concurrent clients drive a running server on the loopback interface
-//! for a bounded time with a mix of IK queries and planning jobs, then print throughput,
-//! latency percentiles, answers by status and whether every accepted job reached a final state.
+//! `manyhands loadtest`: N concurrent clients drive one or more running servers (replicas
+//! sharing a job store) on the loopback interface for a bounded time with a mix of IK queries
+//! and planning jobs, then print throughput, latency percentiles, answers by status and by
+//! server, and, from every accepted job's final record, whether it reached a final state, how
+//! long it waited for a planner thread (submit to running), how long it took end to end and
+//! which replica ran it.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -14,11 +17,12 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
 use super::commands::Ctx;
-use super::load_http::{encode_post, Conn};
+use super::load_http::{encode_post, parse_targets, target_of, Conn};
 
 #[derive(Args, Debug)]
 pub struct LoadtestArgs {
-    /// Base URL of the server (loopback only).
+    /// Base URL of the server (loopback only); a comma-separated list drives several replicas,
+    /// client i going to URL i mod n (final job states are read through the first).
     #[arg(long, default_value = "http://127.0.0.1:8080")]
     pub url: String,
     /// Concurrent clients.
@@ -54,11 +58,23 @@ pub struct LoadtestArgs {
 
 #[derive(Default)]
 struct ClientStats {
+    /// Index of the client's server in `--url`.
+    target: usize,
     ik_lat_us: Vec<u32>,
     plan_lat_us: Vec<u32>,
     status: BTreeMap<u16, u64>,
     transport_errors: u64,
     accepted: Vec<String>,
+}
+
+/// What went to one server of `--url`.
+#[derive(Default, Clone)]
+struct UrlStats {
+    clients: u64,
+    status: BTreeMap<u16, u64>,
+    transport_errors: u64,
+    ik: u64,
+    plans: u64,
 }
 
 fn percentile(sorted: &[u32], p: f64) -> f64 {
@@ -82,6 +98,24 @@ fn lat_json(mut v: Vec<u32>, secs: f64) -> Value {
     })
 }
 
+/// Percentiles of whole-millisecond durations (the jobs' timestamps are Unix milliseconds).
+fn ms_json(mut v: Vec<u64>) -> Value {
+    v.sort_unstable();
+    let at = |p: f64| {
+        if v.is_empty() {
+            return 0;
+        }
+        v[(((p / 100.0) * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)]
+    };
+    json!({
+        "count": v.len(),
+        "p50_ms": at(50.0),
+        "p90_ms": at(90.0),
+        "p99_ms": at(99.0),
+        "max_ms": v.last().copied().unwrap_or(0),
+    })
+}
+
 /// One simulated client: a keep-alive connection sending pre-encoded requests until the
 /// deadline.
 async fn client(
@@ -91,8 +125,12 @@ async fn client(
     plan_fraction: f64,
     deadline: Instant,
     seed: u64,
+    target: usize,
 ) -> ClientStats {
-    let mut st = ClientStats::default();
+    let mut st = ClientStats {
+        target,
+        ..ClientStats::default()
+    };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut conn = Conn::new(&addr);
     while Instant::now() < deadline {
@@ -127,43 +165,8 @@ async fn client(
     st
 }
 
-/// `host:port` and path prefix of an `http://` base URL.
-fn split_url(base: &str) -> Result<(String, String)> {
-    let rest = base
-        .strip_prefix("http://")
-        .context("--url: only http:// URLs of a local server")?;
-    let (host, path) = rest.split_once('/').unwrap_or((rest, ""));
-    let addr = if host
-        .rsplit_once(':')
-        .is_some_and(|(_, p)| p.parse::<u16>().is_ok())
-    {
-        host.to_string()
-    } else {
-        format!("{host}:80")
-    };
-    let prefix = path.trim_end_matches('/');
-    let prefix = if prefix.is_empty() {
-        String::new()
-    } else {
-        format!("/{prefix}")
-    };
-    Ok((addr, prefix))
-}
-
-fn check_loopback(url: &str) -> Result<()> {
-    let rest = url
-        .strip_prefix("http://")
-        .context("--url: only http:// URLs of a local server")?;
-    let host = rest.split('/').next().unwrap_or("");
-    let host = host.rsplit_once(':').map(|(h, _)| h).unwrap_or(host);
-    if !matches!(host, "127.0.0.1" | "localhost" | "[::1]") {
-        bail!("--url: the load test only drives a server on the loopback interface (got host '{host}')");
-    }
-    Ok(())
-}
-
 pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
-    check_loopback(&a.url)?;
+    let targets = parse_targets(&a.url).map_err(anyhow::Error::msg)?;
     if a.clients == 0 || !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--clients must be ≥ 1 and --duration in (0, 3600] seconds");
     }
@@ -192,7 +195,6 @@ pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
     let plan_body = serde_json::to_vec(&json!({
         "kind": "collision_sweep", "scene": a.scene, "samples": 2000, "time_limit": 5.0,
     }))?;
-    let base = a.url.trim_end_matches('/').to_string();
     let threads = a.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -205,40 +207,70 @@ pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
     let report = rt.block_on(async {
         // Health and the final states go through the Rust client; the load itself through
         // pre-encoded requests on raw keep-alive connections (load_http).
-        let mut api = Client::with_timeout(&base, Duration::from_secs(70))?;
-        if let Some(t) = &a.token {
-            api = api.with_token(t.clone());
+        let mut apis = Vec::with_capacity(targets.len());
+        for t in &targets {
+            let mut api = Client::with_timeout(&t.base, Duration::from_secs(70))?;
+            if let Some(tok) = &a.token {
+                api = api.with_token(tok.clone());
+            }
+            if let Err(e) = api.health().await {
+                bail!(
+                    "no healthy server at {} (start one with `manyhands serve`): {e}",
+                    t.base
+                );
+            }
+            apis.push(api);
         }
-        if let Err(e) = api.health().await {
-            bail!("no healthy server at {base} (start one with `manyhands serve`): {e}");
-        }
-        let auth = a.token.as_ref().map(|t| Arc::new(format!("Bearer {t}")));
-        let (addr, prefix) = split_url(&base)?;
-        let host = addr.clone();
-        let encode = |path: &str, body: &[u8]| {
-            encode_post(&host, &format!("{prefix}{path}"), auth.as_deref().map(|a| a.as_str()), body)
-        };
-        let ik_requests = Arc::new(ik_bodies.iter().map(|b| encode("/v1/ik", b)).collect::<Vec<_>>());
-        let plan_request = Arc::new(encode("/v1/plans", &plan_body));
-        let addr = Arc::new(addr);
-        let base = Arc::new(base.clone());
+        let auth = a.token.as_ref().map(|t| format!("Bearer {t}"));
+        // Per server: its address and its requests (host header and path prefix are its own).
+        type Encoded = (Arc<String>, Arc<Vec<Vec<u8>>>, Arc<Vec<u8>>);
+        let encoded: Vec<Encoded> = targets
+            .iter()
+            .map(|t| {
+                let encode = |path: &str, body: &[u8]| {
+                    encode_post(
+                        &t.addr,
+                        &format!("{}{path}", t.prefix),
+                        auth.as_deref(),
+                        body,
+                    )
+                };
+                (
+                    Arc::new(t.addr.clone()),
+                    Arc::new(ik_bodies.iter().map(|b| encode("/v1/ik", b)).collect()),
+                    Arc::new(encode("/v1/plans", &plan_body)),
+                )
+            })
+            .collect();
         let started = Instant::now();
         let deadline = started + Duration::from_secs_f64(a.duration);
         let tasks: Vec<_> = (0..a.clients)
             .map(|i| {
+                let k = target_of(i, encoded.len());
+                let (addr, ik, plan) = &encoded[k];
                 tokio::spawn(client(
                     addr.clone(),
-                    ik_requests.clone(),
-                    plan_request.clone(),
+                    ik.clone(),
+                    plan.clone(),
                     a.plan_fraction.clamp(0.0, 1.0),
                     deadline,
                     i as u64 + 1,
+                    k,
                 ))
             })
             .collect();
         let mut all = ClientStats::default();
+        let mut per_url = vec![UrlStats::default(); targets.len()];
         for t in tasks {
             let s = t.await?;
+            let u = &mut per_url[s.target];
+            u.clients += 1;
+            for (k, v) in &s.status {
+                *u.status.entry(*k).or_insert(0) += v;
+            }
+            u.transport_errors += s.transport_errors;
+            u.ik += s.ik_lat_us.len() as u64;
+            u.plans += s.plan_lat_us.len() as u64;
             all.ik_lat_us.extend(s.ik_lat_us);
             all.plan_lat_us.extend(s.plan_lat_us);
             for (k, v) in s.status {
@@ -248,45 +280,125 @@ pub fn run(ctx: &Ctx, a: &LoadtestArgs) -> Result<()> {
             all.accepted.extend(s.accepted);
         }
         let secs = started.elapsed().as_secs_f64();
-        // Every accepted job must reach a final state.
+        // Every accepted job must reach a final state; its final record (read through the
+        // first server: any replica answers for any job) says when it was claimed and ended,
+        // and by which replica.
+        let api = &apis[0];
         let mut final_states: BTreeMap<String, u64> = BTreeMap::new();
+        let mut replicas: BTreeMap<String, u64> = BTreeMap::new();
+        let mut attempts: BTreeMap<String, u64> = BTreeMap::new();
+        let (mut to_running, mut end_to_end) = (Vec::new(), Vec::new());
         let mut lost = 0u64;
         for id in &all.accepted {
             match api.job_wait(id, 60.0).await {
-                Ok(job) if job.state.is_final() => *final_states.entry(job.state.name().to_string()).or_insert(0) += 1,
+                Ok(job) if job.state.is_final() => {
+                    *final_states
+                        .entry(job.state.name().to_string())
+                        .or_insert(0) += 1;
+                    let replica = job.replica.clone().unwrap_or_else(|| "(none)".into());
+                    *replicas.entry(replica).or_insert(0) += 1;
+                    *attempts
+                        .entry(job.attempt.unwrap_or(0).to_string())
+                        .or_insert(0) += 1;
+                    if let Some(s) = job.started_ms {
+                        to_running.push(s.saturating_sub(job.created_ms));
+                    }
+                    if let Some(f) = job.finished_ms {
+                        end_to_end.push(f.saturating_sub(job.created_ms));
+                    }
+                }
                 _ => lost += 1,
             }
         }
+        let count_map = |m: &BTreeMap<u16, u64>| {
+            m.iter()
+                .map(|(k, v)| (k.to_string(), json!(v)))
+                .collect::<serde_json::Map<_, _>>()
+        };
+        let urls: Vec<Value> = targets
+            .iter()
+            .zip(&per_url)
+            .map(|(t, u)| {
+                let requests: u64 = u.status.values().sum();
+                json!({
+                    "url": t.base, "clients": u.clients, "requests": requests,
+                    "requests_per_second": requests as f64 / secs,
+                    "ik": u.ik, "plan_submit": u.plans,
+                    "status": count_map(&u.status), "transport_errors": u.transport_errors,
+                })
+            })
+            .collect();
         let total: u64 = all.status.values().sum();
-        let errors_5xx: u64 = all.status.iter().filter(|(k, _)| **k >= 500).map(|(_, v)| v).sum();
+        let errors_5xx: u64 = all
+            .status
+            .iter()
+            .filter(|(k, _)| **k >= 500)
+            .map(|(_, v)| v)
+            .sum();
+        let url = targets
+            .iter()
+            .map(|t| t.base.as_str())
+            .collect::<Vec<_>>()
+            .join(",");
         Ok::<Value, anyhow::Error>(json!({
-            "url": *base, "clients": a.clients, "seconds": secs,
+            "url": url, "clients": a.clients, "seconds": secs,
             "requests": total, "requests_per_second": total as f64 / secs,
             "ik": lat_json(all.ik_lat_us, secs),
             "plan_submit": lat_json(all.plan_lat_us, secs),
-            "status": all.status.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
+            "status": count_map(&all.status),
             "errors_5xx": errors_5xx,
             "transport_errors": all.transport_errors,
-            "jobs": {"accepted": all.accepted.len(), "final": final_states, "lost": lost},
+            "urls": urls,
+            "jobs": {
+                "accepted": all.accepted.len(), "final": final_states, "lost": lost,
+                "per_second": all.accepted.len() as f64 / secs,
+                "submit_to_running": ms_json(to_running),
+                "end_to_end": ms_json(end_to_end),
+                "replicas": replicas, "attempts": attempts,
+            },
         }))
     })?;
     ctx.print(&report, || {
         let ik = &report["ik"];
         let pl = &report["plan_submit"];
-        format!(
+        let jobs = &report["jobs"];
+        let f = |v: &Value| v.as_f64().unwrap_or(0.0);
+        let ms = |v: &Value| {
+            format!(
+                "{} jobs  p50 {} ms  p90 {} ms  p99 {} ms  max {} ms",
+                v["count"], v["p50_ms"], v["p90_ms"], v["p99_ms"], v["max_ms"]
+            )
+        };
+        let mut out = format!(
             "{} clients, {:.1} s against {}\n\
              requests: {} ({:.0}/s), 5xx: {}, transport errors: {}, by status: {}\n\
              IK:   {} ({:.0}/s)  p50 {:.3} ms  p90 {:.3} ms  p99 {:.3} ms  p99.9 {:.3} ms  max {:.3} ms\n\
-             plan: {} submitted  p50 {:.3} ms  p99 {:.3} ms; jobs accepted {}, final {}, lost {}",
-            report["clients"], report["seconds"].as_f64().unwrap_or(0.0), report["url"].as_str().unwrap_or(""),
-            report["requests"], report["requests_per_second"].as_f64().unwrap_or(0.0), report["errors_5xx"],
+             plan: {} submitted  p50 {:.3} ms  p99 {:.3} ms; jobs accepted {} ({:.2}/s), final {}, lost {}\n\
+             jobs, submit to running: {}\n\
+             jobs, end to end:        {}\n\
+             jobs by replica: {}, by attempt: {}",
+            report["clients"], f(&report["seconds"]), report["url"].as_str().unwrap_or(""),
+            report["requests"], f(&report["requests_per_second"]), report["errors_5xx"],
             report["transport_errors"], report["status"],
-            ik["count"], ik["per_second"].as_f64().unwrap_or(0.0), ik["p50_ms"].as_f64().unwrap_or(0.0),
-            ik["p90_ms"].as_f64().unwrap_or(0.0), ik["p99_ms"].as_f64().unwrap_or(0.0),
-            ik["p99_9_ms"].as_f64().unwrap_or(0.0), ik["max_ms"].as_f64().unwrap_or(0.0),
-            pl["count"], pl["p50_ms"].as_f64().unwrap_or(0.0), pl["p99_ms"].as_f64().unwrap_or(0.0),
-            report["jobs"]["accepted"], report["jobs"]["final"], report["jobs"]["lost"],
-        )
+            ik["count"], f(&ik["per_second"]), f(&ik["p50_ms"]),
+            f(&ik["p90_ms"]), f(&ik["p99_ms"]),
+            f(&ik["p99_9_ms"]), f(&ik["max_ms"]),
+            pl["count"], f(&pl["p50_ms"]), f(&pl["p99_ms"]),
+            jobs["accepted"], f(&jobs["per_second"]), jobs["final"], jobs["lost"],
+            ms(&jobs["submit_to_running"]), ms(&jobs["end_to_end"]),
+            jobs["replicas"], jobs["attempts"],
+        );
+        if let Some(urls) = report["urls"].as_array().filter(|u| u.len() > 1) {
+            for u in urls {
+                out.push_str(&format!(
+                    "\n  {}: {} clients, {} requests ({:.0}/s; IK {}, plans {}), by status {}, transport errors {}",
+                    u["url"].as_str().unwrap_or(""), u["clients"], u["requests"],
+                    f(&u["requests_per_second"]), u["ik"], u["plan_submit"], u["status"],
+                    u["transport_errors"],
+                ));
+            }
+        }
+        out
     });
     let lost = report["jobs"]["lost"].as_u64().unwrap_or(0);
     let e5 = report["errors_5xx"].as_u64().unwrap_or(0);
