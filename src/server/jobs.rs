@@ -382,9 +382,9 @@ impl Jobs {
                 return;
             }
             let seen = *lock(&self.wake);
-            let claimed = self
-                .rt
-                .block_on(self.store.claim(&self.cfg.replica, self.cfg.lease));
+            let (store, owner, lease) =
+                (self.store.clone(), self.cfg.replica.clone(), self.cfg.lease);
+            let claimed = self.on_runtime(async move { store.claim(&owner, lease).await });
             match claimed {
                 Ok(Some(c)) => {
                     failures = 0;
@@ -420,6 +420,20 @@ impl Jobs {
                 }
             }
         }
+    }
+
+    /// Runs a store call of a planner thread as a task of the async runtime and waits for it.
+    /// The call's work (the embedded store's blocking section, PostgreSQL's round trips) then
+    /// runs on the runtime's threads, at their priority: polled here, each step would wait for
+    /// this lower-priority thread to be scheduled, and a thread the blocking pool starts for it
+    /// would inherit this thread's nice value and keep it for every later request it serves.
+    fn on_runtime<T: Send + 'static>(
+        &self,
+        call: impl std::future::Future<Output = Result<T, StoreError>> + Send + 'static,
+    ) -> Result<T, StoreError> {
+        self.rt
+            .block_on(self.rt.spawn(call))
+            .unwrap_or_else(|e| Err(StoreError::Other(format!("store task: {e}"))))
     }
 
     fn run_one(&self, c: Claimed) {
@@ -460,7 +474,7 @@ impl Jobs {
         let secs = job
             .started_ms
             .map(|s| outcome.finished_ms.saturating_sub(s) as f64 / 1e3);
-        self.finish_fenced(&local, &outcome, secs);
+        self.finish_fenced(&local, &Arc::new(outcome), secs);
         lock(&self.local).remove(&id);
     }
 
@@ -573,7 +587,7 @@ impl Jobs {
 
     /// Writes the final state through the job's fence, retrying while the store is
     /// unreachable (the job's lease keeps it ours meanwhile); gives up when the lease is lost.
-    fn finish_fenced(&self, local: &Local, outcome: &Outcome, secs: Option<f64>) {
+    fn finish_fenced(&self, local: &Local, outcome: &Arc<Outcome>, secs: Option<f64>) {
         let id = &local.fence.id;
         let mut wait = Duration::from_millis(50);
         let mut tries = 0u32;
@@ -582,9 +596,8 @@ impl Jobs {
                 tracing::warn!(job = %id, "lease lost: the job's result is not written");
                 return;
             }
-            match self
-                .rt
-                .block_on(self.store.finish(id, Some(&local.fence), outcome))
+            let (store, fence, out) = (self.store.clone(), local.fence.clone(), outcome.clone());
+            match self.on_runtime(async move { store.finish(&fence.id, Some(&fence), &out).await })
             {
                 Ok(true) => {
                     self.metrics
