@@ -377,9 +377,9 @@ impl Jobs {
                 return;
             }
             let seen = *lock(&self.wake);
-            let claimed = self
-                .rt
-                .block_on(self.store.claim(&self.cfg.replica, self.cfg.lease));
+            let (store, owner, lease) =
+                (self.store.clone(), self.cfg.replica.clone(), self.cfg.lease);
+            let claimed = self.on_runtime(async move { store.claim(&owner, lease).await });
             match claimed {
                 Ok(Some(c)) => {
                     failures = 0;
@@ -415,6 +415,20 @@ impl Jobs {
                 }
             }
         }
+    }
+
+    /// Runs a store call of a planner thread as a task of the async runtime and waits for it.
+    /// The call's work (the embedded store's blocking section, PostgreSQL's round trips) then
+    /// runs on the runtime's threads, at their priority: polled here, each step would wait for
+    /// this lower-priority thread to be scheduled, and a thread the blocking pool starts for it
+    /// would inherit this thread's nice value and keep it for every later request it serves.
+    fn on_runtime<T: Send + 'static>(
+        &self,
+        call: impl std::future::Future<Output = Result<T, StoreError>> + Send + 'static,
+    ) -> Result<T, StoreError> {
+        self.rt
+            .block_on(self.rt.spawn(call))
+            .unwrap_or_else(|e| Err(StoreError::Other(format!("store task: {e}"))))
     }
 
     fn run_one(&self, c: Claimed) {
@@ -458,7 +472,8 @@ impl Jobs {
         // Stopped by this replica's shutdown: the job goes back to the queue (another replica,
         // or this one after its restart, runs it again), unless its cancel was asked for.
         if outcome.state == JobState::Interrupted && local.interrupt.load(Ordering::SeqCst) {
-            match self.rt.block_on(self.store.release(&local.fence)) {
+            let (store, fence) = (self.store.clone(), local.fence.clone());
+            match self.on_runtime(async move { store.release(&fence).await }) {
                 Ok(true) => {
                     tracing::info!(job = %id, "job given back to the queue at shutdown");
                     lock(&self.local).remove(&id);
@@ -468,7 +483,7 @@ impl Jobs {
                 Err(e) => tracing::warn!(job = %id, error = %e, "cannot give the job back"),
             }
         }
-        self.finish_fenced(&local, &outcome, secs);
+        self.finish_fenced(&local, &Arc::new(outcome), secs);
         lock(&self.local).remove(&id);
     }
 
@@ -581,7 +596,7 @@ impl Jobs {
 
     /// Writes the final state through the job's fence, retrying while the store is
     /// unreachable (the job's lease keeps it ours meanwhile); gives up when the lease is lost.
-    fn finish_fenced(&self, local: &Local, outcome: &Outcome, secs: Option<f64>) {
+    fn finish_fenced(&self, local: &Local, outcome: &Arc<Outcome>, secs: Option<f64>) {
         let id = &local.fence.id;
         let mut wait = Duration::from_millis(50);
         let mut tries = 0u32;
@@ -590,9 +605,8 @@ impl Jobs {
                 tracing::warn!(job = %id, "lease lost: the job's result is not written");
                 return;
             }
-            match self
-                .rt
-                .block_on(self.store.finish(id, Some(&local.fence), outcome))
+            let (store, fence, out) = (self.store.clone(), local.fence.clone(), outcome.clone());
+            match self.on_runtime(async move { store.finish(&fence.id, Some(&fence), &out).await })
             {
                 Ok(true) => {
                     self.metrics
