@@ -263,7 +263,7 @@ pub struct Resource {
 }
 
 /// The job store. Every method may block on I/O: the async runtime awaits them; planner
-/// threads call them through [`block_on`].
+/// threads run them as tasks on the runtime and wait for the answer.
 #[async_trait::async_trait]
 pub trait JobStore: Send + Sync + 'static {
     /// `embedded` or `postgres`.
@@ -362,11 +362,6 @@ pub fn release_freed_memory() {
 
 /// Results at least this large (bytes) make the threads that moved them release memory.
 pub const LARGE_RESULT: usize = 1 << 20;
-
-/// Runs a store call from a thread outside the async runtime (planner threads).
-pub fn block_on<F: std::future::Future>(rt: &tokio::runtime::Handle, f: F) -> F::Output {
-    rt.block_on(f)
-}
 
 /// The record with its result spliced back in: the JSON a `GET` answers, built without
 /// parsing the result again.
