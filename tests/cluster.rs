@@ -140,6 +140,18 @@ impl Client {
             .map(|r| r.status())
     }
 
+    /// Polls `/readyz` until it answers `want`; fails after `within`.
+    async fn wait_ready(&self, p: &Proc, want: StatusCode, within: Duration) {
+        let t0 = Instant::now();
+        while self.ready(p).await != Some(want) {
+            assert!(
+                t0.elapsed() < within,
+                "/readyz not {want} within {within:?}"
+            );
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    }
+
     /// The job's event stream (from the start) until `end`: (event name, data) pairs.
     async fn events(
         &self,
@@ -503,17 +515,8 @@ async fn replicas_ride_out_a_database_restart() {
     let down = Instant::now();
     // Both report not ready within a few seconds; a submission is refused with 503.
     for p in [&a, &b] {
-        let t0 = Instant::now();
-        loop {
-            if c.ready(p).await == Some(StatusCode::SERVICE_UNAVAILABLE) {
-                break;
-            }
-            assert!(
-                t0.elapsed() < Duration::from_secs(5),
-                "still ready with the database down"
-            );
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
+        c.wait_ready(p, StatusCode::SERVICE_UNAVAILABLE, Duration::from_secs(5))
+            .await;
     }
     let (s, v) = c.post(a, "/v1/plans", &sweep(100, 1, 5.0, 1)).await;
     assert_eq!(s, StatusCode::SERVICE_UNAVAILABLE, "{v}");
@@ -521,17 +524,8 @@ async fn replicas_ride_out_a_database_restart() {
     tokio::time::sleep(rest).await;
     pgc.start_again();
     for p in [&a, &b] {
-        let t0 = Instant::now();
-        loop {
-            if c.ready(p).await == Some(StatusCode::OK) {
-                break;
-            }
-            assert!(
-                t0.elapsed() < Duration::from_secs(20),
-                "not ready again after the database came back"
-            );
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
+        c.wait_ready(p, StatusCode::OK, Duration::from_secs(20))
+            .await;
     }
     for i in 0..10u64 {
         let p = if i % 2 == 0 { &a } else { &b };

@@ -99,6 +99,9 @@ struct Local {
     interrupt: AtomicBool,
     /// The lease was lost: nothing more is written.
     lost: AtomicBool,
+    /// The planner returned and its end is being written: a renewal that finds the job no
+    /// longer running raced that write, and is not a lost lease.
+    finishing: AtomicBool,
 }
 
 /// Gauges kept fresh by the maintenance task (health and readiness never wait on the store).
@@ -440,6 +443,7 @@ impl Jobs {
             stop: Arc::new(AtomicBool::new(false)),
             interrupt: AtomicBool::new(false),
             lost: AtomicBool::new(false),
+            finishing: AtomicBool::new(false),
         });
         lock(&self.local).insert(id.clone(), local.clone());
         if self.closed.load(Ordering::SeqCst) {
@@ -469,6 +473,7 @@ impl Jobs {
         let secs = job
             .started_ms
             .map(|s| outcome.finished_ms.saturating_sub(s) as f64 / 1e3);
+        local.finishing.store(true, Ordering::SeqCst);
         // Stopped by this replica's shutdown: the job goes back to the queue (another replica,
         // or this one after its restart, runs it again), unless its cancel was asked for.
         if outcome.state == JobState::Interrupted && local.interrupt.load(Ordering::SeqCst) {
@@ -665,6 +670,7 @@ impl Jobs {
                             l.stop.store(true, Ordering::SeqCst);
                         }
                     }
+                    Ok(Renewal::Lost) if l.finishing.load(Ordering::SeqCst) => {}
                     Ok(Renewal::Lost) => {
                         if !l.lost.swap(true, Ordering::SeqCst) {
                             tracing::warn!(job = %l.fence.id, "lease lost: stopping the job");

@@ -445,6 +445,18 @@ impl JobStore for EmbeddedStore {
     async fn claim(&self, owner: &str, lease: Duration) -> StoreResult<Option<Claimed>> {
         let owner = owner.to_string();
         self.blocking(move |db| {
+            // Idle threads try often: an empty queue is seen without a (synced) write commit.
+            {
+                let txn = db.db.begin_read().map_err(err)?;
+                if txn
+                    .open_table(QUEUE)
+                    .map_err(err)?
+                    .is_empty()
+                    .map_err(err)?
+                {
+                    return Ok(None);
+                }
+            }
             let c = db.write(true, |t| {
                 let first = t.queue.first().map_err(err)?.map(|(k, _)| {
                     let (p, c, id) = k.value();
