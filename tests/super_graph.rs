@@ -18,7 +18,8 @@ use manyhands::planning::roadmap_cache::{
     load_or_build, load_super_graph, save_super_graph, RoadmapFileError, RoadmapKey, RoadmapSource,
 };
 use manyhands::planning::roadmap_query::{
-    attach_at_link, query_super_graph, RoadmapPath, RoadmapQuerySettings,
+    attach_at_link, query_learning, query_super_graph, LearnedGraph, RoadmapPath,
+    RoadmapQuerySettings,
 };
 use manyhands::planning::super_graph::{
     build_super_graph, roadmap_world, Decomposition, SuperGraph, SuperGraphParams,
@@ -457,4 +458,77 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
         }
         assert_certified_and_exactly_free(&blocked, &r);
     }
+
+    // The roadmap learns (003 §V-B, "enrich a graph computed using PRMs with RRTs"): the
+    // repair's configurations and motions join the graph; the same query again is answered in
+    // the enriched graph, with no repair.
+    let one = RoadmapQuerySettings {
+        max_searches: 1,
+        connect_rounds: 1,
+        ..RoadmapQuerySettings::default()
+    };
+    let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(20));
+    let mut learned = LearnedGraph::default();
+    let first = query_learning(
+        &g,
+        Some(&mut learned),
+        &blocked,
+        &s.base,
+        &goal,
+        &one,
+        &mut term,
+        1,
+    )
+    .expect("repaired");
+    assert!(first.stats.rrt_repairs > 0, "{:?}", first.stats);
+    assert!(first.stats.learned_added > 0, "{:?}", first.stats);
+    assert_eq!(learned.nodes.len(), first.stats.learned_added);
+    // Every learnt motion is certified in the world it was learnt in.
+    let bspace = g.space(&blocked, s.base.clone()).unwrap();
+    let mut v = manyhands::planning::SpaceValidator::new(
+        bspace.clone(),
+        &blocked,
+        space_checker(&blocked, &bspace),
+        0.02,
+        0.01,
+    )
+    .with_certification(Some(FastChecker::CERTIFY_INFLATION));
+    let n = g.nodes.len();
+    let at = |i: u32| -> &Vec<f64> {
+        if (i as usize) < n {
+            &g.nodes[i as usize].q
+        } else {
+            &learned.nodes[i as usize - n]
+        }
+    };
+    assert!(!learned.edges.is_empty());
+    for &(a, b) in &learned.edges {
+        assert!(v.is_motion_valid(at(a), at(b)), "learnt edge {a}-{b}");
+    }
+    let many = RoadmapQuerySettings {
+        max_searches: 200,
+        connect_rounds: 1,
+        shortcut: None,
+        ..RoadmapQuerySettings::default()
+    };
+    let again = query_learning(
+        &g,
+        Some(&mut learned),
+        &blocked,
+        &s.base,
+        &goal,
+        &many,
+        &mut term,
+        2,
+    )
+    .expect("answered in the enriched graph");
+    assert_eq!(again.stats.rrt_repairs, 0, "{:?}", again.stats);
+    // It goes through what was learnt (no shortcutting here to hide it).
+    assert!(
+        again.path.iter().any(|q| learned.nodes.contains(q)),
+        "the answer does not use the learnt nodes: {:?}",
+        again.stats
+    );
+    assert_eq!(again.stats.learned_nodes, first.stats.learned_added);
+    assert_certified_and_exactly_free(&blocked, &again);
 }

@@ -14,7 +14,7 @@ use serde_json::json;
 use manyhands::grasp::GraspListCache;
 use manyhands::planning::pick_place::{
     plan_pick_place, prepare_pick_place, MotionPlanner, PickPlaceOffline, PickPlacePlan,
-    PickPlaceProblem, PickPlaceSettings, QueryRecord,
+    PickPlaceProblem, PickPlaceSettings, QueryRecord, RoadmapLearning,
 };
 use manyhands::planning::timing::TimingOptions;
 use manyhands::planning::Termination;
@@ -43,6 +43,10 @@ pub struct PickPlaceArgs {
     /// Folder of roadmap files (built when missing).
     #[arg(long, default_value = "data/roadmaps")]
     pub roadmaps: PathBuf,
+    /// What the roadmap learns from its RRT repairs: `task` (the task's own later queries;
+    /// deterministic per seed) or `shared` (also later tasks of this run).
+    #[arg(long, default_value = "task")]
+    pub roadmap_learning: String,
 }
 
 fn planner(s: &str) -> Result<MotionPlanner> {
@@ -57,9 +61,15 @@ struct Setup {
 }
 
 fn setup(ctx: &Ctx, a: &PickPlaceArgs) -> Result<Setup> {
+    let learning = match a.roadmap_learning.as_str() {
+        "task" => RoadmapLearning::Task,
+        "shared" => RoadmapLearning::Shared,
+        o => return Err(anyhow!("--roadmap-learning: '{o}' is not task or shared")),
+    };
     let settings = PickPlaceSettings {
         planner: planner(&a.planner)?,
         attempts: a.attempts,
+        learning,
         ..PickPlaceSettings::default()
     };
     let flag = |f: &str| format!("--{}", f.replace('_', "-"));
@@ -190,7 +200,16 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 const QUERIES: [&str; 4] = ["grasp", "carry", "place", "rest"];
 
-/// 003 Table I's shape: medians over runs of each query's nodes and times.
+/// 003 Table I (§VI): per query (grasp, carry, place, rest) n and T of online planning, path
+/// validation and their total; `(n, T s)` per cell, rows as [`query_table`].
+const PAPER_TABLE_I: [[(f64, f64); 4]; 3] = [
+    [(65.0, 2.7), (53.0, 2.6), (32.0, 1.2), (49.0, 1.9)],
+    [(3.0, 0.3), (18.0, 1.5), (12.0, 1.1), (3.0, 0.3)],
+    [(68.0, 3.0), (71.0, 4.1), (44.0, 2.3), (51.0, 2.1)],
+];
+
+/// 003 Table I in full: medians over runs of each query's nodes and times, each row beside the
+/// paper's.
 fn query_table(runs: &[Vec<QueryRecord>]) -> String {
     let col = |name: &str, f: &dyn Fn(&QueryRecord) -> f64| {
         median(
@@ -200,7 +219,7 @@ fn query_table(runs: &[Vec<QueryRecord>]) -> String {
                 .collect(),
         )
     };
-    let mut s = format!("{:<16}", "");
+    let mut s = format!("{:<24}", "003 Table I");
     for q in QUERIES {
         s += &format!(" {:>7} {:>9}", format!("{q} n"), "T ms");
     }
@@ -215,14 +234,53 @@ fn query_table(runs: &[Vec<QueryRecord>]) -> String {
             q.total_ms
         }),
     ];
-    for (label, n, t) in rows {
-        s += &format!("{label:<16}");
+    for (k, (label, n, t)) in rows.into_iter().enumerate() {
+        s += &format!("{label:<24}");
         for q in QUERIES {
             s += &format!(" {:>7.0} {:>9.2}", col(q, n), col(q, t));
         }
         s += "\n";
+        s += &format!("{:<24}", format!("  003 {label}"));
+        for (pn, pt) in PAPER_TABLE_I[k] {
+            s += &format!(" {:>7.0} {:>9.0}", pn, pt * 1e3);
+        }
+        s += "\n";
     }
     s
+}
+
+/// 003 §VI's counts beside ours: list sizes, grasps with a certified closing motion,
+/// single-grasp and double-grasp configurations and their times, RRT repairs, learnt nodes.
+fn section_vi(ok: &[PickPlacePlan], o: &PickPlaceOffline) -> String {
+    let tm = |f: &dyn Fn(&PickPlacePlan) -> f64| median(ok.iter().map(f).collect());
+    let repairs: usize = ok
+        .iter()
+        .flat_map(|r| r.queries.iter().map(|q| q.rrt_repairs))
+        .sum();
+    let learned: usize = ok
+        .iter()
+        .flat_map(|r| r.queries.iter().map(|q| q.learned_added))
+        .sum();
+    format!(
+        "003 §VI: grasp lists {} (pick) / {} (place) grasps [003: 17 right / 22 left], {:.0} / {:.0} with a certified closing motion (median); \
+         single-grasp configurations {:.0} (pick) / {:.0} (place) in {:.1} ms [003: 4 right / 7 left in 4.2 s]; \
+         double-grasp configurations {:.0} in {:.1} ms [003: 4 in 2.6 s]; \
+         RRT repairs {} over {} runs (learnt nodes {}); \
+         closing motions {:.1} ms\n",
+        o.stats.pick_grasps,
+        o.stats.place_grasps,
+        tm(&|r| r.closable[0] as f64),
+        tm(&|r| r.closable[1] as f64),
+        tm(&|r| r.keys.stats.single_pick as f64),
+        tm(&|r| r.keys.stats.single_place as f64),
+        tm(&|r| r.keys.stats.single_ms),
+        tm(&|r| r.keys.stats.double_grasps as f64),
+        tm(&|r| r.keys.stats.double_ms),
+        repairs,
+        ok.len(),
+        learned,
+        tm(&|r| r.timings.closing_ms),
+    )
 }
 
 /// `manyhands bench pick-place` arguments.
@@ -265,13 +323,20 @@ pub fn bench(ctx: &Ctx, a: &PickPlaceBenchArgs) -> Result<()> {
             "median_online_ms": total, "median_configurations_ms": configs,
             "median_motions_ms": motions, "median_queries_ms": queries,
             "median_certification_ms": cert, "runs_with_retries": attempts,
+            "median_closable": [tm(&|r| r.closable[0] as f64), tm(&|r| r.closable[1] as f64)],
+            "median_single_configurations": [tm(&|r| r.keys.stats.single_pick as f64), tm(&|r| r.keys.stats.single_place as f64)],
+            "median_single_ms": tm(&|r| r.keys.stats.single_ms),
+            "median_double_configurations": tm(&|r| r.keys.stats.double_grasps as f64),
+            "median_double_ms": tm(&|r| r.keys.stats.double_ms),
+            "median_closing_ms": tm(&|r| r.timings.closing_ms),
             "queries": QUERIES.iter().map(|q| {
                 let col = |f: &dyn Fn(&QueryRecord) -> f64| median(runs.iter()
                     .filter_map(|r| r.iter().find(|x| x.name == *q)).map(f).collect());
                 json!({"name": q, "nodes": col(&|x| x.nodes as f64), "planning_ms": col(&|x| x.planning_ms),
                        "validated": col(&|x| x.validated as f64), "validation_ms": col(&|x| x.validation_ms),
                        "total_ms": col(&|x| x.total_ms),
-                       "rrt_repairs": runs.iter().filter_map(|r| r.iter().find(|x| x.name == *q)).map(|x| x.rrt_repairs).sum::<usize>()})
+                       "rrt_repairs": runs.iter().filter_map(|r| r.iter().find(|x| x.name == *q)).map(|x| x.rrt_repairs).sum::<usize>(),
+                       "learned_added": runs.iter().filter_map(|r| r.iter().find(|x| x.name == *q)).map(|x| x.learned_added).sum::<usize>()})
             }).collect::<Vec<_>>(),
             "first_error": first_error,
         }));
@@ -288,6 +353,7 @@ pub fn bench(ctx: &Ctx, a: &PickPlaceBenchArgs) -> Result<()> {
             attempts
         );
         text += &query_table(&runs);
+        text += &section_vi(&ok, &s.offline);
         if let Some(e) = &first_error {
             text += &format!("first failure: {e}\n");
         }

@@ -479,6 +479,24 @@ impl GraspObject {
         best
     }
 
+    /// The distance between `shape` at `pose` (object frame) and the object's true geometry
+    /// (the mesh surface, and its inside for a closed mesh): 0 when they touch, intersect or the
+    /// shape lies inside. A pair parry cannot answer counts as touching (0), so the value never
+    /// overstates the clearance.
+    pub fn distance(&self, shape: &SharedShape, pose: &Pose) -> f64 {
+        let pp = to_parry(pose);
+        let mut best = f64::INFINITY;
+        for o in &self.shapes {
+            let d = query::distance(&o.parry_pose, o.shape.as_ref(), &pp, shape.as_ref())
+                .map_or(0.0, |r| r.distance);
+            if !(d > 0.0) || self.nested(o, shape, pose) {
+                return 0.0;
+            }
+            best = best.min(d);
+        }
+        best
+    }
+
     fn nested(&self, o: &ObjectShape, shape: &SharedShape, pose: &Pose) -> bool {
         match &o.solid {
             Some(s) => {

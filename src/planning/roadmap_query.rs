@@ -16,9 +16,19 @@
 //!    configurations of 003 §V-B lie near the object and the obstacles, where few straight
 //!    motions to a compact roadmap are free, and the entries the object leaves valid are
 //!    fewer still.
-//! 4. Each stretch of the last path still invalid, between the free configurations bounding it,
-//!    is reconnected by RRT-Connect in the query world ("if no solution is found, local
-//!    reconnections are computed using RRT-like planners").
+//! 4. Each stretch of the last path still invalid is reconnected by RRT-Connect in the query
+//!    world ("if no solution is found, local reconnections are computed using RRT-like
+//!    planners") between the collision-free configurations bounding it ("first, the
+//!    collision-free configurations bounding the collision portion are determined"): not the
+//!    graph nodes around it but the farthest configurations along its first and last edges that
+//!    the valid nodes reach by certified motions.
+//!    **The roadmap learns** ("it is easy to enrich a graph computed using PRMs with RRTs to
+//!    efficiently reconnect the disconnected components"): with a [`LearnedGraph`], each repair's
+//!    configurations become nodes and its motions edges, searched by later queries beside the
+//!    built graph and, like the built graph, revalidated lazily in each query's world — so a
+//!    learnt stretch is only ever used where it is valid, and nothing learnt needs to be
+//!    invalidated when the object or its pose changes. The built graph itself is never changed
+//!    (its file stays the offline one).
 //! 5. The path is shortcut with the same certified validator (optional) and re-validated as a
 //!    whole.
 
@@ -93,6 +103,9 @@ pub struct RoadmapQueryStats {
     pub invalid_edges: usize,
     /// Stretches reconnected by RRT-Connect.
     pub rrt_repairs: usize,
+    /// Learnt nodes searched, and nodes added by this query's repairs ([`LearnedGraph`]).
+    pub learned_nodes: usize,
+    pub learned_added: usize,
     pub vertices: usize,
     pub length: f64,
     pub connect_ms: f64,
@@ -129,6 +142,45 @@ impl PartialOrd for Open {
     }
 }
 
+/// Nodes and edges learnt from RRT repairs (module docs, step 4): super-space configurations
+/// and undirected edges between ids, an id below the super graph's node count naming a built
+/// node and `n + i` the learnt node `i` (`n` the super graph's node count, fixed for one
+/// graph). Every learnt motion was certified in the world of the query that learnt it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LearnedGraph {
+    pub nodes: Vec<Vec<f64>>,
+    pub edges: Vec<(u32, u32)>,
+}
+
+impl LearnedGraph {
+    /// Most learnt nodes kept (later repairs are still answered, not learnt).
+    pub const MAX_NODES: usize = 20_000;
+
+    fn add_path(&mut self, n: usize, ends: (Option<u32>, Option<u32>), path: &[Vec<f64>]) {
+        if path.len() < 2 || self.nodes.len() + path.len() > Self::MAX_NODES {
+            return;
+        }
+        let mut ids = Vec::with_capacity(path.len());
+        for (k, q) in path.iter().enumerate() {
+            let known = match k {
+                0 => ends.0,
+                _ if k + 1 == path.len() => ends.1,
+                _ => None,
+            };
+            ids.push(known.unwrap_or_else(|| {
+                self.nodes.push(q.clone());
+                (n + self.nodes.len() - 1) as u32
+            }));
+        }
+        for w in ids.windows(2) {
+            let e = (w[0].min(w[1]), w[0].max(w[1]));
+            if e.0 != e.1 && !self.edges.contains(&e) {
+                self.edges.push(e);
+            }
+        }
+    }
+}
+
 /// Lazy validity of a node or edge: unknown, valid or invalid in the query world.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Known {
@@ -142,6 +194,22 @@ enum Known {
 /// docs). Every returned segment is a certified continuous motion in `world`.
 pub fn query_super_graph(
     sg: &SuperGraph,
+    world: &CollisionWorld,
+    start: &[f64],
+    goal: &[f64],
+    settings: &RoadmapQuerySettings,
+    term: &mut Termination,
+    seed: u64,
+) -> Result<RoadmapPath, PlanError> {
+    query_learning(sg, None, world, start, goal, settings, term, seed)
+}
+
+/// [`query_super_graph`] searching the learnt nodes and edges of `learned` beside the super
+/// graph's and adding this query's repairs to it (module docs, step 4).
+#[allow(clippy::too_many_arguments)]
+pub fn query_learning(
+    sg: &SuperGraph,
+    mut learned: Option<&mut LearnedGraph>,
     world: &CollisionWorld,
     start: &[f64],
     goal: &[f64],
@@ -191,7 +259,18 @@ pub fn query_super_graph(
 
     // 1. Connections (or the straight motion itself).
     let tc = Instant::now();
-    let n = sg.nodes.len() as u32;
+    let built = sg.nodes.len();
+    let none = LearnedGraph::default();
+    // A copy: the repairs below add to `learned` while the search reads this.
+    let known: LearnedGraph = learned.as_deref().cloned().unwrap_or_default();
+    // Learnt nodes whose dimension does not fit (another graph's) are not used.
+    let usable = if known.nodes.iter().all(|q| q.len() == space.dim()) {
+        &known
+    } else {
+        &none
+    };
+    st.learned_nodes = usable.nodes.len();
+    let n = (built + usable.nodes.len()) as u32;
     let (vs, vg) = (n, n + 1);
     let mut extra: HashMap<u32, Vec<u32>> = HashMap::new();
     let mut path: Vec<Vec<f64>>;
@@ -205,8 +284,10 @@ pub fn query_super_graph(
             let mut near: Vec<(f64, u32)> = sg
                 .nodes
                 .iter()
+                .map(|nd| &nd.q)
+                .chain(&usable.nodes)
                 .enumerate()
-                .map(|(i, nd)| (space.distance_sq(q, &nd.q), i as u32))
+                .map(|(i, x)| (space.distance_sq(q, x), i as u32))
                 .collect();
             near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             near.into_iter().map(|(_, i)| i).collect()
@@ -218,13 +299,22 @@ pub fn query_super_graph(
                 &s
             } else if i == vg {
                 &g
-            } else {
+            } else if (i as usize) < built {
                 &sg.nodes[i as usize].q
+            } else {
+                &usable.nodes[i as usize - built]
             }
         };
 
         // 2–3. Search, revalidate lazily, search again; connect further nodes and go on.
-        let neighbours = sg.neighbours();
+        let mut neighbours = sg.neighbours();
+        neighbours.resize(n as usize, Vec::new());
+        for &(a, b) in &usable.edges {
+            if a < n && b < n {
+                neighbours[a as usize].push(b);
+                neighbours[b as usize].push(a);
+            }
+        }
         let mut node_ok = vec![Known::Unknown; n as usize + 2];
         node_ok[vs as usize] = Known::Valid;
         node_ok[vg as usize] = Known::Valid;
@@ -234,14 +324,14 @@ pub fn query_super_graph(
         let batch = settings.connect_nearest.max(1);
         for round in 0..settings.connect_rounds.max(1) {
             let tried = round * batch;
-            if tried >= sg.nodes.len() || term.should_stop_now() {
+            if tried >= n as usize || term.should_stop_now() {
                 break;
             }
             st.connect_rounds += 1;
             let tc = Instant::now();
             for (virt, q, near) in [(vs, &s, &near[0]), (vg, &g, &near[1])] {
                 for &i in near.iter().skip(tried).take(batch) {
-                    if v.is_motion_valid(q, &sg.nodes[i as usize].q) {
+                    if v.is_motion_valid(q, state(i)) {
                         extra.entry(virt).or_default().push(i);
                         extra.entry(i).or_default().push(virt);
                         edge_ok.insert((i.min(virt), i.max(virt)), Known::Valid);
@@ -314,6 +404,8 @@ pub fn query_super_graph(
                 )?;
                 let tr = Instant::now();
                 path.push(s.clone());
+                let mut learnt: Vec<((Option<u32>, Option<u32>), Vec<Vec<f64>>)> = Vec::new();
+                let graph_id = |i: u32| (i < n).then_some(i);
                 let mut i = 0;
                 while i + 1 < p.len() {
                     let (a, b) = (p[i], p[i + 1]);
@@ -327,15 +419,44 @@ pub fn query_super_graph(
                     let j = (i + 1..p.len())
                         .find(|&j| node_ok[p[j] as usize] == Known::Valid)
                         .unwrap_or(p.len() - 1);
+                    // The free configurations bounding the invalid stretch: as far along its
+                    // first edge from p[i], and along its last edge from p[j], as certified
+                    // motions reach.
+                    let from = reach_along(&mut v, state(p[i]), state(p[i + 1]));
+                    let to = reach_along(&mut v, state(p[j]), state(p[j - 1]));
                     st.rrt_repairs += 1;
                     let r = rrt.plan(
-                        state(p[i]),
-                        &[state(p[j]).clone()],
+                        &from,
+                        &[to.clone()],
                         term,
                         seed.wrapping_add(st.rrt_repairs as u64),
                     )?;
-                    path.extend(r.path.into_iter().skip(1));
+                    let mut stretch = Vec::with_capacity(r.path.len() + 2);
+                    stretch.push(state(p[i]).clone());
+                    if &from != state(p[i]) {
+                        stretch.push(from);
+                    }
+                    stretch.extend(r.path.into_iter().skip(1));
+                    if stretch.last() != Some(&to) {
+                        stretch.push(to.clone());
+                    }
+                    if &to != state(p[j]) {
+                        stretch.push(state(p[j]).clone());
+                    }
+                    path.extend(stretch.iter().skip(1).cloned());
+                    learnt.push(((graph_id(p[i]), graph_id(p[j])), stretch));
                     i = j;
+                }
+                if let Some(l) = learned.as_deref_mut() {
+                    // Ids of the usable graph only (a mismatched store starts over).
+                    if l.nodes.len() != usable.nodes.len() {
+                        *l = LearnedGraph::default();
+                    }
+                    let before = l.nodes.len();
+                    for (ends, stretch) in &learnt {
+                        l.add_path(built, *ends, stretch);
+                    }
+                    st.learned_added = l.nodes.len() - before;
                 }
                 st.rrt_ms = tr.elapsed().as_secs_f64() * 1e3;
             }
@@ -364,6 +485,18 @@ pub fn query_super_graph(
         world_path,
         stats: st,
     })
+}
+
+/// The farthest configuration along the straight motion `a → b` that a certified motion from
+/// `a` reaches, of the fractions 1, 3/4, 1/2, 1/4, 1/8 (`a` itself when none).
+fn reach_along<C: SegmentChecker>(v: &mut SpaceValidator<C>, a: &[f64], b: &[f64]) -> Vec<f64> {
+    for f in [1.0, 0.75, 0.5, 0.25, 0.125] {
+        let q: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + f * (y - x)).collect();
+        if v.is_state_valid(&q) && v.is_motion_valid(a, &q) {
+            return q;
+        }
+    }
+    a.to_vec()
 }
 
 /// Step 3, lazy revalidation: the nodes, then the edges between valid nodes, of graph path `p`

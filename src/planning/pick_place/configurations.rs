@@ -151,6 +151,12 @@ pub struct ConfigStats {
     pub collision_checks: usize,
     pub double_grasps_tried: usize,
     pub exchange_poses: usize,
+    /// Time of the single-grasp configurations of both hands (ms; 003 §VI: 4.2 s).
+    #[serde(default)]
+    pub single_ms: f64,
+    /// Time of the double grasps and their exchange configurations (ms; 003 §VI: 2.6 s).
+    #[serde(default)]
+    pub double_ms: f64,
 }
 
 /// A grasp or place configuration: the grasp (index into its list), the object pose, the
@@ -540,6 +546,7 @@ pub fn key_configurations(
 ) -> Result<KeyConfigurations, PickPlaceError> {
     params.validate()?;
     let mut stats = ConfigStats::default();
+    let t_single = std::time::Instant::now();
     let picks = single_configurations(
         p,
         Holder::Pick,
@@ -558,6 +565,8 @@ pub fn key_configurations(
         params,
         &mut stats,
     )?;
+    stats.single_ms = t_single.elapsed().as_secs_f64() * 1e3;
+    let t_double = std::time::Instant::now();
     let (pl, ll) = (sub_list(pick_list, &picks), sub_list(place_list, &places));
     let doubles = double_grasps(
         (&p.pick.hand, &pl),
@@ -593,6 +602,7 @@ pub fn key_configurations(
             }
         }
     }
+    stats.double_ms = t_double.elapsed().as_secs_f64() * 1e3;
     if complete.is_empty() {
         return Err(PickPlaceError::NoExchange(format!(
             "{} and {} single-grasp configurations, {} double grasps among them ({} pairs, {} hand \

@@ -1,6 +1,6 @@
 //! The hands of the pick-and-place task (paper 003 §V-B; 003 does not say how a hand comes to
 //! its grasp): a hand's finger values in a world configuration, the finger-wise pre-shape of a
-//! grasp, and the grasps of a list a hand can come to open.
+//! grasp, and the grasps of a list a hand can close on with a certified motion.
 
 use super::ArmHand;
 use crate::geometry::Pose;
@@ -78,28 +78,29 @@ pub fn finger_preshape(
     Some(out)
 }
 
-/// The grasps of `list` that admit a [`finger_preshape`] (a copy of the list with only those)
-/// and their indices in `list`.
-pub(super) fn approachable(
+/// The grasps of `list` the hand can close on with a certified motion
+/// ([`super::fingers::closing_motions`], at most `max` candidates each): a copy of the list with
+/// only those, their indices in `list` and their candidate motions (hand-variable values).
+pub(super) fn closable(
     ah: &ArmHand,
     object: &GraspObject,
     list: &GraspList,
     rest: &[f64],
     fractions: &[f64],
-) -> (GraspList, Vec<usize>) {
-    let idx: Vec<usize> = list
+    max: usize,
+) -> (GraspList, Vec<usize>, Vec<Vec<Vec<Vec<f64>>>>) {
+    use rayon::prelude::*;
+    let tol = list.params.contact_tolerance;
+    let motions: Vec<Vec<Vec<Vec<f64>>>> = list
         .grasps
-        .iter()
-        .enumerate()
-        .filter(|(_, g)| {
-            let q = with_fingers(ah, rest, &g.config);
-            [true, false].into_iter().any(|ext| {
-                finger_preshape(ah, object, &g.palm_pose(), &q, fractions, ext).is_some()
-            })
-        })
-        .map(|(i, _)| i)
+        .par_iter()
+        .map(|g| super::fingers::closing_motions(ah, object, g, rest, tol, fractions, max))
+        .collect();
+    let idx: Vec<usize> = (0..list.grasps.len())
+        .filter(|&i| !motions[i].is_empty())
         .collect();
     let mut out = list.clone();
     out.grasps = idx.iter().map(|&i| list.grasps[i].clone()).collect();
-    (out, idx)
+    let motions = idx.iter().map(|&i| motions[i].clone()).collect();
+    (out, idx, motions)
 }

@@ -22,6 +22,7 @@
 
 pub mod configurations;
 pub mod exchange;
+pub mod fingers;
 mod hands;
 pub mod task;
 
@@ -43,7 +44,8 @@ pub use configurations::{
 pub use exchange::{exchange_grid, exchange_poses, ExchangeGrid, ExchangeParams};
 pub use task::{
     plan_pick_place, prepare_pick_place, task_world, MotionPlanner, PickPlaceOffline,
-    PickPlacePlan, PickPlaceSettings, PickPlaceTaskError, QueryRecord, TaskProgress,
+    PickPlacePlan, PickPlaceSettings, PickPlaceTaskError, QueryRecord, RoadmapLearning,
+    TaskProgress,
 };
 
 /// Why a pick-and-place problem cannot be set up or its configurations not be found.

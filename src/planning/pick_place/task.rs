@@ -19,12 +19,12 @@
 //!    by plain RRT-Connect in the same space with the same certified checks (003 §VI's
 //!    single-query comparison);
 //! 3. the hands: the super graph moves torso and arms, so the fingers move in straight joint
-//!    segments of their own, the arms still. A hand travels *pre-shaped*: its fingers at
-//!    `closed + s · (rest − closed)` for the first fraction `s` of
-//!    [`PickPlaceSettings::finger_fractions`] (1 = the rest values) whose configuration is free
-//!    of the object (the hand may not touch what it does not hold) and whose closing motion is
-//!    certified. Closing (grasp) and opening (release) are checked with the object attached and
-//!    the hand's links allowed to touch it (the grasp list validated those contacts, 003 §IV-A).
+//!    segments of their own, the arms still. A hand travels *pre-shaped* (free of the object:
+//!    the hand may not touch what it does not hold) and closes on the object (grasp) or opens
+//!    from it (release) along a certified closing motion of the grasp ([`super::fingers`]):
+//!    only the grasp's contact fingertips touch the object, and only within the list's contact
+//!    tolerance of their contacts, proven against the object's true geometry; the rest of the
+//!    world with the object attached and the hand allowed to touch it.
 //!
 //! The plan's motions, in order: pick hand pre-shape at q_r^i; *grasp*; pick hand closes
 //! (event: pick grasp); place hand pre-shape; *carry*; place hand closes (events: place grasp,
@@ -49,16 +49,18 @@ use thiserror::Error;
 
 use super::configurations::{within_limits, ConfigParams, KeyConfigurations};
 pub use super::hands::finger_preshape;
-use super::hands::{approachable, fingers_of, with_fingers};
+use super::fingers::{FingerCertificate, FingerVerdict};
+use super::hands::{closable, fingers_of, with_fingers};
 use super::{exchange_grid, key_configurations, ArmHand, PickPlaceError, PickPlaceProblem};
 use crate::cache_tier::CacheTier;
 use crate::collision::{
     CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
 };
-use crate::geometry::Pose;
-use crate::grasp::{GraspList, GraspListCache, GraspListParams, GraspObject};
+use crate::grasp::{GraspList, GraspListCache, GraspListParams, GraspObject, SingleGrasp};
 use crate::planning::roadmap_cache::{load_or_build, RoadmapSource};
-use crate::planning::roadmap_query::{attach_at_link, query_super_graph, RoadmapQuerySettings};
+use crate::planning::roadmap_query::{
+    attach_at_link, query_learning, LearnedGraph, RoadmapQuerySettings,
+};
 use crate::planning::super_graph::{Decomposition, SuperGraph, SuperGraphParams};
 use crate::planning::task::{EventKind, TaskEvent, TaskPhase, TaskPlan};
 use crate::planning::{space_checker, PlanError, PlanStats, RrtConnect, Termination};
@@ -143,6 +145,19 @@ impl MotionPlanner {
     }
 }
 
+/// What the super graph learns from its RRT repairs (003 §V-B,
+/// [`crate::planning::roadmap_query::LearnedGraph`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RoadmapLearning {
+    /// Repairs serve the task's later queries and attempts (deterministic per seed).
+    #[default]
+    Task,
+    /// Repairs are also kept in the offline data for later tasks on the same roadmap (a task
+    /// then depends on the tasks before it).
+    Shared,
+}
+
 /// Settings of the task.
 #[derive(Debug, Clone)]
 pub struct PickPlaceSettings {
@@ -159,6 +174,8 @@ pub struct PickPlaceSettings {
     pub attempts: usize,
     /// Pre-shape fractions tried, in order (module docs), each in (0, 1].
     pub finger_fractions: Vec<f64>,
+    /// What the roadmap learns from its repairs.
+    pub learning: RoadmapLearning,
 }
 
 impl Default for PickPlaceSettings {
@@ -173,6 +190,7 @@ impl Default for PickPlaceSettings {
             planner: MotionPlanner::Roadmap,
             attempts: 4,
             finger_fractions: vec![1.0, 0.6, 0.3, 0.15],
+            learning: RoadmapLearning::Task,
         }
     }
 }
@@ -248,6 +266,9 @@ pub struct PickPlaceOffline {
     /// Robot, obstacles and the object resting at q_o^i ([`task_world`]).
     pub world: CollisionWorld,
     pub stats: OfflineStats,
+    /// What the super graph learnt from the repairs of earlier tasks
+    /// ([`RoadmapLearning::Shared`]).
+    pub learned: Arc<std::sync::Mutex<LearnedGraph>>,
 }
 
 /// Robot, obstacles and the object resting at its initial pose: the world of the task (its
@@ -368,6 +389,7 @@ pub fn prepare_pick_place(
         object: Arc::new(object),
         world,
         stats,
+        learned: Arc::default(),
     })
 }
 
@@ -385,6 +407,9 @@ pub struct QueryRecord {
     pub invalid: usize,
     pub validation_ms: f64,
     pub rrt_repairs: usize,
+    /// Learnt nodes searched beside the built graph, and nodes this query's repairs added.
+    pub learned_nodes: usize,
+    pub learned_added: usize,
     pub direct: bool,
     pub vertices: usize,
     pub total_ms: f64,
@@ -394,6 +419,8 @@ pub struct QueryRecord {
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct OnlineTimings {
     pub exchange_grid_ms: f64,
+    /// The certified closing motions of both lists' grasps ([`super::fingers`]).
+    pub closing_ms: f64,
     /// Single and double grasp configurations (all attempts).
     pub configurations_ms: f64,
     /// Queries and hand motions (all attempts).
@@ -415,6 +442,9 @@ pub struct PickPlacePlan {
     pub attempts: usize,
     /// Segments re-certified before the plan was returned.
     pub certified_segments: usize,
+    /// Grasps of the pick and place lists the hand can close on with a certified motion
+    /// ([`super::fingers`]).
+    pub closable: [usize; 2],
     pub timings: OnlineTimings,
 }
 
@@ -433,10 +463,17 @@ struct Chain<'a> {
     place_list: &'a GraspList,
     pick_index: &'a [usize],
     place_index: &'a [usize],
+    /// Each approachable grasp's certified closing motions ([`closable`]).
+    pick_motions: &'a [Vec<Vec<Vec<f64>>>],
+    place_motions: &'a [Vec<Vec<Vec<f64>>>],
     plan: TaskPlan,
     /// The world of each phase of `plan` (an index into `worlds`).
     phase_world: Vec<usize>,
+    /// The object certificate of each phase that closes or opens a hand on the object.
+    phase_fingers: Vec<Option<FingerCertificate<'a>>>,
     queries: Vec<QueryRecord>,
+    /// What the roadmap learnt so far (module docs of [`crate::planning::roadmap_query`]).
+    learned: LearnedGraph,
     seed: u64,
     attempt: usize,
     t0: Instant,
@@ -447,6 +484,10 @@ struct Chain<'a> {
     exact: Vec<Option<ExactChecker>>,
 }
 
+/// Certified closing motions kept per grasp ([`super::fingers::closing_motions`]): the chain
+/// takes the first whose pre-shape is free in the scene.
+const CLOSING_CANDIDATES: usize = 4;
+
 /// The worlds of [`Chain::worlds`].
 const W_INITIAL: usize = 0;
 const W_PICK_HAND: usize = 1;
@@ -454,7 +495,7 @@ const W_BOTH_HANDS: usize = 2;
 const W_PLACE_HAND: usize = 3;
 const W_FINAL: usize = 4;
 
-impl Chain<'_> {
+impl<'a> Chain<'a> {
     /// The fast checker of world `w` (built on first use: one per world and attempt, so a hand
     /// motion certified while its pre-shape was chosen is not proven again).
     fn fast(&mut self, w: usize) -> &mut FastChecker {
@@ -486,6 +527,7 @@ impl Chain<'_> {
             world: self.worlds[w].clone(),
         });
         self.phase_world.push(w);
+        self.phase_fingers.push(None);
     }
 
     fn event(&mut self, kind: EventKind, ah: &ArmHand, grasp: String) {
@@ -503,7 +545,8 @@ impl Chain<'_> {
         self.plan.waypoints.last().cloned().unwrap_or_default()
     }
 
-    /// A straight finger motion from the last waypoint to `q`, certified in world `w`.
+    /// A straight finger motion from the last waypoint to `q`, certified in world `w` (the
+    /// hand away from the object or not allowed to touch it there).
     fn fingers(&mut self, name: &str, q: Vec<f64>, w: usize) -> Result<(), PickPlaceTaskError> {
         let a = self.last();
         if a == q {
@@ -518,50 +561,86 @@ impl Chain<'_> {
         Ok(())
     }
 
-    /// The pre-shaped hand (module docs): `q` (the hand closed on grasp `palm`, the palm pose
-    /// in the object frame) with `ah`'s fingers opened — finger by finger ([`finger_preshape`]),
-    /// else all together towards their rest values by the first fraction — to a configuration
-    /// free in world `state` (exact and fast checker) whose motion from `q` is certified in
-    /// world `motion`.
-    fn open_hand(
+    /// A hand closing on the object or opening from it ([`super::fingers`]): `path` from the
+    /// last waypoint, certified in world `w` (where the hand may touch the object) and
+    /// against the object by `cert`.
+    fn on_object(
+        &mut self,
+        name: &str,
+        path: Vec<Vec<f64>>,
+        w: usize,
+        cert: FingerCertificate<'a>,
+    ) -> Result<(), PickPlaceTaskError> {
+        if path.first() != Some(&self.last()) {
+            return Err(PickPlaceTaskError::Hand(format!(
+                "{name}: the hand motion does not start where the plan is"
+            )));
+        }
+        for s in path.windows(2) {
+            if !self.fast(w).motion_certified(&s[0], &s[1]) {
+                return Err(PickPlaceTaskError::Hand(format!(
+                    "{name}: the hand motion is not certified free"
+                )));
+            }
+            if let v @ (FingerVerdict::Collides { .. }
+            | FingerVerdict::Unproven { .. }
+            | FingerVerdict::NotFingers) = cert.certify(&s[0], &s[1])
+            {
+                return Err(PickPlaceTaskError::Hand(format!(
+                    "{name}: the hand motion is not certified free of the object ({v:?})"
+                )));
+            }
+        }
+        self.append(name, "fingers", path, w);
+        if let Some(f) = self.phase_fingers.last_mut() {
+            *f = Some(cert);
+        }
+        Ok(())
+    }
+
+    /// The closing motion of `ah` onto the grasp whose candidate motions are `motions`, the
+    /// arm at `q` (the grasp state): world configurations `[pre-shape, (approach,) q]` of the
+    /// first candidate whose pre-shape is free in world `state` (exact and fast checker) and
+    /// whose segments are certified in world `motion` (the object is proven by the phase's
+    /// [`FingerCertificate`]).
+    fn closing(
         &mut self,
         ah: &ArmHand,
-        palm: &Pose,
+        motions: &[Vec<Vec<f64>>],
         q: &[f64],
         (state, motion): (usize, usize),
         what: &str,
-    ) -> Result<Vec<f64>, PickPlaceTaskError> {
-        let closed = fingers_of(ah, q);
-        let open = fingers_of(ah, &self.p.rest);
-        // The task's data outlives the chain: the candidates borrow it, not the chain.
-        let (settings, off) = (self.settings, self.off);
-        let fractions = &settings.finger_fractions;
-        let uniform = fractions.iter().map(|&s| {
-            let f: Vec<f64> = closed
-                .iter()
-                .zip(&open)
-                .map(|(c, o)| c + s * (o - c))
-                .collect();
-            with_fingers(ah, q, &f)
-        });
-        let object = &off.object;
-        let candidates = [true, false]
-            .into_iter()
-            .filter_map(|ext| finger_preshape(ah, object, palm, q, fractions, ext))
-            .chain(uniform);
-        for qq in candidates {
-            if self.exact(state).is_free(&qq)
-                && self.fast(state).is_free(&qq)
-                && self.fast(motion).motion_certified(q, &qq)
-            {
-                return Ok(qq);
+    ) -> Result<Vec<Vec<f64>>, PickPlaceTaskError> {
+        'candidates: for m in motions {
+            let path: Vec<Vec<f64>> = m.iter().map(|v| with_fingers(ah, q, v)).collect();
+            let pre = &path[0];
+            if !(self.exact(state).is_free(pre) && self.fast(state).is_free(pre)) {
+                continue;
             }
+            for s in path.windows(2) {
+                if !self.fast(motion).motion_certified(&s[0], &s[1]) {
+                    continue 'candidates;
+                }
+            }
+            return Ok(path);
         }
         Err(PickPlaceTaskError::Hand(format!(
-            "{what}: no pre-shape of '{}' ({} fractions, finger-wise and together) is free there",
-            ah.hand.group,
-            fractions.len()
+            "{what}: none of the {} certified closing motions of '{}' is free there",
+            motions.len(),
+            ah.hand.group
         )))
+    }
+
+    /// The object certificate of `ah` on grasp `g` of `list` with the arm at `q`.
+    fn certificate(
+        &self,
+        ah: &'a ArmHand,
+        list: &GraspList,
+        g: &SingleGrasp,
+        q: &[f64],
+    ) -> FingerCertificate<'a> {
+        let off: &'a PickPlaceOffline = self.off;
+        FingerCertificate::new(ah, &off.object, g, q, list.params.contact_tolerance)
     }
 
     /// Query `name` from the last waypoint to `goal` in world `w`, appended.
@@ -594,9 +673,17 @@ impl Chain<'_> {
         let t = Instant::now();
         let (path, rec) = match self.settings.planner {
             MotionPlanner::Roadmap => {
-                let r =
-                    query_super_graph(sg, world, &start, &goal, &self.settings.query, term, seed)
-                        .map_err(tagged)?;
+                let r = query_learning(
+                    sg,
+                    Some(&mut self.learned),
+                    world,
+                    &start,
+                    &goal,
+                    &self.settings.query,
+                    term,
+                    seed,
+                )
+                .map_err(tagged)?;
                 let s = r.stats;
                 let rec = QueryRecord {
                     name: name.into(),
@@ -607,6 +694,8 @@ impl Chain<'_> {
                     invalid: s.invalid_nodes + s.invalid_edges,
                     validation_ms: s.validation_ms,
                     rrt_repairs: s.rrt_repairs,
+                    learned_nodes: s.learned_nodes,
+                    learned_added: s.learned_added,
                     direct: s.direct,
                     vertices: s.vertices,
                     total_ms: s.total_ms,
@@ -657,8 +746,8 @@ impl Chain<'_> {
 }
 
 /// The motion chain for key configurations `keys` (module docs).
-fn chain(
-    c: &mut Chain,
+fn chain<'a>(
+    c: &mut Chain<'a>,
     keys: &KeyConfigurations,
     term: &mut Termination,
     progress: &mut dyn FnMut(TaskProgress),
@@ -671,7 +760,6 @@ fn chain(
         format!("{}#{}", pick.hand.group, c.pick_index[keys.double.pick]),
         format!("{}#{}", place.hand.group, c.place_index[keys.double.place]),
     );
-    let (palm_a, palm_b) = (a.palm_pose(), b.palm_pose());
     let plan_err = |e: PlanError| PickPlaceTaskError::Phase {
         phase: "attach".into(),
         error: e,
@@ -714,37 +802,54 @@ fn chain(
     c.exact = vec![None, None, None, None, None];
     let (w_i, h_a, h_ab, h_b, w_f) = (W_INITIAL, W_PICK_HAND, W_BOTH_HANDS, W_PLACE_HAND, W_FINAL);
 
+    let (motions_a, motions_b) = (
+        c.pick_motions[keys.double.pick].as_slice(),
+        c.place_motions[keys.double.place].as_slice(),
+    );
+    let (list_a, list_b) = (c.pick_list, c.place_list);
+
     // Grasp: pre-shape the pick hand at rest, reach q_r^g pre-shaped, close.
-    let qg_open = c.open_hand(pick, &palm_a, &qg, (w_i, h_a), "grasp")?;
+    let close_a = c.closing(pick, motions_a, &qg, (w_i, h_a), "grasp")?;
     c.plan.waypoints = vec![p.rest.clone()];
     c.fingers(
         "pick_preshape",
-        with_fingers(pick, &p.rest, &fingers_of(pick, &qg_open)),
+        with_fingers(pick, &p.rest, &fingers_of(pick, &close_a[0])),
         w_i,
     )?;
-    c.query("grasp", qg_open, w_i, term, progress)?;
-    c.fingers("pick_close", qg.clone(), h_a)?;
+    c.query("grasp", close_a[0].clone(), w_i, term, progress)?;
+    let cert = c.certificate(pick, list_a, a, &qg);
+    c.on_object("pick_close", close_a, h_a, cert)?;
     c.event(EventKind::Grasp, pick, name_a.clone());
 
     // Carry: pre-shape the place hand, bring the object to q_o^e, close the place hand.
-    let qe_open = c.open_hand(place, &palm_b, &qe, (h_a, h_ab), "exchange")?;
-    let place_pre = fingers_of(place, &qe_open);
-    c.fingers("place_preshape", with_fingers(place, &qg, &place_pre), h_a)?;
-    c.query("carry", qe_open, h_a, term, progress)?;
-    c.fingers("place_close", qe.clone(), h_ab)?;
+    let close_b = c.closing(place, motions_b, &qe, (h_a, h_ab), "exchange")?;
+    c.fingers(
+        "place_preshape",
+        with_fingers(place, &qg, &fingers_of(place, &close_b[0])),
+        h_a,
+    )?;
+    c.query("carry", close_b[0].clone(), h_a, term, progress)?;
+    let cert = c.certificate(place, list_b, b, &qe);
+    c.on_object("place_close", close_b, h_ab, cert)?;
     c.event(EventKind::Grasp, place, name_b.clone());
     c.event(EventKind::Release, pick, name_a);
 
-    // Place: open the pick hand, bring the object to q_o^f.
-    let qe_free = c.open_hand(pick, &palm_a, &qe, (h_b, h_ab), "exchange")?;
-    c.fingers("pick_open", qe_free.clone(), h_ab)?;
+    // Place: open the pick hand (its closing motion reversed), bring the object to q_o^f.
+    let mut open_a = c.closing(pick, motions_a, &qe, (h_b, h_ab), "exchange")?;
+    open_a.reverse();
+    let qe_free = open_a.last().cloned().unwrap_or_else(|| qe.clone());
+    let cert = c.certificate(pick, list_a, a, &qe);
+    c.on_object("pick_open", open_a, h_ab, cert)?;
     let qp = with_fingers(pick, &keys.place.q, &fingers_of(pick, &qe_free));
     c.query("place", qp.clone(), h_b, term, progress)?;
     c.event(EventKind::Release, place, name_b);
 
     // Rest: open the place hand, back to q_r^i, fingers to their rest values.
-    let qp_open = c.open_hand(place, &palm_b, &qp, (w_f, h_b), "place")?;
-    c.fingers("place_open", qp_open.clone(), h_b)?;
+    let mut open_b = c.closing(place, motions_b, &qp, (w_f, h_b), "place")?;
+    open_b.reverse();
+    let qp_open = open_b.last().cloned().unwrap_or_else(|| qp.clone());
+    let cert = c.certificate(place, list_b, b, &qp);
+    c.on_object("place_open", open_b, h_b, cert)?;
     let mut q_end = p.rest.clone();
     q_end = with_fingers(pick, &q_end, &fingers_of(pick, &qp_open));
     q_end = with_fingers(place, &q_end, &fingers_of(place, &qp_open));
@@ -756,12 +861,15 @@ fn chain(
 /// Re-certifies every motion of `plan` in its phase's world and every waypoint's limits; the
 /// number of segments checked. The phases' worlds are `worlds[phase_world[i]]`, checked with
 /// the chain's checker of that world (`checkers`, built where missing) after it forgot the
-/// motions it proved ([`FastChecker::forget_proven`]): every motion is proven again.
+/// motions it proved ([`FastChecker::forget_proven`]): every motion is proven again. A phase
+/// that closes or opens a hand on the object is also proven against the object by its
+/// certificate (`fingers[i]`, [`super::fingers`]).
 fn certify(
     p: &PickPlaceProblem,
     plan: &TaskPlan,
     worlds: &[CollisionWorld],
     phase_world: &[usize],
+    fingers: &[Option<FingerCertificate>],
     checkers: &mut [Option<FastChecker>],
 ) -> Result<usize, PickPlaceTaskError> {
     if let Some(k) = plan.waypoints.iter().position(|q| !within_limits(p, q)) {
@@ -791,12 +899,23 @@ fn certify(
         };
         for k in ph.first..ph.last {
             n += 1;
-            if !fast.motion_certified(&plan.waypoints[k], &plan.waypoints[k + 1]) {
+            let (a, b) = (&plan.waypoints[k], &plan.waypoints[k + 1]);
+            if !fast.motion_certified(a, b) {
                 return Err(PickPlaceTaskError::NotCertified {
                     phase: ph.name.clone(),
                     segment: k,
                     reason: "the motion is not certified free".into(),
                 });
+            }
+            if let Some(Some(cert)) = fingers.get(i) {
+                let v = cert.certify(a, b);
+                if v != FingerVerdict::Certified {
+                    return Err(PickPlaceTaskError::NotCertified {
+                        phase: ph.name.clone(),
+                        segment: k,
+                        reason: format!("the hand motion is not certified free of the object ({v:?})"),
+                    });
+                }
             }
         }
     }
@@ -823,12 +942,28 @@ pub fn plan_pick_place(
     let t = Instant::now();
     let grid = exchange_grid(p, &settings.config.exchange)?;
     timings.exchange_grid_ms = ms(t);
-    // Only grasps the hand can come to open (003 does not say how a hand reaches its grasp;
-    // a wrapping grasp whose fingers cannot open free of the object is not executable).
+    // Only grasps the hand can close on with a certified motion (003 does not say how a hand
+    // reaches its grasp; a grasp whose fingers cannot come to it free of the object is not
+    // executable): `super::fingers`.
     let fr = &settings.finger_fractions;
-    let (pick_list, pick_index) = approachable(&p.pick, &off.object, &off.pick_list, &p.rest, fr);
-    let (place_list, place_index) =
-        approachable(&p.place, &off.object, &off.place_list, &p.rest, fr);
+    let t = Instant::now();
+    let (pick_list, pick_index, pick_motions) = closable(
+        &p.pick,
+        &off.object,
+        &off.pick_list,
+        &p.rest,
+        fr,
+        CLOSING_CANDIDATES,
+    );
+    let (place_list, place_index, place_motions) = closable(
+        &p.place,
+        &off.object,
+        &off.place_list,
+        &p.rest,
+        fr,
+        CLOSING_CANDIDATES,
+    );
+    timings.closing_ms = ms(t);
     for (ah, l, full) in [
         (&p.pick, &pick_list, &off.pick_list),
         (&p.place, &place_list, &off.place_list),
@@ -837,14 +972,29 @@ pub fn plan_pick_place(
             return Err(PickPlaceTaskError::GraspList {
                 hand: ah.hand.group.clone(),
                 reason: format!(
-                    "none of its {} grasps can be approached with the hand open (some finger \
-                     enters the object at every pre-shape)",
+                    "the hand can close on none of its {} grasps with a motion certified free \
+                     of the object (some finger enters the object on every candidate motion)",
                     full.grasps.len()
                 ),
             });
         }
     }
     let mut last: Option<PickPlaceTaskError> = None;
+    let shared = settings.learning == RoadmapLearning::Shared;
+    let mut learned = if shared {
+        off.learned.lock().map(|l| l.clone()).unwrap_or_default()
+    } else {
+        LearnedGraph::default()
+    };
+    let keep = |learned: LearnedGraph| {
+        if shared {
+            if let Ok(mut l) = off.learned.lock() {
+                if learned.nodes.len() > l.nodes.len() {
+                    *l = learned;
+                }
+            }
+        }
+    };
     for attempt in 0..settings.attempts {
         if term.should_stop_now() {
             last = Some(PickPlaceTaskError::Stopped(format!(
@@ -883,6 +1033,8 @@ pub fn plan_pick_place(
             place_list: &place_list,
             pick_index: &pick_index,
             place_index: &place_index,
+            pick_motions: &pick_motions,
+            place_motions: &place_motions,
             plan: TaskPlan {
                 waypoints: Vec::new(),
                 phases: Vec::new(),
@@ -890,7 +1042,9 @@ pub fn plan_pick_place(
                 time: Duration::ZERO,
             },
             phase_world: Vec::new(),
+            phase_fingers: Vec::new(),
             queries: Vec::new(),
+            learned: std::mem::take(&mut learned),
             seed: aseed,
             attempt,
             t0,
@@ -899,6 +1053,7 @@ pub fn plan_pick_place(
             exact: Vec::new(),
         };
         let r = chain(&mut c, &keys, term, progress);
+        learned = std::mem::take(&mut c.learned);
         timings.motions_ms += ms(t);
         match r {
             Ok(()) => {
@@ -908,9 +1063,17 @@ pub fn plan_pick_place(
                     elapsed_ms: ms(t0),
                 });
                 let t = Instant::now();
-                let n = certify(p, &c.plan, &c.worlds, &c.phase_world, &mut c.fast)?;
+                let n = certify(
+                    p,
+                    &c.plan,
+                    &c.worlds,
+                    &c.phase_world,
+                    &c.phase_fingers,
+                    &mut c.fast,
+                )?;
                 timings.certification_ms = ms(t);
                 timings.total_ms = ms(t0);
+                keep(learned);
                 let mut plan = c.plan;
                 plan.time = t0.elapsed();
                 // Indices into the offline lists, as the events name them.
@@ -925,6 +1088,7 @@ pub fn plan_pick_place(
                     queries: c.queries,
                     attempts: attempt + 1,
                     certified_segments: n,
+                    closable: [pick_index.len(), place_index.len()],
                     timings,
                 });
             }
@@ -937,6 +1101,7 @@ pub fn plan_pick_place(
             }
         }
     }
+    keep(learned);
     Err(PickPlaceTaskError::Failed {
         attempts: settings.attempts,
         last: Box::new(last.unwrap_or_else(|| PickPlaceTaskError::Stopped("no attempt".into()))),
