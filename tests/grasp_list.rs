@@ -15,8 +15,9 @@ use manyhands::geometry::{Geometry, Mesh, Pose, Shape};
 use manyhands::grasp::list::workspace_params;
 use manyhands::grasp::list_cache::list_file_name;
 use manyhands::grasp::{
-    build_grasp_list, grasp_quality, load_grasp_list, save_grasp_list, Contact, GraspList,
-    GraspListCache, GraspListParams, GraspObject, Hand, ListFileError, WrenchSpaceSettings,
+    build_grasp_list, grasp_quality, load_grasp_list, mass_properties, save_grasp_list,
+    separation, Contact, GraspList, GraspListCache, GraspListParams, GraspObject, Hand,
+    ListFileError, WrenchSpaceSettings,
 };
 use manyhands::kinematics::link_pose;
 use manyhands::model::Robot;
@@ -154,8 +155,6 @@ fn hand_robot(palm: &str) -> Arc<Robot> {
 /// of the statuette except the contact links, which enter it by at most the tolerance.
 fn check_list(group: &str) {
     let l = default_list(group);
-    // justin's thumb flexes in the palm plane: about one frame in 3 000 gives force closure
-    // at μ = 0.5 (the default frames give a few grasps).
     assert!(!l.grasps.is_empty(), "{group}: no grasp");
     let full = justin();
     let palm = &l.palm_link;
@@ -289,6 +288,66 @@ fn every_left_hand_grasp_is_force_closure_and_free_of_its_hand() {
 #[test]
 fn every_right_hand_grasp_is_force_closure_and_free_of_its_hand() {
     check_list("right_hand");
+}
+
+/// Paper 003 §VI: 17 grasps in the right hand's list, 22 in the left's. The default lists hold
+/// at least as many force-closure grasps (each re-checked by `check_list`), no two of them
+/// near-duplicates (same fingers, palm origin and every contact within the list's
+/// near-duplicate distance, a fingertip's width), with the object's centre and torque scale of
+/// the solid (the union of the statuette's overlapping parts).
+#[test]
+fn default_lists_are_as_rich_as_the_papers_and_hold_no_near_duplicates() {
+    let m = mass_properties(&statuette().geometry);
+    for (group, paper) in [("right_hand", 17), ("left_hand", 22)] {
+        let l = default_list(group);
+        assert!(
+            l.grasps.len() >= paper,
+            "{group}: {} grasps, paper 003 has {paper}; stats {:?}",
+            l.grasps.len(),
+            l.stats
+        );
+        let d = l.stats.min_separation;
+        assert!((d - 2.0 * 0.008).abs() < 1e-12, "a fingertip's width: {d}");
+        for (i, a) in l.grasps.iter().enumerate() {
+            assert!(a.epsilon > 0.0);
+            for (j, b) in l.grasps.iter().enumerate().skip(i + 1) {
+                let s = separation(a, b);
+                assert!(s >= d, "{group}: grasps {i} and {j} {s} m apart");
+            }
+        }
+        let sets: std::collections::BTreeSet<Vec<&str>> = l
+            .grasps
+            .iter()
+            .map(|g| g.contacts.iter().map(|c| c.finger.as_str()).collect())
+            .collect();
+        assert!(sets.len() >= 2, "{group}: one finger set only");
+        assert_eq!(Vector3::from(l.centre), m.centre);
+        assert_eq!(l.radius, m.radius);
+    }
+}
+
+/// The near-duplicate rule is enforced in the list: a larger distance drops grasps that the
+/// default keeps, and what remains keeps that distance pairwise.
+#[test]
+fn near_duplicates_are_dropped_in_quality_order() {
+    let p = GraspListParams {
+        min_separation: Some(0.1),
+        ..Default::default()
+    };
+    let h = hand("left_hand", &p);
+    let l = build_grasp_list(&h, &statuette(), &p, &|_, _| {}, &|| false).unwrap();
+    let all = default_list("left_hand");
+    assert!(l.stats.duplicates > 0, "{:?}", l.stats);
+    assert_eq!(l.grasps.len() + l.stats.duplicates, l.stats.force_closure);
+    assert_eq!(l.stats.force_closure, all.stats.force_closure);
+    assert!(l.grasps.len() < all.grasps.len());
+    // The best grasp is never a duplicate of a better one.
+    assert_eq!(l.grasps[0], all.grasps[0]);
+    for (i, a) in l.grasps.iter().enumerate() {
+        for b in &l.grasps[i + 1..] {
+            assert!(separation(a, b) >= 0.1);
+        }
+    }
 }
 
 #[test]
@@ -462,6 +521,20 @@ fn a_list_is_reproducible_and_bad_parameters_name_their_field() {
                 ..p.clone()
             },
             "contact_tolerance",
+        ),
+        (
+            GraspListParams {
+                thumb_contacts: 0,
+                ..p.clone()
+            },
+            "thumb_contacts",
+        ),
+        (
+            GraspListParams {
+                min_separation: Some(-0.01),
+                ..p.clone()
+            },
+            "min_separation",
         ),
     ] {
         let e = build_grasp_list(&h, &obj, &q, &|_, _| {}, &|| false).unwrap_err();

@@ -59,6 +59,12 @@ pub struct ListParamArgs {
     /// Values tried for a thumb's base joint.
     #[arg(long)]
     pub base_steps: Option<usize>,
+    /// Thumb contacts tried per grasp frame until a closure is force closure.
+    #[arg(long)]
+    pub thumb_contacts: Option<usize>,
+    /// Near-duplicate distance in m (default: the narrowest fingertip's width).
+    #[arg(long)]
+    pub min_separation: Option<f64>,
     /// Depth in m by which a fingertip may enter the object at a contact.
     #[arg(long)]
     pub contact_tolerance: Option<f64>,
@@ -101,6 +107,10 @@ impl ListParamArgs {
         if let Some(v) = self.base_steps {
             p.base_steps = v;
         }
+        if let Some(v) = self.thumb_contacts {
+            p.thumb_contacts = v;
+        }
+        p.min_separation = self.min_separation.or(p.min_separation);
         if let Some(v) = self.contact_tolerance {
             p.contact_tolerance = v;
         }

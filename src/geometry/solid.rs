@@ -241,6 +241,11 @@ impl Solid {
         sum / (4.0 * std::f64::consts::PI)
     }
 
+    /// Per connected component: the box `(lo, hi)` around its vertices (mesh frame).
+    pub fn component_bounds(&self) -> impl Iterator<Item = (Vector3<f64>, Vector3<f64>)> + '_ {
+        self.component_boxes.iter().map(|(lo, hi, _)| (*lo, *hi))
+    }
+
     /// True when `p` (mesh frame) is inside the solid; points outside the cover answer at
     /// once.
     pub fn contains(&self, p: &Vector3<f64>) -> bool {

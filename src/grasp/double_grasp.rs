@@ -13,8 +13,9 @@
 //! - the minimum of the two single-grasp qualities ([`super::SingleGrasp::quality`]);
 //! - the minimum of the two robot-configuration scores (003 §V-C): here the grasping-arm term,
 //!   the cosine of the angle between the grasp's approach direction (palm origin → the hand's
-//!   workspace centre, world frame) and the direction from the robot base to the object, at the
-//!   pose where that hand grasps. 003's free-arm terms (joint distance and height difference
+//!   workspace centre, world frame) and the direction from the robot base to the object's
+//!   centre of mass (the list's centre: the union of the object's parts, [`super::mass`]), at
+//!   the pose where that hand grasps. 003's free-arm terms (joint distance and height difference
 //!   to a rest configuration, wrist distance to the torso plane) need the arm configurations of
 //!   the exchange (003 §V-C, grasp configurations), which this module does not compute.
 //!
@@ -130,13 +131,19 @@ fn free_of(placed: &Placed, env: &[(SharedShape, Pose, f64)]) -> bool {
     })
 }
 
-/// The grasping-arm configuration score (module docs) of grasp `g` with the object at `pose`
-/// and the robot base at `base` (world frame).
-pub fn approach_score(hand: &Hand, g: &SingleGrasp, pose: &Pose, base: &Vector3<f64>) -> f64 {
+/// The grasping-arm configuration score (module docs) of grasp `g` with the object at `pose`,
+/// its centre of mass at `com` (object frame), and the robot base at `base` (world frame).
+pub fn approach_score(
+    hand: &Hand,
+    g: &SingleGrasp,
+    pose: &Pose,
+    com: &Vector3<f64>,
+    base: &Vector3<f64>,
+) -> f64 {
     let palm = pose * g.palm_pose();
     let centre = palm * Point3::from(hand.workspace_centre(&hand.base_config()));
     let approach = centre.coords - palm.translation.vector;
-    let to_object = pose.translation.vector - base;
+    let to_object = (pose * Point3::from(*com)).coords - base;
     if approach.norm() == 0.0 || to_object.norm() == 0.0 {
         return 0.0;
     }
@@ -165,7 +172,7 @@ pub fn double_grasps(
             picks.push((
                 i,
                 placed_hand(pick.0, g, &Pose::identity()),
-                approach_score(pick.0, g, initial, base),
+                approach_score(pick.0, g, initial, &Vector3::from(pick.1.centre), base),
             ));
         }
     }
@@ -176,7 +183,7 @@ pub fn double_grasps(
             places.push((
                 i,
                 placed_hand(place.0, g, &Pose::identity()),
-                approach_score(place.0, g, final_pose, base),
+                approach_score(place.0, g, final_pose, &Vector3::from(place.1.centre), base),
             ));
         }
     }

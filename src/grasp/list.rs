@@ -8,61 +8,77 @@
 //!    the orientations of the HEALPix × S¹ grid of level `orientation_level`
 //!    ([`super::so3_grid`], 72 · 8^level). The frame is centred on the fingers' workspaces
 //!    ([`Hand::workspace_centre`]): the palm pose is `T(p) · R · T(−c)`.
-//! 2. **Contacts, finger by finger** (§IV-A-2): the palm must be free of the object; then the
-//!    thumb first, each finger's workspace spheres biggest first ([`super::finger_workspace`],
-//!    Alg. 1): the surface points ([`super::surface`], kd-tree) inside the sphere, nearest its
-//!    centre first, whose outward normal faces the finger's base (at most
-//!    `candidates_per_sphere` per sphere), are tried with the finger's position-only numeric
-//!    IK (the fingertip frame sent to the point); a solution is a contact when the finger's
-//!    links are free of the object and of the hand links placed so far (palm and earlier
-//!    fingers; pairs the SRDF disables are skipped) and its contact link touches the object
-//!    within `contact_tolerance` (gap or depth). A contact link deeper than that (a flat
-//!    fingertip on a tilted surface) moves the IK target out along the surface normal by the
-//!    excess and tries again (three times at most). The contact is where the contact link
-//!    touches: parry's contact point on the object and the inward surface normal there. The true mesh is used
-//!    (parry's `TriMesh` and the winding-number inside test of [`crate::geometry::Solid`]), so a
-//!    finger may go between the statuette's legs. A thumb with base joints tries `base_steps`
-//!    base values (mid-range first). A finger without contact is left stretched (its rest
-//!    configuration) or, if that collides, at mid-range; if both collide the frame gives no
-//!    grasp. No thumb contact, no grasp.
+//! 2. **Contacts, finger by finger** (§IV-A-2, [`super::list_search`]): the palm must be free
+//!    of the object; then the thumb first, each finger's workspace spheres biggest first
+//!    ([`super::finger_workspace`], Alg. 1): the surface points ([`super::surface`], kd-tree)
+//!    inside the sphere (at most `candidates_per_sphere` per sphere) are tried with the
+//!    finger's position-only numeric IK (the fingertip frame sent to the point); a solution is
+//!    a contact when the finger's links are free of the object and of the hand links placed so
+//!    far (palm and earlier fingers; pairs the SRDF disables are skipped) and its contact link
+//!    touches the object within `contact_tolerance` (gap or depth). A contact link deeper than
+//!    that (a flat fingertip on a tilted surface) moves the IK target out along the surface
+//!    normal by the excess and tries again (three times at most). The contact is where the
+//!    contact link touches: parry's contact point on the object and the inward surface normal
+//!    there. The true mesh is used (parry's `TriMesh` and the winding-number inside test of
+//!    [`crate::geometry::Solid`]), so a finger may go between the statuette's legs. A thumb
+//!    with base joints tries `base_steps` base values (mid-range first).
+//!
+//!    Which points are tried first decides whether a closure can be stable: the thumb's are
+//!    taken nearest the sphere's centre (the part of its workspace farthest from its joint
+//!    limits, as 003); every later finger's are ordered by **opposition**, the point whose
+//!    inward normal points most against the sum of the inward normals of the contacts made so
+//!    far first (a force-closure grasp's forces must push in every direction, so a contact that
+//!    pushes along the others' forces never helps). No point is ruled out by the side it faces:
+//!    a finger that curls around a leg touches it on the side facing away from the finger's
+//!    base, and those contacts are the ones that oppose the thumb; the IK and the depth test
+//!    decide whether the fingertip reaches a point from outside.
+//!
+//!    A finger without contact is left stretched (its rest configuration) or, if that
+//!    collides, at mid-range; if both collide the closure gives no grasp. No thumb contact, no
+//!    grasp. A frame tries up to `thumb_contacts` thumb contacts in turn (each a full closure
+//!    of the other fingers) until one closure is force closure; the first such is the frame's
+//!    grasp.
 //! 3. **Stability and quality** (§IV-A-3): ≥ 3 contacts → the Ferrari–Canny ε of the point
 //!    contacts with friction ([`super::grasp_quality`], centre = the object's centre of mass,
-//!    λ = 1 / its radius); only force closure with ε > 0 is kept. The quality is the weighted
-//!    sum `w₁ ε/ε_max + w₂ (1 − |centroid − com| / radius) + w₃ mean |n·a| + w₄ mean (1 − κ/κ_max)`
+//!    λ = 1 / the largest distance of its surface from that centre, [`super::mass`]); only
+//!    force closure with ε > 0 is kept. The quality is the weighted sum
+//!    `w₁ ε/ε_max + w₂ (1 − |centroid − com| / radius) + w₃ mean |n·a| + w₄ mean (1 − κ/κ_max)`
 //!    of the force-closure score (normalised over the list), the contact centroid's distance
 //!    to the centre of mass, the alignment of each inward contact normal with its finger's
 //!    force-ellipsoid major axis `a` (the eigenvector of `J Jᵀ` of least eigenvalue, J the
 //!    finger's 3×3 position Jacobian; 003 sums the angles, here each term is |cos| so that
 //!    higher is better) and the inverse curvature at the contacts (surface variation,
 //!    normalised by its maximum over the sampled surface); 003's weights are (1, 1, 1, 6).
+//! 4. **Diversity**: two grasps are *near-duplicates* when they touch with the same fingers and
+//!    neither the palm origin nor any finger's contact point is `min_separation` or more apart
+//!    (default: the width of the hand's narrowest fingertip, twice its radius — two contacts
+//!    closer than that share the fingertip's patch). In quality order, a grasp that is a
+//!    near-duplicate of one kept is dropped ([`GraspListStats::duplicates`]), so every pair in a
+//!    list differs by a finger or by at least `min_separation` at the palm or at a contact
+//!    ([`separation`] measures it).
 //!
 //! Frames are processed in parallel (rayon); each frame's IK restarts draw from its own
 //! ChaCha8 generator seeded from `seed` and the frame index, so a list depends only on hand,
 //! object and parameters. The grasps are sorted by quality (ties by frame order).
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
 use std::time::Instant;
 
-use nalgebra::{Matrix3, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3};
-use parry3d_f64::query;
-use parry3d_f64::shape::SharedShape;
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::hand::{transform_sphere, Hand, HandError, WorkspaceParams};
+use super::hand::{Hand, HandError, WorkspaceParams};
+use super::list_search::{Ctx, FrameOutcome, Worker};
 use super::so3_grid::{so3_grid, so3_grid_len, MAX_SO3_LEVEL};
-use super::surface::SurfaceSamples;
-use super::wrench_space::{
-    forces_one_sided, primitive_wrenches_into, quality_of_wrenches, Contact, WrenchSpaceSettings,
-};
-use super::{object_centre, object_radius};
-use crate::collision::to_parry;
-use crate::geometry::{Geometry, Pose, Shape, Solid};
-use crate::kinematics::NumericIk;
+use super::wrench_space::WrenchSpaceSettings;
+use crate::geometry::Pose;
 use crate::model::Robot;
+
+pub use super::grasp_object::GraspObject;
 
 /// Most grasp frames (positions × orientations) of one list.
 pub const MAX_FRAMES: usize = 1 << 21;
@@ -92,6 +108,13 @@ pub struct GraspListParams {
     pub candidates_per_sphere: usize,
     /// Values tried for a finger's base joints (a thumb base; 1..=16).
     pub base_steps: usize,
+    /// Thumb contacts tried per frame, each a closure of the other fingers, until one is force
+    /// closure (1..=64).
+    pub thumb_contacts: usize,
+    /// Near-duplicate distance (m, 0..=0.1): grasps with the same contact fingers whose palm
+    /// origins and contact points all lie closer than this keep only the best; default: the
+    /// width of the narrowest fingertip (twice its radius).
+    pub min_separation: Option<f64>,
     /// How deep the contact link may enter the object at a contact (m, 0..=0.01).
     pub contact_tolerance: f64,
     /// Coulomb friction coefficient of the force-closure test.
@@ -109,9 +132,10 @@ pub struct GraspListParams {
 }
 
 impl Default for GraspListParams {
-    /// 125 positions × 72 orientations (9 000 frames), 12 grid values per joint, 16 spheres,
-    /// 4 candidates per sphere, 3 thumb-base values, 1 mm contact tolerance, μ = 0.5, 8 cone
-    /// edges, weights (1, 1, 1, 6) as 003, 2 000 grasps, seed 1.
+    /// 125 positions (about: the grid of the object's box) × 72 orientations, 12 grid values
+    /// per joint, 16 spheres, 4 candidates per sphere, 3 thumb-base values, 4 thumb contacts per
+    /// frame, near-duplicates within a fingertip's width, 1 mm contact tolerance, μ = 0.5, 8
+    /// cone edges, weights (1, 1, 1, 6) as 003, 2 000 grasps, seed 1.
     fn default() -> Self {
         GraspListParams {
             positions: 125,
@@ -122,6 +146,8 @@ impl Default for GraspListParams {
             min_sphere_radius: None,
             candidates_per_sphere: 4,
             base_steps: 3,
+            thumb_contacts: 4,
+            min_separation: None,
             contact_tolerance: 1e-3,
             mu: 0.5,
             cone_edges: 8,
@@ -236,6 +262,20 @@ impl GraspListParams {
                 format!("must be in 1..=16, got {}", self.base_steps),
             );
         }
+        if !(1..=64).contains(&self.thumb_contacts) {
+            return bad(
+                "thumb_contacts",
+                format!("must be in 1..=64, got {}", self.thumb_contacts),
+            );
+        }
+        if let Some(d) = self.min_separation {
+            if !(d.is_finite() && (0.0..=0.1).contains(&d)) {
+                return bad(
+                    "min_separation",
+                    format!("must be in 0..=0.1 m, got {d}"),
+                );
+            }
+        }
         if !(self.contact_tolerance.is_finite() && (0.0..=0.01).contains(&self.contact_tolerance)) {
             return bad(
                 "contact_tolerance",
@@ -267,253 +307,6 @@ impl GraspListParams {
         Ok(())
     }
 }
-
-/// One shape of the object: parry shape, pose in the object frame, the solid of a closed mesh,
-/// bounding radius about its origin.
-#[derive(Clone)]
-struct ObjectShape {
-    shape: SharedShape,
-    pose: Pose,
-    parry_pose: parry3d_f64::math::Pose,
-    solid: Option<Arc<Solid>>,
-    radius: f64,
-}
-
-/// The object to grasp: its mesh geometry (object frame), centre of mass and radius.
-#[derive(Clone)]
-pub struct GraspObject {
-    pub name: String,
-    pub geometry: Vec<Geometry>,
-    /// Centre of mass (uniform density) and the largest distance of the object from it.
-    pub centre: Vector3<f64>,
-    pub radius: f64,
-    shapes: Vec<ObjectShape>,
-}
-
-impl std::fmt::Debug for GraspObject {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GraspObject")
-            .field("name", &self.name)
-            .field("shapes", &self.geometry.len())
-            .finish()
-    }
-}
-
-impl GraspObject {
-    /// An object made of `geometry` (poses in the object frame). Every shape must be a mesh
-    /// (the surface is sampled from its triangles); a closed mesh is used as its true solid,
-    /// another as its convex hull for collisions.
-    pub fn new(name: &str, geometry: Vec<Geometry>) -> Result<GraspObject, GraspListError> {
-        if geometry.is_empty() {
-            return Err(GraspListError::invalid("object", "has no geometry"));
-        }
-        let mut shapes = Vec::new();
-        for (i, g) in geometry.iter().enumerate() {
-            let Shape::Mesh(m) = &g.shape else {
-                return Err(GraspListError::invalid(
-                    &format!("object.shapes[{i}]"),
-                    format!(
-                        "a {} (grasp lists sample mesh surfaces only)",
-                        g.shape.kind()
-                    ),
-                ));
-            };
-            let solid = m.solid.as_ref().ok().cloned();
-            let (shape, pose) = match &solid {
-                Some(s) => {
-                    let pts = s
-                        .vertices
-                        .iter()
-                        .map(|v| parry3d_f64::math::Vector::new(v.x, v.y, v.z))
-                        .collect();
-                    match SharedShape::trimesh(pts, s.triangles.clone()) {
-                        Ok(t) => (t, g.origin),
-                        Err(e) => {
-                            return Err(GraspListError::invalid(
-                                &format!("object.shapes[{i}]"),
-                                format!("mesh not usable: {e:?}"),
-                            ))
-                        }
-                    }
-                }
-                None => crate::collision::parry_shape(g),
-            };
-            shapes.push(ObjectShape {
-                parry_pose: to_parry(&pose),
-                shape,
-                pose,
-                solid,
-                radius: m.max_radius(),
-            });
-        }
-        let (centre, _) = object_centre(&geometry);
-        let radius = object_radius(&geometry, &centre);
-        Ok(GraspObject {
-            name: name.to_string(),
-            geometry,
-            centre,
-            radius,
-            shapes,
-        })
-    }
-
-    /// The object of one mesh file (OBJ, STL, DAE; metres), named after the file's stem.
-    pub fn from_mesh_file(path: &std::path::Path) -> Result<GraspObject, GraspListError> {
-        let mesh = crate::geometry::Mesh::load(path, [1.0; 3])
-            .map_err(|e| GraspListError::invalid("mesh", e))?;
-        let name = path
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("mesh")
-            .to_string();
-        GraspObject::new(
-            &name,
-            vec![Geometry {
-                origin: Pose::identity(),
-                shape: Shape::Mesh(Arc::new(mesh)),
-            }],
-        )
-    }
-
-    /// The object's box (object frame).
-    pub fn aabb(&self) -> (Vector3<f64>, Vector3<f64>) {
-        let mut lo = Vector3::repeat(f64::INFINITY);
-        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-        for g in &self.geometry {
-            if let Shape::Mesh(m) = &g.shape {
-                for v in &m.vertices {
-                    let p = (g.origin * v).coords;
-                    lo = lo.inf(&p);
-                    hi = hi.sup(&p);
-                }
-            }
-        }
-        (lo, hi)
-    }
-
-    /// The surface points ([`SurfaceSamples`]) of all meshes, spacing `spacing`.
-    pub fn sample_surface(
-        &self,
-        spacing: f64,
-        seed: u64,
-    ) -> Result<SurfaceSamples, GraspListError> {
-        let mut verts = Vec::new();
-        let mut tris = Vec::new();
-        let mut solid = None;
-        for (g, s) in self.geometry.iter().zip(&self.shapes) {
-            if let Shape::Mesh(m) = &g.shape {
-                let (vs, ts): (&[Point3<f64>], &[[u32; 3]]) = match &s.solid {
-                    Some(sol) => (&sol.vertices, &sol.triangles),
-                    None => (&m.vertices, &m.triangles),
-                };
-                let base = verts.len() as u32;
-                verts.extend(vs.iter().map(|v| g.origin * v));
-                tris.extend(ts.iter().map(|t| t.map(|i| i + base)));
-                if self.shapes.len() == 1 && g.origin == Pose::identity() {
-                    solid = s.solid.clone();
-                }
-            }
-        }
-        SurfaceSamples::new(&verts, &tris, solid.as_deref(), spacing, seed)
-            .map_err(|e| GraspListError::invalid("surface_spacing", e))
-    }
-
-    /// Whether `shape` at `pose` (object frame) intersects the object (surface or inside).
-    pub fn hits(&self, shape: &SharedShape, pose: &Pose, bound: f64) -> bool {
-        self.shapes.iter().any(|o| {
-            if (pose.translation.vector - o.pose.translation.vector).norm() > bound + o.radius {
-                return false;
-            }
-            let pp = to_parry(pose);
-            query::intersection_test(&o.parry_pose, o.shape.as_ref(), &pp, shape.as_ref())
-                .map(|r| r.intersecting)
-                .unwrap_or(true)
-                || self.nested(o, shape, pose)
-        })
-    }
-
-    /// How deep `shape` at `pose` enters the object (0 when apart; infinite when it lies inside
-    /// or the pair cannot be answered).
-    pub fn depth(&self, shape: &SharedShape, pose: &Pose, bound: f64) -> f64 {
-        let mut worst = 0.0f64;
-        for o in &self.shapes {
-            if (pose.translation.vector - o.pose.translation.vector).norm() > bound + o.radius {
-                continue;
-            }
-            let pp = to_parry(pose);
-            match query::contact(&o.parry_pose, o.shape.as_ref(), &pp, shape.as_ref(), 0.0) {
-                Ok(Some(c)) => worst = worst.max(-c.dist),
-                Ok(None) => {}
-                Err(_) => return f64::INFINITY,
-            }
-            if self.nested(o, shape, pose) {
-                return f64::INFINITY;
-            }
-        }
-        worst
-    }
-
-    /// Where `shape` at `pose` touches the object within `tol` (distance or depth): the signed
-    /// distance (negative: depth), the contact point on the object and the inward normal there.
-    pub fn touch(
-        &self,
-        shape: &SharedShape,
-        pose: &Pose,
-        tol: f64,
-    ) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
-        let mut best: Option<(f64, Vector3<f64>, Vector3<f64>)> = None;
-        let pp = to_parry(pose);
-        for o in &self.shapes {
-            if let Ok(Some(c)) =
-                query::contact(&o.parry_pose, o.shape.as_ref(), &pp, shape.as_ref(), tol)
-            {
-                if c.dist.abs() <= tol && best.is_none_or(|b| c.dist < b.0) {
-                    let p = Vector3::new(c.point1.x, c.point1.y, c.point1.z);
-                    let n = -Vector3::new(c.normal1.x, c.normal1.y, c.normal1.z);
-                    if n.norm() > 0.0 {
-                        best = Some((c.dist, p, n.normalize()));
-                    }
-                }
-            }
-        }
-        best
-    }
-
-    /// The distance between `shape` at `pose` (object frame) and the object's true geometry
-    /// (the mesh surface, and its inside for a closed mesh): 0 when they touch, intersect or the
-    /// shape lies inside. A pair parry cannot answer counts as touching (0), so the value never
-    /// overstates the clearance.
-    pub fn distance(&self, shape: &SharedShape, pose: &Pose) -> f64 {
-        let pp = to_parry(pose);
-        let mut best = f64::INFINITY;
-        for o in &self.shapes {
-            let d = query::distance(&o.parry_pose, o.shape.as_ref(), &pp, shape.as_ref())
-                .map_or(0.0, |r| r.distance);
-            if !(d > 0.0) || self.nested(o, shape, pose) {
-                return 0.0;
-            }
-            best = best.min(d);
-        }
-        best
-    }
-
-    fn nested(&self, o: &ObjectShape, shape: &SharedShape, pose: &Pose) -> bool {
-        match &o.solid {
-            Some(s) => {
-                // The shape's origin (primitives are centred on it) inside the solid.
-                let l = o.pose.inverse() * Point3::from(pose.translation.vector);
-                s.contains(&l.coords)
-                    || s.vertices.first().is_some_and(|v| {
-                        let w = o.pose * v;
-                        let pp = to_parry(pose);
-                        shape.contains_point(&pp, parry3d_f64::math::Vector::new(w.x, w.y, w.z))
-                    })
-            }
-            None => false,
-        }
-    }
-}
-
 /// A contact of a grasp (object frame).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ListContact {
@@ -562,8 +355,9 @@ impl SingleGrasp {
     }
 }
 
-/// Counts of a list build.
+/// Counts of a list build: where the frames' searches stop (module docs).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct GraspListStats {
     pub surface_points: usize,
     pub frames: usize,
@@ -571,10 +365,23 @@ pub struct GraspListStats {
     pub palm_free: usize,
     /// Frames with a thumb contact.
     pub thumb_contacts: usize,
-    /// Frames with ≥ 3 contacts.
+    /// Frames with a closure of ≥ 3 contacts.
     pub candidates: usize,
-    /// Candidates in force closure (ε > 0).
+    /// Frames with a force-closure grasp (ε > 0).
     pub force_closure: usize,
+    /// Hand closures tried (one per thumb contact, at most `thumb_contacts` per frame).
+    pub closures: usize,
+    /// Closures with ≥ 3 contacts.
+    pub closure_candidates: usize,
+    /// Closures with ≥ 3 contacts whose forces all push into one half-space (not force
+    /// closure, decided without the wrench hull).
+    pub one_sided: usize,
+    /// Contacts made per finger over all closures (thumb first).
+    pub finger_contacts: Vec<usize>,
+    /// Force-closure grasps dropped as near-duplicates of a better one.
+    pub duplicates: usize,
+    /// The near-duplicate distance used (m).
+    pub min_separation: f64,
     /// Spheres per finger (thumb first).
     pub spheres: Vec<usize>,
     pub seconds: f64,
@@ -634,350 +441,6 @@ pub fn grasp_frames(hand: &Hand, object: &GraspObject, params: &GraspListParams)
     out
 }
 
-/// One finger's contact: the finger, the nearest surface sample (its curvature), the contact
-/// point and inward normal (object frame), the finger's force-ellipsoid major axis.
-struct FingerContact {
-    finger: usize,
-    sample: usize,
-    point: Vector3<f64>,
-    normal: Vector3<f64>,
-    axis: Vector3<f64>,
-}
-
-/// What a frame gives before the quality step.
-struct Candidate {
-    palm: Pose,
-    config: Vec<f64>,
-    contacts: Vec<FingerContact>,
-}
-
-/// Per-thread state.
-struct Worker {
-    q: Vec<f64>,
-    iks: Vec<NumericIk>,
-    /// Hand links placed so far: (link, pose in the object frame).
-    placed: Vec<(usize, Pose)>,
-}
-
-#[derive(Default)]
-struct FrameOutcome {
-    palm_free: bool,
-    thumb: bool,
-    candidate: Option<Candidate>,
-}
-
-struct Ctx<'a> {
-    hand: &'a Hand,
-    robot: &'a Robot,
-    object: &'a GraspObject,
-    surface: &'a SurfaceSamples,
-    params: &'a GraspListParams,
-    /// Base-joint fractions in search order (mid first).
-    base_fracs: Vec<f64>,
-    /// Bounding radius of each hand link's shapes (about the shape origin).
-    bounds: std::collections::HashMap<usize, Vec<f64>>,
-}
-
-impl Ctx<'_> {
-    /// Whether `link` at `pose` (object frame) collides with the object or with a placed link
-    /// (a contact link is tested by its depth instead, [`Self::link_depth`]).
-    fn link_blocked(&self, link: usize, pose: &Pose, placed: &[(usize, Pose)]) -> bool {
-        let shapes = &self.hand.shapes[&link];
-        let bounds = &self.bounds[&link];
-        for ((s, local), b) in shapes.iter().zip(bounds) {
-            let w = pose * local;
-            if self.object.hits(s, &w, *b) {
-                return true;
-            }
-            for (other, opose) in placed {
-                if *other == link || self.robot.is_disabled(link, *other) {
-                    continue;
-                }
-                let os = &self.hand.shapes[other];
-                let ob = &self.bounds[other];
-                for ((s2, l2), b2) in os.iter().zip(ob) {
-                    let w2 = opose * l2;
-                    if (w.translation.vector - w2.translation.vector).norm() > b + b2 {
-                        continue;
-                    }
-                    let hit = query::intersection_test(
-                        &to_parry(&w),
-                        s.as_ref(),
-                        &to_parry(&w2),
-                        s2.as_ref(),
-                    )
-                    .map(|r| r.intersecting)
-                    .unwrap_or(true);
-                    if hit {
-                        return true;
-                    }
-                }
-            }
-        }
-        false
-    }
-
-    /// Places a finger's `links` at the current configuration; true when all are free.
-    fn place_finger_links(&self, palm: &Pose, w: &mut Worker, links: &[usize]) -> bool {
-        for &l in links {
-            let pose = palm * self.hand.link_in_palm(l, &w.q);
-            if self.link_blocked(l, &pose, &w.placed) {
-                return false;
-            }
-            w.placed.push((l, pose));
-        }
-        true
-    }
-
-    fn frame(&self, palm: &Pose, w: &mut Worker, rng: &mut ChaCha8Rng) -> FrameOutcome {
-        let mut out = FrameOutcome::default();
-        w.q.copy_from_slice(&self.hand.base_config());
-        w.placed.clear();
-        for &l in &self.hand.palm_links {
-            let pose = palm * self.hand.link_in_palm(l, &w.q);
-            if self.link_blocked(l, &pose, &w.placed) {
-                return out;
-            }
-            w.placed.push((l, pose));
-        }
-        out.palm_free = true;
-        let mut contacts = Vec::new();
-        for fi in 0..self.hand.fingers.len() {
-            let found = self.finger_contact(fi, palm, w, rng);
-            match found {
-                Some(c) => contacts.push(c),
-                None if fi == 0 => return out,
-                None => {
-                    // Rest (stretched), else mid-range.
-                    let f = &self.hand.fingers[fi];
-                    let mark = w.placed.len();
-                    let mut ok = false;
-                    for cfg in [f.rest, f.mid] {
-                        for (&v, x) in f.ik_vars.iter().zip(cfg) {
-                            w.q[v] = x;
-                        }
-                        w.placed.truncate(mark);
-                        let links = f.links.clone();
-                        if self.place_finger_links(palm, w, &links) {
-                            ok = true;
-                            break;
-                        }
-                    }
-                    if !ok {
-                        return out;
-                    }
-                }
-            }
-            if fi == 0 {
-                out.thumb = true;
-            }
-        }
-        if contacts.len() >= 3 {
-            out.candidate = Some(Candidate {
-                palm: *palm,
-                config: self.hand.vars.iter().map(|&v| w.q[v]).collect(),
-                contacts,
-            });
-        }
-        out
-    }
-
-    /// Finger `fi` reaching surface point `p` (outward normal `n`): the fingertip is sent to `p`
-    /// by IK; the finger's other links must be free of the object and the placed links, its
-    /// contact link must touch the object within the tolerance. A contact link deeper than that
-    /// (a flat tip on a tilted surface) sends the target back along `n` and tries again (at most
-    /// three times). The contact is where the contact link touches the object: parry's contact
-    /// point on the object and its inward normal.
-    #[allow(clippy::too_many_arguments)]
-    fn touch_at(
-        &self,
-        fi: usize,
-        palm: &Pose,
-        ib: &Pose,
-        p: Vector3<f64>,
-        n: Vector3<f64>,
-        w: &mut Worker,
-        rng: &mut ChaCha8Rng,
-        base_mark: usize,
-    ) -> Option<FingerContact> {
-        let f = &self.hand.fingers[fi];
-        let tol = self.params.contact_tolerance;
-        let ib_inv = ib.inverse();
-        let mut target_p = p;
-        for k in 0..3 {
-            w.q[f.ik_vars[k]] = f.mid[k];
-        }
-        for _ in 0..4 {
-            w.placed.truncate(base_mark);
-            let target = Pose::from_parts(
-                Translation3::from((ib_inv * Point3::from(target_p)).coords),
-                UnitQuaternion::identity(),
-            );
-            let sol = w.iks[fi].solve(&target, &w.q, rng).ok()?;
-            for k in 0..3 {
-                w.q[f.ik_vars[k]] = sol[f.ik_vars[k]];
-            }
-            for &l in &f.links {
-                if f.base_links.contains(&l) || l == f.contact_link {
-                    continue;
-                }
-                let pose = palm * self.hand.link_in_palm(l, &w.q);
-                if self.link_blocked(l, &pose, &w.placed) {
-                    return None;
-                }
-                w.placed.push((l, pose));
-            }
-            let cl = f.contact_link;
-            let pose = palm * self.hand.link_in_palm(cl, &w.q);
-            // The contact link may enter the object by the tolerance (its depth, computed once,
-            // also sets the retry's target).
-            let depth = self.link_depth(cl, &pose);
-            let hand_free = self.hand_free(cl, &pose, &w.placed);
-            if depth > tol || !hand_free {
-                // Deeper than the tolerance or hitting the hand: only depth is worth a retry.
-                if depth.is_finite() && depth > tol && hand_free {
-                    target_p += n * (depth - tol / 2.0);
-                    continue;
-                }
-                return None;
-            }
-            let (point, normal) = self.link_touch(cl, &pose, tol)?;
-            w.placed.push((cl, pose));
-            // Force-ellipsoid major axis (object frame).
-            let j = f.ik_chain.jacobian(self.robot, &w.q);
-            let jp = j.fixed_rows::<3>(0).into_owned();
-            let m: Matrix3<f64> = &jp * jp.transpose();
-            let e = SymmetricEigen::new(m);
-            let imin = e
-                .eigenvalues
-                .iter()
-                .enumerate()
-                .min_by(|a, b| a.1.total_cmp(b.1))
-                .map_or(0, |x| x.0);
-            let axis = ib.rotation * e.eigenvectors.column(imin).into_owned();
-            return Some(FingerContact {
-                finger: fi,
-                sample: self.surface.nearest(&point),
-                point,
-                normal,
-                axis,
-            });
-        }
-        None
-    }
-
-    /// Deepest penetration of `link` at `pose` into the object.
-    fn link_depth(&self, link: usize, pose: &Pose) -> f64 {
-        let shapes = &self.hand.shapes[&link];
-        let bounds = &self.bounds[&link];
-        shapes
-            .iter()
-            .zip(bounds)
-            .map(|((s, local), b)| self.object.depth(s, &(pose * local), *b))
-            .fold(0.0, f64::max)
-    }
-
-    /// Whether `link` at `pose` is free of the placed hand links.
-    fn hand_free(&self, link: usize, pose: &Pose, placed: &[(usize, Pose)]) -> bool {
-        let shapes = &self.hand.shapes[&link];
-        let bounds = &self.bounds[&link];
-        shapes.iter().zip(bounds).all(|((s, local), b)| {
-            let w = pose * local;
-            placed.iter().all(|(other, opose)| {
-                if *other == link || self.robot.is_disabled(link, *other) {
-                    return true;
-                }
-                self.hand.shapes[other]
-                    .iter()
-                    .zip(&self.bounds[other])
-                    .all(|((s2, l2), b2)| {
-                        let w2 = opose * l2;
-                        (w.translation.vector - w2.translation.vector).norm() > b + b2
-                            || !query::intersection_test(
-                                &to_parry(&w),
-                                s.as_ref(),
-                                &to_parry(&w2),
-                                s2.as_ref(),
-                            )
-                            .map(|r| r.intersecting)
-                            .unwrap_or(true)
-                    })
-            })
-        })
-    }
-
-    /// Where `link` at `pose` touches the object (within `tol`): the contact point on the object
-    /// and the inward normal; `None` when it is farther than `tol`.
-    fn link_touch(
-        &self,
-        link: usize,
-        pose: &Pose,
-        tol: f64,
-    ) -> Option<(Vector3<f64>, Vector3<f64>)> {
-        let shapes = &self.hand.shapes[&link];
-        let mut best: Option<(f64, Vector3<f64>, Vector3<f64>)> = None;
-        for (s, local) in shapes {
-            if let Some((d, p, n)) = self.object.touch(s, &(pose * local), tol) {
-                if best.is_none_or(|b| d < b.0) {
-                    best = Some((d, p, n));
-                }
-            }
-        }
-        best.map(|b| (b.1, b.2))
-    }
-
-    /// Finger `fi`'s contact (module docs, step 2), its links placed; `None` leaves the
-    /// placed links as they were.
-    fn finger_contact(
-        &self,
-        fi: usize,
-        palm: &Pose,
-        w: &mut Worker,
-        rng: &mut ChaCha8Rng,
-    ) -> Option<FingerContact> {
-        let f = &self.hand.fingers[fi];
-        let mark = w.placed.len();
-        let fracs: &[f64] = if f.base_vars.is_empty() {
-            &[0.5]
-        } else {
-            &self.base_fracs
-        };
-        for &t in fracs {
-            w.placed.truncate(mark);
-            for &v in &f.base_vars {
-                let l = self.robot.var_limits(v);
-                w.q[v] = l.lower + (l.upper - l.lower) * t;
-            }
-            if !self.place_finger_links(palm, w, &f.base_links) {
-                continue;
-            }
-            let base_mark = w.placed.len();
-            let ib = palm * self.hand.link_in_palm(f.ik_base, &w.q);
-            let base_origin = ib.translation.vector;
-            for s in &f.workspace {
-                let s = transform_sphere(&ib, s);
-                let mut tried = 0;
-                for idx in self.surface.within(&s.centre, s.radius) {
-                    if tried >= self.params.candidates_per_sphere {
-                        break;
-                    }
-                    let p = self.surface.points[idx];
-                    let n = self.surface.normals[idx];
-                    if n.dot(&(base_origin - p)) <= 0.0 {
-                        continue;
-                    }
-                    tried += 1;
-                    if let Some(c) = self.touch_at(fi, palm, &ib, p, n, w, rng, base_mark) {
-                        return Some(c);
-                    }
-                }
-            }
-        }
-        w.placed.truncate(mark);
-        None
-    }
-}
-
 /// Builds the single-grasp list of `hand` for `object` (module docs). `progress(done, total)`
 /// is called from worker threads as frames finish; `stop` is polled per frame.
 pub fn build_grasp_list(
@@ -995,10 +458,11 @@ pub fn build_grasp_list(
         .map(|f| f.tip_radius)
         .fold(f64::INFINITY, f64::min);
     let spacing = params.surface_spacing.unwrap_or(tip);
+    let min_separation = params.min_separation.unwrap_or(2.0 * tip);
     let surface = object.sample_surface(spacing, params.seed)?;
     let frames = grasp_frames(hand, object, params);
     let robot: &Robot = &hand.robot;
-    let mut bounds = std::collections::HashMap::new();
+    let mut bounds = HashMap::new();
     for (l, shapes) in &hand.shapes {
         bounds.insert(
             *l,
@@ -1033,20 +497,19 @@ pub fn build_grasp_list(
         object,
         surface: &surface,
         params,
+        wrench: WrenchSpaceSettings {
+            mu: params.mu,
+            cone_edges: params.cone_edges,
+            lambda: (object.radius > 0.0).then(|| 1.0 / object.radius),
+            soft_finger: None,
+        },
         base_fracs,
         bounds,
-    };
-    let ws_settings = WrenchSpaceSettings {
-        mu: params.mu,
-        cone_edges: params.cone_edges,
-        lambda: (object.radius > 0.0).then(|| 1.0 / object.radius),
-        soft_finger: None,
     };
     let done = AtomicUsize::new(0);
     let total = frames.len();
     let stopped = std::sync::atomic::AtomicBool::new(false);
-    type FrameResult = (FrameOutcome, Option<(f64, Vec<Contact>)>);
-    let results: Vec<FrameResult> = frames
+    let results: Vec<FrameOutcome> = frames
         .par_iter()
         .enumerate()
         .map_init(
@@ -1058,37 +521,17 @@ pub fn build_grasp_list(
             |w, (i, palm)| {
                 if stopped.load(Ordering::Relaxed) || stop() {
                     stopped.store(true, Ordering::Relaxed);
-                    return (FrameOutcome::default(), None);
+                    return FrameOutcome::default();
                 }
                 let mut rng = ChaCha8Rng::seed_from_u64(
                     params.seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
                 );
                 let out = ctx.frame(palm, w, &mut rng);
-                let q = out.candidate.as_ref().and_then(|c| {
-                    let contacts: Vec<Contact> = c
-                        .contacts
-                        .iter()
-                        .map(|k| Contact::new(k.point, k.normal))
-                        .collect();
-                    // `grasp_quality`, with the hull skipped where the forces alone rule out
-                    // force closure.
-                    let mut w = Vec::new();
-                    let lambda =
-                        primitive_wrenches_into(&contacts, &object.centre, &ws_settings, &mut w)
-                            .ok()?;
-                    if forces_one_sided(&w) {
-                        return None;
-                    }
-                    quality_of_wrenches(&w, lambda)
-                        .ok()
-                        .filter(|g| g.force_closure && g.epsilon > 0.0)
-                        .map(|g| (g.epsilon, contacts))
-                });
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 if d % 256 == 0 || d == total {
                     progress(d, total);
                 }
-                (out, q)
+                out
             },
         )
         .collect();
@@ -1098,24 +541,32 @@ pub fn build_grasp_list(
     let mut stats = GraspListStats {
         surface_points: surface.len(),
         frames: total,
+        finger_contacts: vec![0; hand.fingers.len()],
+        min_separation,
         spheres: hand.fingers.iter().map(|f| f.workspace.len()).collect(),
         ..Default::default()
     };
     let eps_max = results
         .iter()
-        .filter_map(|r| r.1.as_ref().map(|q| q.0))
+        .filter_map(|r| r.candidate.as_ref().map(|c| c.epsilon))
         .fold(0.0f64, f64::max);
     let wts = params.weights;
     let mut grasps = Vec::new();
-    for (i, (out, q)) in results.into_iter().enumerate() {
+    for (i, out) in results.into_iter().enumerate() {
         stats.palm_free += out.palm_free as usize;
         stats.thumb_contacts += out.thumb as usize;
+        stats.candidates += (out.candidates > 0) as usize;
+        stats.closures += out.closures;
+        stats.closure_candidates += out.candidates;
+        stats.one_sided += out.one_sided;
+        for (a, b) in stats.finger_contacts.iter_mut().zip(&out.finger_contacts) {
+            *a += b;
+        }
         let Some(c) = out.candidate else { continue };
-        stats.candidates += 1;
-        let Some((eps, contacts)) = q else { continue };
         stats.force_closure += 1;
+        let eps = c.epsilon;
         let n = c.contacts.len() as f64;
-        let centroid: Vector3<f64> = contacts.iter().map(|k| k.point).sum::<Vector3<f64>>() / n;
+        let centroid: Vector3<f64> = c.contacts.iter().map(|k| k.point).sum::<Vector3<f64>>() / n;
         let scores = GraspScores {
             force_closure: if eps_max > 0.0 { eps / eps_max } else { 0.0 },
             centroid: if object.radius > 0.0 {
@@ -1126,8 +577,7 @@ pub fn build_grasp_list(
             ellipsoid: c
                 .contacts
                 .iter()
-                .zip(&contacts)
-                .map(|(fc, k)| fc.axis.normalize().dot(&k.normal.normalize()).abs())
+                .map(|fc| fc.axis.normalize().dot(&fc.normal.normalize()).abs())
                 .sum::<f64>()
                 / n,
             curvature: c
@@ -1149,11 +599,10 @@ pub fn build_grasp_list(
             contacts: c
                 .contacts
                 .iter()
-                .zip(&contacts)
-                .map(|(fc, k)| ListContact {
+                .map(|fc| ListContact {
                     finger: hand.fingers[fc.finger].group.clone(),
-                    point: k.point.into(),
-                    normal: k.normal.into(),
+                    point: fc.point.into(),
+                    normal: fc.normal.into(),
                 })
                 .collect(),
             epsilon: eps,
@@ -1163,7 +612,8 @@ pub fn build_grasp_list(
         });
     }
     grasps.sort_by(|a, b| b.quality.total_cmp(&a.quality).then(a.frame.cmp(&b.frame)));
-    grasps.truncate(params.max_grasps);
+    let (grasps, duplicates) = distinct(grasps, min_separation, params.max_grasps);
+    stats.duplicates = duplicates;
     stats.seconds = started.elapsed().as_secs_f64();
     Ok(GraspList {
         robot: robot.name.clone(),
@@ -1185,6 +635,71 @@ pub fn build_grasp_list(
         stats,
         grasps,
     })
+}
+
+/// The separation of two grasps (module docs, step 4): infinite when they touch with different
+/// fingers, else the largest of the distance between their palm origins and the distances
+/// between the same finger's contact points (m). Two grasps are near-duplicates when it is
+/// below the list's `min_separation`.
+pub fn separation(a: &SingleGrasp, b: &SingleGrasp) -> f64 {
+    let same = a.contacts.len() == b.contacts.len()
+        && a.contacts.iter().zip(&b.contacts).all(|(x, y)| x.finger == y.finger);
+    if !same {
+        return f64::INFINITY;
+    }
+    let d = |p: &[f64; 3], q: &[f64; 3]| (Vector3::from(*p) - Vector3::from(*q)).norm();
+    a.contacts
+        .iter()
+        .zip(&b.contacts)
+        .map(|(x, y)| d(&x.point, &y.point))
+        .fold(d(&a.position, &b.position), f64::max)
+}
+
+/// The grasps (best first) less every near-duplicate of a better one kept, at most `max` kept,
+/// and the number dropped as near-duplicates. Near-duplicates' palm origins lie within
+/// `min_separation`, so each grasp is compared only with the kept grasps in the neighbouring
+/// cells of a grid of that step.
+fn distinct(
+    grasps: Vec<SingleGrasp>,
+    min_separation: f64,
+    max: usize,
+) -> (Vec<SingleGrasp>, usize) {
+    let mut kept: Vec<SingleGrasp> = Vec::new();
+    if min_separation <= 0.0 {
+        kept = grasps;
+        kept.truncate(max);
+        return (kept, 0);
+    }
+    let mut dropped = 0;
+    let cell = |g: &SingleGrasp| g.position.map(|x| (x / min_separation).floor() as i64);
+    let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for g in grasps {
+        if kept.len() >= max {
+            break;
+        }
+        let c = cell(&g);
+        let mut dup = false;
+        'near: for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let k = [c[0] + dx, c[1] + dy, c[2] + dz];
+                    if let Some(v) = grid.get(&k) {
+                        if v.iter().any(|&i| separation(&kept[i], &g) < min_separation) {
+                            dup = true;
+                            break 'near;
+                        }
+                    }
+                }
+            }
+        }
+        if dup {
+            dropped += 1;
+        } else {
+            grid.entry(c).or_default().push(kept.len());
+            kept.push(g);
+        }
+    }
+    (kept, dropped)
 }
 
 /// The workspace parameters of `params` ([`Hand::new`]).

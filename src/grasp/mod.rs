@@ -26,11 +26,14 @@
 //!
 //! Modules: [`wrench_space`] (contacts, settings, primitive wrenches, rank, ε), [`hull`] (the
 //! own 6-D quickhull with joggle) and [`object`] (a scene object's grasps scored with a shared
-//! centre and λ); paper 003 §IV-A's single-grasp lists: [`list`] (the generator), [`hand`] (a
+//! centre and λ); paper 003 §IV-A's single-grasp lists: [`list`] (the generator; its per-frame finger search in
+//! `list_search`), [`grasp_object`] (the object's geometry queries), [`hand`] (a
 //! multi-finger hand from URDF + SRDF), [`finger_workspace`] (Alg. 1), [`so3_grid`] (the
 //! HEALPix × S¹ orientation grid), [`surface`] (surface samples in a kd-tree) and
-//! [`list_cache`] (list files keyed by hand, object and parameters). [`object_centre`] gives the centre and radius of a scene object from its
-//! shapes.
+//! [`list_cache`] (list files keyed by hand, object and parameters). [`mass`] gives a body's
+//! mass properties: volume and centre of mass of the union of its parts and the largest distance
+//! of its surface from that centre (the torque scale λ = 1 / that distance);
+//! [`object_centre`] and [`object_radius`] are its short forms.
 //!
 //! Reference values (unit cube at the origin, inward normals, μ = 0.5, m = 8, λ = 1, point
 //! contacts): four side-face centres → ε = 0.169650; μ = 1 → 0.339299; m = 4 → 0.144338; two
@@ -38,18 +41,21 @@
 
 pub mod double_grasp;
 pub mod finger_workspace;
+pub mod grasp_object;
 pub mod hand;
 pub mod hull;
 pub mod list;
 pub mod list_cache;
+mod list_search;
+pub mod mass;
 pub mod object;
 pub mod so3_grid;
 pub mod surface;
 pub mod wrench_space;
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 
-use crate::geometry::{Geometry, Shape};
+use crate::geometry::Geometry;
 
 pub use hand::{Finger, Hand, HandError, WorkspaceParams};
 pub use hull::{
@@ -57,9 +63,10 @@ pub use hull::{
     Point6,
 };
 pub use list::{
-    build_grasp_list, GraspList, GraspListError, GraspListParams, GraspListStats, GraspObject,
-    GraspScores, ListContact, SingleGrasp,
+    build_grasp_list, separation, GraspList, GraspListError, GraspListParams, GraspListStats,
+    GraspObject, GraspScores, ListContact, SingleGrasp,
 };
+pub use mass::{mass_properties, MassProperties};
 pub use list_cache::{
     load_grasp_list, read_grasp_list, save_grasp_list, GraspListCache, ListFileError,
 };
@@ -71,81 +78,19 @@ pub use wrench_space::{
     RANK_RTOL,
 };
 
-/// Centre of mass and radius of a body made of `shapes` (poses in the body frame), assuming
-/// uniform density.
-///
-/// The centre is the volume-weighted mean of the shapes' centroids (primitives: their origin;
-/// meshes: the divergence-theorem centroid of the closed surface, else the bounding-box centre
-/// weighted by the box volume). Overlapping shapes count twice — an approximation that is exact
-/// for disjoint shapes and good for the scene objects (a wok is a cylinder plus two thin handles).
-/// The radius is an upper bound of the largest distance of the body from that centre (shape
-/// offset + bounding radius), so `1 / radius` is GraspIt!'s torque scale λ = 1 / max radius and all
-/// grasps of one object share it. No shapes (or zero volume) → the body origin and radius 0.
+/// Centre of mass and radius of a body made of `shapes` (poses in the body frame), uniform
+/// density: the centre of the **union** of the parts (overlaps counted once) and the largest
+/// distance of the body's surface from it, so `1 / radius` is GraspIt!'s torque scale
+/// λ = 1 / max radius and all grasps of one object share it ([`mass::mass_properties`]: exact
+/// for parts that do not overlap, the overlaps integrated by rays; cached per geometry). No
+/// shapes (or zero volume) → the body origin and the radius about it.
 pub fn object_centre(shapes: &[Geometry]) -> (Vector3<f64>, f64) {
-    let mut vol = 0.0;
-    let mut acc = Vector3::zeros();
-    for g in shapes {
-        let (v, local) = volume_centroid(&g.shape);
-        if v > 0.0 && v.is_finite() {
-            vol += v;
-            acc += (g.origin * Point3::from(local)).coords * v;
-        }
-    }
-    let c = if vol > 0.0 {
-        acc / vol
-    } else {
-        Vector3::zeros()
-    };
-    (c, object_radius(shapes, &c))
+    let m = mass::mass_properties(shapes);
+    (m.centre, m.radius)
 }
 
-/// Upper bound of the largest distance of a body made of `shapes` from `centre` (shape offset
-/// + bounding radius, maximised over the shapes; 0 without shapes).
+/// The largest distance of the surface of a body made of `shapes` from `centre` (exact: a mesh
+/// vertex, a box corner, a sphere's, capsule's or cylinder's farthest point; 0 without shapes).
 pub fn object_radius(shapes: &[Geometry], centre: &Vector3<f64>) -> f64 {
-    shapes
-        .iter()
-        .map(|g| (g.origin.translation.vector - centre).norm() + g.shape.bounding_radius())
-        .fold(0.0f64, f64::max)
-}
-
-/// Volume and centroid (in the shape frame) of one shape.
-fn volume_centroid(s: &Shape) -> (f64, Vector3<f64>) {
-    use std::f64::consts::PI;
-    match s {
-        Shape::Box { half_extents: h } => (8.0 * h.x * h.y * h.z, Vector3::zeros()),
-        Shape::Cylinder {
-            radius,
-            half_length,
-        } => (PI * radius * radius * 2.0 * half_length, Vector3::zeros()),
-        Shape::Sphere { radius } => (4.0 / 3.0 * PI * radius.powi(3), Vector3::zeros()),
-        Shape::Capsule {
-            radius,
-            half_length,
-        } => (
-            PI * radius * radius * (2.0 * half_length + 4.0 / 3.0 * radius),
-            Vector3::zeros(),
-        ),
-        Shape::Mesh(m) => {
-            let mut vol = 0.0;
-            let mut acc = Vector3::zeros();
-            for t in &m.triangles {
-                let [a, b, c] = t.map(|i| {
-                    m.vertices
-                        .get(i as usize)
-                        .map(|p| p.coords)
-                        .unwrap_or_else(Vector3::zeros)
-                });
-                let v = a.dot(&b.cross(&c)) / 6.0;
-                vol += v;
-                acc += (a + b + c) * (v / 4.0);
-            }
-            if vol.abs() > 1e-12 {
-                (vol.abs(), acc / vol)
-            } else {
-                let (lo, hi) = m.aabb();
-                let d = hi - lo;
-                (d.x * d.y * d.z, (lo + hi) / 2.0)
-            }
-        }
-    }
+    mass::farthest_distance(shapes, centre)
 }

@@ -7,9 +7,11 @@
 //! closure.
 //!
 //! All grasps of one object share the centre and the torque scale, so their ε are comparable:
-//! the centre is the object's centre of mass ([`object_centre`], uniform density) unless one is
-//! given, and λ = 1 / radius (GraspIt!'s 1 / max radius; the radius is the upper bound of the
-//! object's extent from that centre, [`object_radius`]) unless the settings fix λ.
+//! the centre is the object's centre of mass (the union of its shapes, uniform density,
+//! [`object_centre`]) unless one is given, and λ = 1 / radius (GraspIt!'s 1 / max radius; the
+//! radius is the largest distance of the object's surface from that centre, [`object_radius`])
+//! unless the settings fix λ. The double-grasp score, the grasp lists and the multi-robot score
+//! use the same centre and λ.
 
 use nalgebra::Vector3;
 
@@ -33,7 +35,7 @@ pub fn grasp_contacts(g: &Grasp) -> Vec<Contact> {
 pub struct ObjectGraspScores {
     /// Centre of mass used, object frame.
     pub centre: Vector3<f64>,
-    /// Upper bound of the object's extent from `centre` (m).
+    /// Largest distance of the object's surface from `centre` (m).
     pub radius: f64,
     /// The settings used; `lambda` is filled in (1 / radius unless given; `None` only for an
     /// object of radius 0, when each grasp falls back to [`WrenchSpaceSettings::lambda`]'s

@@ -267,7 +267,7 @@ impl PickPlaceProblem {
     ) -> f64 {
         let (ah, free) = self.arm_hand(holder);
         let base = self.base.translation.vector;
-        let cos = approach_score(&ah.hand, g, pose, &base);
+        let cos = approach_score(&ah.hand, g, pose, &self.object_centre, &base);
         let fr = free.arm.from_config(q);
         let rest = free.arm.from_config(&self.rest);
         let joint: f64 = fr
