@@ -15,9 +15,9 @@ use manyhands::geometry::{Geometry, Mesh, Pose, Shape};
 use manyhands::grasp::list::workspace_params;
 use manyhands::grasp::list_cache::list_file_name;
 use manyhands::grasp::{
-    build_grasp_list, grasp_quality, load_grasp_list, mass_properties, save_grasp_list,
-    separation, Contact, GraspList, GraspListCache, GraspListParams, GraspObject, Hand,
-    ListFileError, WrenchSpaceSettings,
+    build_grasp_list, grasp_quality, load_grasp_list, mass_properties, save_grasp_list, separation,
+    Contact, GraspList, GraspListCache, GraspListParams, GraspObject, Hand, ListFileError,
+    WrenchSpaceSettings,
 };
 use manyhands::kinematics::link_pose;
 use manyhands::model::Robot;

@@ -15,7 +15,9 @@ fn add_box(v: &mut Vec<Point3<f64>>, t: &mut Vec<[u32; 3]>, c: Vector3<f64>, h: 
     let b = v.len() as u32;
     for k in 0..8 {
         let s = |bit: usize, e: f64| if k & bit != 0 { e } else { -e };
-        v.push(Point3::from(c + Vector3::new(s(1, h.x), s(2, h.y), s(4, h.z))));
+        v.push(Point3::from(
+            c + Vector3::new(s(1, h.x), s(2, h.y), s(4, h.z)),
+        ));
     }
     for f in [
         [0, 2, 3, 1],
@@ -105,14 +107,18 @@ fn the_union_centre_moves_with_the_mesh_off_the_ray_grid() {
             },
         },
         Geometry {
-            origin: pose * Pose::from_parts(Translation3::new(0.5, 0.0, 0.0), UnitQuaternion::identity()),
+            origin: pose
+                * Pose::from_parts(Translation3::new(0.5, 0.0, 0.0), UnitQuaternion::identity()),
             shape: Shape::Box {
                 half_extents: Vector3::repeat(0.25),
             },
         },
     ];
     let p = mass_properties(&boxes);
-    assert!((p.volume - UNION_VOLUME).abs() < 2e-4 * UNION_VOLUME, "{p:?}");
+    assert!(
+        (p.volume - UNION_VOLUME).abs() < 2e-4 * UNION_VOLUME,
+        "{p:?}"
+    );
     assert!((p.centre - want).norm() < 1e-4, "{p:?} want {want}");
     assert!((p.radius - union_radius()).abs() < 1e-9, "{p:?}");
 }

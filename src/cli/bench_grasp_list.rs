@@ -133,12 +133,14 @@ pub fn run(ctx: &Ctx, a: &GraspListBenchArgs) -> Result<()> {
         let med = median(&mut secs.clone());
         let fewest = grasps.iter().copied().fold(f64::INFINITY, f64::min);
         let g = median(&mut grasps);
-        rows.push(json!({"hand": group, "runs": secs.len(), "median_s": med, "min_s": lo,
+        rows.push(
+            json!({"hand": group, "runs": secs.len(), "median_s": med, "min_s": lo,
             "max_s": hi, "median_grasps": g, "min_grasps": fewest,
             "min_separation_m": sep.is_finite().then_some(sep),
             "near_duplicate_m": stats.min_separation, "fewest_finger_sets": sets,
             "epsilon_min": eps_lo.is_finite().then_some(eps_lo), "epsilon_max": eps_hi,
-            "stats": stats}));
+            "stats": stats}),
+        );
     }
     let v = json!({"robot": a.robot, "object": a.mesh, "params": base, "rows": rows,
         "target_s": 2.0, "paper_s": 60.0, "paper_grasps": {"right": 17, "left": 22}});

@@ -270,10 +270,7 @@ impl GraspListParams {
         }
         if let Some(d) = self.min_separation {
             if !(d.is_finite() && (0.0..=0.1).contains(&d)) {
-                return bad(
-                    "min_separation",
-                    format!("must be in 0..=0.1 m, got {d}"),
-                );
+                return bad("min_separation", format!("must be in 0..=0.1 m, got {d}"));
             }
         }
         if !(self.contact_tolerance.is_finite() && (0.0..=0.01).contains(&self.contact_tolerance)) {
@@ -643,7 +640,10 @@ pub fn build_grasp_list(
 /// below the list's `min_separation`.
 pub fn separation(a: &SingleGrasp, b: &SingleGrasp) -> f64 {
     let same = a.contacts.len() == b.contacts.len()
-        && a.contacts.iter().zip(&b.contacts).all(|(x, y)| x.finger == y.finger);
+        && a.contacts
+            .iter()
+            .zip(&b.contacts)
+            .all(|(x, y)| x.finger == y.finger);
     if !same {
         return f64::INFINITY;
     }

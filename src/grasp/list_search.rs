@@ -232,8 +232,7 @@ impl Ctx<'_> {
             .map(|k| Contact::new(k.point, k.normal))
             .collect();
         let mut wr = Vec::new();
-        let Ok(lambda) =
-            primitive_wrenches_into(&cs, &self.object.centre, &self.wrench, &mut wr)
+        let Ok(lambda) = primitive_wrenches_into(&cs, &self.object.centre, &self.wrench, &mut wr)
         else {
             return Stability::NotClosure;
         };

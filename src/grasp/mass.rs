@@ -111,11 +111,7 @@ fn primitive_farthest(s: &Shape, origin: &Pose, centre: &Vector3<f64>) -> f64 {
     let c = (origin.inverse() * Point3::from(*centre)).coords;
     match s {
         Shape::Box { half_extents: h } => {
-            let far = Vector3::new(
-                c.x.abs() + h.x,
-                c.y.abs() + h.y,
-                c.z.abs() + h.z,
-            );
+            let far = Vector3::new(c.x.abs() + h.x, c.y.abs() + h.y, c.z.abs() + h.z);
             far.norm()
         }
         Shape::Sphere { radius } => c.norm() + radius,
@@ -212,7 +208,11 @@ struct Part {
 }
 
 /// The box around `lo..hi` (a box in the frame `pose` maps to the body frame).
-fn transformed_box(pose: &Pose, lo: &Vector3<f64>, hi: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+fn transformed_box(
+    pose: &Pose,
+    lo: &Vector3<f64>,
+    hi: &Vector3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
     let mut a = Vector3::repeat(f64::INFINITY);
     let mut b = Vector3::repeat(f64::NEG_INFINITY);
     for k in 0..8 {
@@ -402,19 +402,14 @@ fn overlap_correction(
     }
     let nu = ((ext[u] / h).ceil() as usize).max(1);
     let nv = ((ext[v] / h).ceil() as usize).max(1);
-    let at = |i: usize, j: usize| {
-        [
-            rlo[u] + (i as f64 + 0.5) * h,
-            rlo[v] + (j as f64 + 0.5) * h,
-        ]
-    };
+    let at = |i: usize, j: usize| [rlo[u] + (i as f64 + 0.5) * h, rlo[v] + (j as f64 + 0.5) * h];
     // Only rays through some overlap's cross-section can meet w ≥ 2.
     let live: Vec<bool> = (0..nu * nv)
         .map(|r| {
             let x = at(r % nu, r / nu);
-            overlaps.iter().any(|(lo, hi)| {
-                lo[u] <= x[0] && x[0] <= hi[u] && lo[v] <= x[1] && x[1] <= hi[v]
-            })
+            overlaps
+                .iter()
+                .any(|(lo, hi)| lo[u] <= x[0] && x[0] <= hi[u] && lo[v] <= x[1] && x[1] <= hi[v])
         })
         .collect();
     // Events (ray, w, winding change).

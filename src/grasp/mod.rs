@@ -66,10 +66,10 @@ pub use list::{
     build_grasp_list, separation, GraspList, GraspListError, GraspListParams, GraspListStats,
     GraspObject, GraspScores, ListContact, SingleGrasp,
 };
-pub use mass::{mass_properties, MassProperties};
 pub use list_cache::{
     load_grasp_list, read_grasp_list, save_grasp_list, GraspListCache, ListFileError,
 };
+pub use mass::{mass_properties, MassProperties};
 pub use object::{grasp_contacts, score_object_grasps, ObjectGraspScores};
 pub use wrench_space::{
     grasp_quality, primitive_wrenches, primitive_wrenches_into, quality_of_wrenches,

@@ -49,8 +49,6 @@ pub const MAX_EVALUATIONS: usize = 20_000;
 /// Shortest travel (m) of a run the certificate still halves.
 const MIN_RUN_TRAVEL: f64 = 1e-9;
 
-
-
 /// How a certified motion check ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FingerVerdict {
@@ -134,15 +132,21 @@ impl<'a> FingerCertificate<'a> {
                 let contact = grasp
                     .contacts
                     .iter()
-                    .find(|c| h.fingers.iter().any(|f| f.group == c.finger && f.contact_link == l))
+                    .find(|c| {
+                        h.fingers
+                            .iter()
+                            .any(|f| f.group == c.finger && f.contact_link == l)
+                    })
                     .map(|c| {
                         let at_grasp = Point3::from(Vector3::from(c.point));
                         let pose = palm * h.link_in_palm(l, q_grasp);
                         let local = pose.inverse() * at_grasp;
                         let in_rep = off.map_or(local.coords, |o| o.transform_point(&local.coords));
-                        let speed = fk.speed_bounds(robot, rep, &in_rep, 0.0).unwrap_or_else(|| {
-                            h.vars.iter().map(|&v| (v, f64::INFINITY)).collect()
-                        });
+                        let speed =
+                            fk.speed_bounds(robot, rep, &in_rep, 0.0)
+                                .unwrap_or_else(|| {
+                                    h.vars.iter().map(|&v| (v, f64::INFINITY)).collect()
+                                });
                         ContactModel {
                             local,
                             at_grasp,
@@ -317,7 +321,9 @@ pub fn approach(
 /// retreat configurations ([`RETREAT_TIPS`], each certified to the next) to the grasp, best
 /// first (the farthest retreat first), at most `max` of them. `rest` supplies the other
 /// variables (the certificate depends on the hand's variables only); `fractions` are the
-/// pre-shape fractions.
+/// pre-shape fractions; `free` says whether a robot configuration (a pre-shape) is free of
+/// the robot itself (fingers against each other and the palm).
+#[allow(clippy::too_many_arguments)]
 pub fn closing_motions(
     ah: &ArmHand,
     object: &GraspObject,
@@ -326,6 +332,7 @@ pub fn closing_motions(
     tol: f64,
     fractions: &[f64],
     max: usize,
+    free: &mut dyn FnMut(&[f64]) -> bool,
 ) -> Vec<Vec<Vec<f64>>> {
     let q = with_fingers(ah, rest, &grasp.config);
     let cert = FingerCertificate::new(ah, object, grasp, &q, tol);
@@ -339,13 +346,12 @@ pub fn closing_motions(
             _ => break,
         }
     }
-    let mut out: Vec<Vec<Vec<f64>>> = Vec::new();
+    // Pre-shapes opened from every retreat configuration (finger by finger, towards the joint
+    // limits or the stretched values, or all fingers together), free of the robot itself and
+    // of the object; each may join any retreat configuration, the farthest first.
     let open = fingers_of(ah, rest);
-    for j in (0..retreat.len()).rev() {
-        if out.len() >= max {
-            break;
-        }
-        let qa = &retreat[j];
+    let mut pres: Vec<Vec<f64>> = Vec::new();
+    for qa in retreat.iter().rev() {
         let closed = fingers_of(ah, qa);
         let uniform = fractions.iter().map(|&s| {
             let f: Vec<f64> = closed
@@ -355,18 +361,26 @@ pub fn closing_motions(
                 .collect();
             with_fingers(ah, qa, &f)
         });
-        let pre = [true, false]
+        for p in [true, false]
             .into_iter()
             .filter_map(|ext| finger_preshape(ah, object, &palm, qa, fractions, ext))
-            .chain(uniform);
-        for p in pre {
-            if out.len() >= max {
-                break;
+            .chain(uniform)
+        {
+            if !pres.contains(&p) && free(&p) {
+                pres.push(p);
             }
-            if cert.certify(&p, qa) != FingerVerdict::Certified {
+        }
+    }
+    let mut out: Vec<Vec<Vec<f64>>> = Vec::new();
+    for j in (0..retreat.len()).rev() {
+        for p in &pres {
+            if out.len() >= max {
+                return out;
+            }
+            if cert.certify(p, &retreat[j]) != FingerVerdict::Certified {
                 continue;
             }
-            let mut path = vec![fingers_of(ah, &p)];
+            let mut path = vec![fingers_of(ah, p)];
             path.extend(retreat[..=j].iter().rev().map(|r| fingers_of(ah, r)));
             path.dedup();
             if !out.contains(&path) {

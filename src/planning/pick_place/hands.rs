@@ -89,12 +89,21 @@ pub(super) fn closable(
     fractions: &[f64],
     max: usize,
 ) -> (GraspList, Vec<usize>, Vec<Vec<Vec<Vec<f64>>>>) {
+    use crate::collision::{CollisionChecker, CollisionWorld, ExactChecker};
     use rayon::prelude::*;
     let tol = list.params.contact_tolerance;
+    // The robot alone: a pre-shape must not turn the fingers into each other or the palm.
+    let alone = CollisionWorld::single(ah.hand.robot.clone(), Pose::identity());
     let motions: Vec<Vec<Vec<Vec<f64>>>> = list
         .grasps
         .par_iter()
-        .map(|g| super::fingers::closing_motions(ah, object, g, rest, tol, fractions, max))
+        .map_init(
+            || ExactChecker::new(&alone),
+            |x, g| {
+                let mut free = |q: &[f64]| x.is_free(q);
+                super::fingers::closing_motions(ah, object, g, rest, tol, fractions, max, &mut free)
+            },
+        )
         .collect();
     let idx: Vec<usize> = (0..list.grasps.len())
         .filter(|&i| !motions[i].is_empty())

@@ -43,7 +43,7 @@ pub use configurations::{
 };
 pub use exchange::{exchange_grid, exchange_poses, ExchangeGrid, ExchangeParams};
 pub use task::{
-    plan_pick_place, prepare_pick_place, task_world, MotionPlanner, PickPlaceOffline,
+    plan_pick_place, prepare_pick_place, task_world, ClosingCache, MotionPlanner, PickPlaceOffline,
     PickPlacePlan, PickPlaceSettings, PickPlaceTaskError, QueryRecord, RoadmapLearning,
     TaskProgress,
 };

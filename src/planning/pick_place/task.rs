@@ -48,8 +48,8 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::configurations::{within_limits, ConfigParams, KeyConfigurations};
-pub use super::hands::finger_preshape;
 use super::fingers::{FingerCertificate, FingerVerdict};
+pub use super::hands::finger_preshape;
 use super::hands::{closable, fingers_of, with_fingers};
 use super::{exchange_grid, key_configurations, ArmHand, PickPlaceError, PickPlaceProblem};
 use crate::cache_tier::CacheTier;
@@ -269,6 +269,18 @@ pub struct PickPlaceOffline {
     /// What the super graph learnt from the repairs of earlier tasks
     /// ([`RoadmapLearning::Shared`]).
     pub learned: Arc<std::sync::Mutex<LearnedGraph>>,
+    /// The grasps each hand can close on with a certified motion and those motions, computed
+    /// by the first task (they depend on the hand, the object, the lists and the pre-shape
+    /// fractions only, not on the scene), with the fractions they were computed for.
+    pub closing: Arc<std::sync::Mutex<Option<ClosingCache>>>,
+}
+
+/// The closable grasps of both lists ([`PickPlaceOffline::closing`]): per hand the list of
+/// closable grasps, their indices in the offline list and their certified closing motions.
+#[derive(Debug, Clone)]
+pub struct ClosingCache {
+    pub fractions: Vec<f64>,
+    pub hands: [(GraspList, Vec<usize>, Vec<Vec<Vec<Vec<f64>>>>); 2],
 }
 
 /// Robot, obstacles and the object resting at its initial pose: the world of the task (its
@@ -390,6 +402,7 @@ pub fn prepare_pick_place(
         world,
         stats,
         learned: Arc::default(),
+        closing: Arc::default(),
     })
 }
 
@@ -474,6 +487,9 @@ struct Chain<'a> {
     queries: Vec<QueryRecord>,
     /// What the roadmap learnt so far (module docs of [`crate::planning::roadmap_query`]).
     learned: LearnedGraph,
+    /// The grasp (0: pick, 1: place; index into its approachable list) none of whose closing
+    /// motions is free in the scene, when that ended the chain.
+    refused: Option<(usize, usize)>,
     seed: u64,
     attempt: usize,
     t0: Instant,
@@ -486,7 +502,7 @@ struct Chain<'a> {
 
 /// Certified closing motions kept per grasp ([`super::fingers::closing_motions`]): the chain
 /// takes the first whose pre-shape is free in the scene.
-const CLOSING_CANDIDATES: usize = 4;
+const CLOSING_CANDIDATES: usize = 12;
 
 /// The worlds of [`Chain::worlds`].
 const W_INITIAL: usize = 0;
@@ -603,9 +619,11 @@ impl<'a> Chain<'a> {
     /// first candidate whose pre-shape is free in world `state` (exact and fast checker) and
     /// whose segments are certified in world `motion` (the object is proven by the phase's
     /// [`FingerCertificate`]).
+    #[allow(clippy::too_many_arguments)]
     fn closing(
         &mut self,
         ah: &ArmHand,
+        (side, grasp): (usize, usize),
         motions: &[Vec<Vec<f64>>],
         q: &[f64],
         (state, motion): (usize, usize),
@@ -624,6 +642,7 @@ impl<'a> Chain<'a> {
             }
             return Ok(path);
         }
+        self.refused = Some((side, grasp));
         Err(PickPlaceTaskError::Hand(format!(
             "{what}: none of the {} certified closing motions of '{}' is free there",
             motions.len(),
@@ -808,8 +827,19 @@ fn chain<'a>(
     );
     let (list_a, list_b) = (c.pick_list, c.place_list);
 
+    // The four hand motions on the object first (cheap; a grasp none of whose closing motions
+    // is free in the scene ends the chain before any query).
+    let (ga, gb) = ((0, keys.double.pick), (1, keys.double.place));
+    let close_a = c.closing(pick, ga, motions_a, &qg, (w_i, h_a), "grasp")?;
+    let close_b = c.closing(place, gb, motions_b, &qe, (h_a, h_ab), "exchange")?;
+    let mut open_a = c.closing(pick, ga, motions_a, &qe, (h_b, h_ab), "exchange")?;
+    open_a.reverse();
+    let qe_free = open_a.last().cloned().unwrap_or_else(|| qe.clone());
+    let qp = with_fingers(pick, &keys.place.q, &fingers_of(pick, &qe_free));
+    let mut open_b = c.closing(place, gb, motions_b, &qp, (w_f, h_b), "place")?;
+    open_b.reverse();
+
     // Grasp: pre-shape the pick hand at rest, reach q_r^g pre-shaped, close.
-    let close_a = c.closing(pick, motions_a, &qg, (w_i, h_a), "grasp")?;
     c.plan.waypoints = vec![p.rest.clone()];
     c.fingers(
         "pick_preshape",
@@ -822,7 +852,6 @@ fn chain<'a>(
     c.event(EventKind::Grasp, pick, name_a.clone());
 
     // Carry: pre-shape the place hand, bring the object to q_o^e, close the place hand.
-    let close_b = c.closing(place, motions_b, &qe, (h_a, h_ab), "exchange")?;
     c.fingers(
         "place_preshape",
         with_fingers(place, &qg, &fingers_of(place, &close_b[0])),
@@ -835,18 +864,12 @@ fn chain<'a>(
     c.event(EventKind::Release, pick, name_a);
 
     // Place: open the pick hand (its closing motion reversed), bring the object to q_o^f.
-    let mut open_a = c.closing(pick, motions_a, &qe, (h_b, h_ab), "exchange")?;
-    open_a.reverse();
-    let qe_free = open_a.last().cloned().unwrap_or_else(|| qe.clone());
     let cert = c.certificate(pick, list_a, a, &qe);
     c.on_object("pick_open", open_a, h_ab, cert)?;
-    let qp = with_fingers(pick, &keys.place.q, &fingers_of(pick, &qe_free));
     c.query("place", qp.clone(), h_b, term, progress)?;
     c.event(EventKind::Release, place, name_b);
 
     // Rest: open the place hand, back to q_r^i, fingers to their rest values.
-    let mut open_b = c.closing(place, motions_b, &qp, (w_f, h_b), "place")?;
-    open_b.reverse();
     let qp_open = open_b.last().cloned().unwrap_or_else(|| qp.clone());
     let cert = c.certificate(place, list_b, b, &qp);
     c.on_object("place_open", open_b, h_b, cert)?;
@@ -913,7 +936,9 @@ fn certify(
                     return Err(PickPlaceTaskError::NotCertified {
                         phase: ph.name.clone(),
                         segment: k,
-                        reason: format!("the hand motion is not certified free of the object ({v:?})"),
+                        reason: format!(
+                            "the hand motion is not certified free of the object ({v:?})"
+                        ),
                     });
                 }
             }
@@ -947,22 +972,43 @@ pub fn plan_pick_place(
     // executable): `super::fingers`.
     let fr = &settings.finger_fractions;
     let t = Instant::now();
-    let (pick_list, pick_index, pick_motions) = closable(
-        &p.pick,
-        &off.object,
-        &off.pick_list,
-        &p.rest,
-        fr,
-        CLOSING_CANDIDATES,
-    );
-    let (place_list, place_index, place_motions) = closable(
-        &p.place,
-        &off.object,
-        &off.place_list,
-        &p.rest,
-        fr,
-        CLOSING_CANDIDATES,
-    );
+    let cached = off
+        .closing
+        .lock()
+        .ok()
+        .and_then(|c| c.as_ref().filter(|c| &c.fractions == fr).cloned());
+    let cache = match cached {
+        Some(c) => c,
+        None => {
+            let c = ClosingCache {
+                fractions: fr.clone(),
+                hands: [
+                    closable(
+                        &p.pick,
+                        &off.object,
+                        &off.pick_list,
+                        &p.rest,
+                        fr,
+                        CLOSING_CANDIDATES,
+                    ),
+                    closable(
+                        &p.place,
+                        &off.object,
+                        &off.place_list,
+                        &p.rest,
+                        fr,
+                        CLOSING_CANDIDATES,
+                    ),
+                ],
+            };
+            if let Ok(mut slot) = off.closing.lock() {
+                *slot = Some(c.clone());
+            }
+            c
+        }
+    };
+    let [(mut pick_list, mut pick_index, mut pick_motions), (mut place_list, mut place_index, mut place_motions)] =
+        cache.hands;
     timings.closing_ms = ms(t);
     for (ah, l, full) in [
         (&p.pick, &pick_list, &off.pick_list),
@@ -995,7 +1041,12 @@ pub fn plan_pick_place(
             }
         }
     };
-    for attempt in 0..settings.attempts {
+    // A grasp none of whose closing motions is free in the scene is dropped and the search
+    // runs again without it (not counted as an attempt; at most once per grasp).
+    let mut attempt = 0;
+    let mut dropped = 0;
+    let droppable = pick_list.grasps.len() + place_list.grasps.len();
+    while attempt < settings.attempts {
         if term.should_stop_now() {
             last = Some(PickPlaceTaskError::Stopped(format!(
                 "time limit or stop request after {attempt} attempts"
@@ -1021,6 +1072,7 @@ pub fn plan_pick_place(
             Err(e @ PickPlaceError::Unreachable { .. }) => return Err(e.into()),
             Err(e) => {
                 last = Some(e.into());
+                attempt += 1;
                 continue;
             }
         };
@@ -1045,6 +1097,7 @@ pub fn plan_pick_place(
             phase_fingers: Vec::new(),
             queries: Vec::new(),
             learned: std::mem::take(&mut learned),
+            refused: None,
             seed: aseed,
             attempt,
             t0,
@@ -1054,6 +1107,7 @@ pub fn plan_pick_place(
         };
         let r = chain(&mut c, &keys, term, progress);
         learned = std::mem::take(&mut c.learned);
+        let refused = c.refused;
         timings.motions_ms += ms(t);
         match r {
             Ok(()) => {
@@ -1097,6 +1151,24 @@ pub fn plan_pick_place(
                 last = Some(e);
                 if stop {
                     break;
+                }
+                match refused {
+                    Some((side, g)) if dropped < droppable => {
+                        let (list, index, motions) = if side == 0 {
+                            (&mut pick_list, &mut pick_index, &mut pick_motions)
+                        } else {
+                            (&mut place_list, &mut place_index, &mut place_motions)
+                        };
+                        if list.grasps.len() > 1 && g < list.grasps.len() {
+                            list.grasps.remove(g);
+                            index.remove(g);
+                            motions.remove(g);
+                            dropped += 1;
+                            continue;
+                        }
+                        attempt += 1;
+                    }
+                    _ => attempt += 1,
                 }
             }
         }
