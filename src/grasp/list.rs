@@ -133,7 +133,7 @@ pub struct GraspListParams {
 
 impl Default for GraspListParams {
     /// 125 positions (about: the grid of the object's box) × 72 orientations, 12 grid values
-    /// per joint, 16 spheres, 4 candidates per sphere, 3 thumb-base values, 4 thumb contacts per
+    /// per joint, 16 spheres, 4 candidates per sphere, 3 thumb-base values, 2 thumb contacts per
     /// frame, near-duplicates within a fingertip's width, 1 mm contact tolerance, μ = 0.5, 8
     /// cone edges, weights (1, 1, 1, 6) as 003, 2 000 grasps, seed 1.
     fn default() -> Self {
@@ -146,7 +146,7 @@ impl Default for GraspListParams {
             min_sphere_radius: None,
             candidates_per_sphere: 4,
             base_steps: 3,
-            thumb_contacts: 4,
+            thumb_contacts: 2,
             min_separation: None,
             contact_tolerance: 1e-3,
             mu: 0.5,

@@ -268,7 +268,9 @@ impl PickPlaceProblem {
             .into_iter()
             .filter(|b| !(b.kind == StaticKind::Object && b.name == object))
             .collect();
-        let (centre, radius) = object_centre(&obj.body.shapes);
+        let (centre, _) = object_centre(&obj.body.shapes);
+        // The exchange grid's clearance ball keeps the shapes' bounding radius.
+        let radius = crate::grasp::mass::bounding_radius(&obj.body.shapes, &centre);
         Ok(PickPlaceProblem {
             robot: r,
             base: placement.base_pose,
