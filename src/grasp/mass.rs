@@ -420,7 +420,7 @@ fn overlap_correction(
             let x = at(r % nu, r / nu);
             overlaps
                 .iter()
-                .any(|(lo, hi)| lo[u] <= x[0] && x[0] <= hi[u] && lo[v] <= x[1] && x[1] <= hi[v])
+                .any(|(lo, hi)| (lo[u]..=hi[u]).contains(&x[0]) && (lo[v]..=hi[v]).contains(&x[1]))
         })
         .collect();
     // Events (ray, w, winding change).
@@ -485,8 +485,9 @@ fn overlap_correction(
                     for i in 0..nu {
                         let r = j * nu + i;
                         let x = at(i, j);
-                        if !live[r] || x[0] < lo[u] || x[0] > hi[u] || x[1] < lo[v] || x[1] > hi[v]
-                        {
+                        let inside =
+                            (lo[u]..=hi[u]).contains(&x[0]) && (lo[v]..=hi[v]).contains(&x[1]);
+                        if !live[r] || !inside {
                             continue;
                         }
                         let mut o = Vector3::zeros();
@@ -532,11 +533,11 @@ fn overlap_correction(
         }
         evs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
         let (mut count, mut len, mut first) = (0i32, 0.0, 0.0);
-        for k in 0..evs.len() {
-            count += evs[k].1;
+        for (k, e) in evs.iter().enumerate() {
+            count += e.1;
             if count > 1 {
                 if let Some(next) = evs.get(k + 1) {
-                    let (a, b) = (evs[k].0, next.0);
+                    let (a, b) = (e.0, next.0);
                     let m = (count - 1) as f64;
                     len += m * (b - a);
                     first += m * (b * b - a * a) / 2.0;
