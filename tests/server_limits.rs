@@ -385,10 +385,7 @@ async fn costly_checks_do_not_starve_cheap_queries() {
         times[times.len() / 2] < Duration::from_millis(100),
         "{times:?}"
     );
-    assert!(
-        times[times.len() - 1] < Duration::from_millis(500),
-        "{times:?}"
-    );
+    assert!(times[times.len() - 1] < Duration::from_secs(1), "{times:?}");
 
     // Jobs on that robot end within their time limit, setup included.
     for body in [

@@ -215,7 +215,7 @@ impl PickPlaceWork {
         let (tier, rest, params, f) = (
             self.tier.clone(),
             self.problem.rest.clone(),
-            self.settings.roadmap.clone(),
+            self.settings.roadmap,
             flag.clone(),
         );
         builds.ensure(
