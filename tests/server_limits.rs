@@ -402,6 +402,6 @@ async fn costly_checks_do_not_starve_cheap_queries() {
         );
         assert_eq!(s, StatusCode::OK, "{v}");
         assert_ne!(v["state"], "running", "{v}");
-        assert!(took < Duration::from_secs(4), "{}: {took:?}", body["kind"]);
+        assert!(took < Duration::from_secs(6), "{}: {took:?}", body["kind"]);
     }
 }
