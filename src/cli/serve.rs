@@ -33,8 +33,9 @@ pub struct ServeArgs {
     /// (default: 2 × --heavy-threads).
     #[arg(long, env = "MANYHANDS_MAX_HEAVY")]
     pub max_heavy: Option<usize>,
-    /// Nice value 0–19 of the planner threads (Linux), so synchronous queries keep their
-    /// latency while jobs run; 0 runs jobs at the queries' priority.
+    /// Nice levels 0–19 of the planner threads below the process's own priority (Linux; at
+    /// most nice 19), so synchronous queries keep their latency while jobs run; 0 runs jobs
+    /// at the queries' priority.
     #[arg(long, env = "MANYHANDS_PLANNER_NICE", default_value_t = 10)]
     pub planner_nice: i32,
     /// Jobs waiting for a worker before POST /v1/plans answers 429.

@@ -179,9 +179,21 @@ pub struct FkModel {
     /// Per link: the computed link it is rigidly attached to, and its offset from it.
     rep: Vec<u32>,
     offset: Vec<Option<Frame>>,
+    /// Per link: the index in `joints` of the (first) joint whose child it is, `u32::MAX` for
+    /// none; walks towards the root take O(1) per step (a chain of hundreds of links would
+    /// otherwise cost O(links²) per walk).
+    parent_of: Vec<u32>,
 }
 
 impl FkModel {
+    /// The joint whose child is computed link `k`.
+    #[inline]
+    fn parent_joint(&self, k: u32) -> Option<&FkJoint> {
+        self.parent_of
+            .get(k as usize)
+            .and_then(|&j| self.joints.get(j as usize))
+    }
+
     pub fn new(robot: &Robot) -> FkModel {
         let joints = robot
             .joints
@@ -234,12 +246,21 @@ impl FkModel {
             links: n,
             rep: (0..n as u32).collect(),
             offset: vec![None; n],
+            parent_of: Vec::new(),
         }
         .with_deps()
     }
 
     /// Fills [`FkModel::deps`] (joints come parents first).
     fn with_deps(mut self) -> FkModel {
+        self.parent_of = vec![u32::MAX; self.links];
+        for (i, j) in self.joints.iter().enumerate() {
+            if let Some(p) = self.parent_of.get_mut(j.child as usize) {
+                if *p == u32::MAX {
+                    *p = i as u32;
+                }
+            }
+        }
         self.deps.clear();
         self.deps_all = 0;
         if self
@@ -330,6 +351,7 @@ impl FkModel {
             links: n,
             rep,
             offset,
+            parent_of: Vec::new(),
         }
         .with_deps()
     }
@@ -344,7 +366,7 @@ impl FkModel {
     pub fn ancestors(&self, link: usize) -> Vec<usize> {
         let mut out = vec![self.rep[link] as usize];
         let mut k = self.rep[link];
-        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+        while let Some(j) = self.parent_joint(k) {
             k = j.parent;
             out.push(k as usize);
         }
@@ -370,7 +392,7 @@ impl FkModel {
             return Some((*centre, radius));
         }
         let mut d = centre.norm() + radius;
-        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+        while let Some(j) = self.parent_joint(k) {
             let travel = match j.kind {
                 JointKind::Prismatic => {
                     let lim = robot.var_limits(j.var as usize);
@@ -422,7 +444,7 @@ impl FkModel {
         // `base` of `at` (a point fixed in the current frame).
         let mut d = centre.norm() + radius;
         let (mut at, mut base) = (*centre, radius);
-        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+        while let Some(j) = self.parent_joint(k) {
             let (w, travel) = match j.kind {
                 JointKind::Prismatic => {
                     let lim = robot.var_limits(j.var as usize);
@@ -461,7 +483,7 @@ impl FkModel {
     pub fn speed_axes(&self, link: usize) -> Vec<Option<SpeedAxis>> {
         let mut out = Vec::new();
         let mut k = self.rep[link];
-        while let Some(j) = self.joints.iter().find(|j| j.child == k) {
+        while let Some(j) = self.parent_joint(k) {
             if j.kind != JointKind::Fixed {
                 out.push(j.speed_axis());
             }

@@ -111,7 +111,7 @@ pub enum PlanError {
     #[error("no valid goal configuration ({count} given): {reason}")]
     InvalidGoal { count: usize, reason: String },
     /// The time limit ran out before a path was found.
-    #[error("time limit reached after {:.3} ms and {} iterations", .stats.time.as_secs_f64() * 1e3, .stats.iterations)]
+    #[error("time limit reached ({:.3} ms and {} iterations in this step)", .stats.time.as_secs_f64() * 1e3, .stats.iterations)]
     Timeout { stats: Box<PlanStats> },
     /// The iteration limit was reached before a path was found.
     #[error("iteration limit reached after {} iterations", .stats.iterations)]

@@ -50,6 +50,15 @@ impl Termination {
         }
     }
 
+    /// Never stops by itself; the clock started at `start` (a job's start, so that the time
+    /// limit and [`Termination::elapsed`] count the setup before the search too).
+    pub fn since(start: Instant) -> Termination {
+        Termination {
+            start,
+            ..Termination::new()
+        }
+    }
+
     /// Stops `limit` after the clock start (construction or [`Termination::restart`]).
     pub fn with_time_limit(mut self, limit: Duration) -> Termination {
         self.deadline = self.start.checked_add(limit);
@@ -216,6 +225,19 @@ mod tests {
         }
         assert_eq!(t.reason(), Some(StopReason::TimeLimit));
         assert!(s.elapsed() < Duration::from_millis(50));
+    }
+
+    /// A condition whose clock started earlier counts that time against its limit.
+    #[test]
+    fn since_counts_from_the_given_start() {
+        let start = Instant::now() - Duration::from_secs(2);
+        let mut t = Termination::since(start).with_time_limit(Duration::from_secs(1));
+        assert!(t.should_stop_now());
+        assert_eq!(t.reason(), Some(StopReason::TimeLimit));
+        assert!(t.elapsed() >= Duration::from_secs(2));
+        let mut t = Termination::since(start).with_time_limit(Duration::from_secs(60));
+        assert!(!t.should_stop_now());
+        assert!(t.remaining().expect("limit") <= Duration::from_secs(58));
     }
 
     #[test]

@@ -6,7 +6,6 @@
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
 use axum::extract::{Path as AxPath, State};
 use axum::Json;
@@ -152,53 +151,69 @@ pub(super) fn prepare_grasp_list(
 
 impl JobWork for GraspListWork {
     fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
-        let done = AtomicUsize::new(0);
-        let total = AtomicUsize::new(0);
-        let finished = AtomicBool::new(false);
-        let timed_out = AtomicBool::new(false);
-        let t0 = Instant::now();
-        let limit = ctx.time_limit;
-        let stop_flag = ctx.stop.clone();
-        let w = &self;
-        let result = std::thread::scope(|s| {
-            let h = s.spawn(|| {
-                let progress = |d: usize, t: usize| {
-                    done.store(d, Ordering::Relaxed);
-                    total.store(t, Ordering::Relaxed);
-                };
-                let stop = || {
-                    if t0.elapsed() > limit {
-                        timed_out.store(true, Ordering::Relaxed);
-                    }
-                    stop_flag.load(Ordering::Relaxed) || timed_out.load(Ordering::Relaxed)
-                };
-                let r = w
-                    .cache
-                    .get_or_build(&w.hand, &w.object, &w.params, &progress, &stop);
-                finished.store(true, Ordering::Relaxed);
-                r
-            });
-            while !finished.load(Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(100));
-                let t = total.load(Ordering::Relaxed);
-                if t > 0 {
-                    ctx.progress(json!({"phase": "grasp_frames",
-                        "frames_done": done.load(Ordering::Relaxed), "frames": t}));
-                }
-            }
-            h.join()
-        });
-        let result = match result {
-            Ok(r) => r,
-            Err(_) => {
-                return Err(JobFailure {
-                    stopped: false,
-                    code: "internal",
-                    message: "the grasp-list build panicked".into(),
-                    stats: None,
-                })
-            }
+        // Built on a build thread the job waits for within its time limit and stop flag; a
+        // build the time limit left goes on for later jobs (see `super::builds`).
+        let done = Arc::new(AtomicUsize::new(0));
+        let total = Arc::new(AtomicUsize::new(0));
+        let built = Arc::new(AtomicBool::new(false));
+        let w = *self;
+        let key = format!(
+            "grasp list {:x} {}",
+            Arc::as_ptr(&w.cache) as usize,
+            list_id(&w.hand, &w.object, &w.params)
+        );
+        let what = format!(
+            "the grasp list of hand '{}' of '{}' for '{}'",
+            w.hand.group, w.hand.robot.name, w.object.name
+        );
+        let (cache, hand, object, params) = (
+            w.cache.clone(),
+            w.hand.clone(),
+            w.object.clone(),
+            w.params.clone(),
+        );
+        let (d, t, b) = (done.clone(), total.clone(), built.clone());
+        let builds = ctx.builds.clone();
+        let report = || {
+            let t = total.load(Ordering::Relaxed);
+            (t > 0).then(|| {
+                json!({"phase": "grasp_frames",
+                    "frames_done": done.load(Ordering::Relaxed), "frames": t})
+            })
         };
+        builds
+            .ensure_reporting(
+                ctx,
+                key,
+                &what,
+                move |stop| {
+                    let progress = |dn: usize, tt: usize| {
+                        d.store(dn, Ordering::Relaxed);
+                        t.store(tt, Ordering::Relaxed);
+                    };
+                    match cache.get_or_build(&hand, &object, &params, &progress, &|| stop.stopped())
+                    {
+                        Ok((_, new)) => {
+                            b.store(new, Ordering::Relaxed);
+                            Ok(())
+                        }
+                        Err(GraspListError::Stopped) => Err(None),
+                        Err(e) => Err(Some(e.to_string())),
+                    }
+                },
+                &report,
+            )
+            .map_err(|mut f| {
+                if f.code == "failed" {
+                    f.code = "invalid_input";
+                }
+                f
+            })?;
+        // In memory now: no build.
+        let result = w
+            .cache
+            .get_or_build(&w.hand, &w.object, &w.params, &|_, _| {}, &|| true)
+            .map(|(l, _)| (l, built.load(Ordering::Relaxed)));
         match result {
             Ok((list, built)) => {
                 let id = list_id(&w.hand, &w.object, &w.params);
@@ -215,19 +230,6 @@ impl JobWork for GraspListWork {
                     "grasps": list.grasps.len(),
                     "best": best,
                 }))
-            }
-            Err(GraspListError::Stopped) => {
-                let timeout = timed_out.load(Ordering::Relaxed);
-                Err(JobFailure {
-                    stopped: !timeout,
-                    code: if timeout { "timeout" } else { "cancelled" },
-                    message: format!(
-                        "stopped after {} of {} grasp frames",
-                        done.load(Ordering::Relaxed),
-                        total.load(Ordering::Relaxed)
-                    ),
-                    stats: None,
-                })
             }
             Err(e) => Err(JobFailure {
                 stopped: false,

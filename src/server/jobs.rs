@@ -22,6 +22,7 @@ use tokio::runtime::Handle;
 use tokio::sync::broadcast;
 
 use super::api::{Job, JobState, PlanRequest};
+use super::builds::Builds;
 use super::error::{ApiError, ApiResult};
 use super::kinds::{JobContext, JobFailure, Prepared};
 use super::metrics::Metrics;
@@ -42,15 +43,37 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-/// Raises the calling thread's nice value to `nice` (Linux: the nice value is per thread), so
-/// planner threads yield the CPU to the synchronous-query pool and the I/O threads. Threads it
+/// The process's own nice value (its main thread's: `nice -n 10 manyhands serve` gives 10),
+/// the base the lanes' and planner threads' priorities are relative to.
+pub(crate) fn process_nice() -> i32 {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: getpid and getpriority take no pointers. getpriority may return -1 as a
+        // value, so errno is cleared before and read after.
+        unsafe {
+            *libc::__errno_location() = 0;
+            let n = libc::getpriority(libc::PRIO_PROCESS, libc::getpid() as libc::id_t);
+            if n == -1 && *libc::__errno_location() != 0 {
+                return 0;
+            }
+            n
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    0
+}
+
+/// Sets the calling thread's nice value to the process's own plus `delta` (at most 19; Linux:
+/// the nice value is per thread), so planner threads yield the CPU to the synchronous-query
+/// pool and the I/O threads whatever nice value the server was started with. Threads it
 /// spawns inherit it. A failure only costs the priority, so it is logged, not fatal.
-pub(crate) fn lower_thread_priority(nice: i32) {
-    if nice <= 0 {
+pub(crate) fn lower_thread_priority(delta: i32) {
+    if delta <= 0 {
         return;
     }
     #[cfg(target_os = "linux")]
     {
+        let nice = process_nice().saturating_add(delta).min(19);
         // SAFETY: gettid and setpriority take no pointers; raising one's own nice value needs
         // no privilege.
         let r = unsafe {
@@ -66,7 +89,7 @@ pub(crate) fn lower_thread_priority(nice: i32) {
         }
     }
     #[cfg(not(target_os = "linux"))]
-    tracing::debug!(nice, "planner thread priority is left as it is on this OS");
+    tracing::debug!(delta, "planner thread priority is left as it is on this OS");
 }
 
 /// Prepares the work of a stored request again (a job claimed on a replica other than the one
@@ -77,7 +100,7 @@ pub type Preparer = Arc<dyn Fn(&PlanRequest) -> ApiResult<Prepared> + Send + Syn
 #[derive(Debug, Clone)]
 pub struct RunnerConfig {
     pub workers: usize,
-    /// Nice value of the planner threads (see `Config::planner_nice`).
+    /// Nice value of the planner threads above the process's own (see `Config::planner_nice`).
     pub planner_nice: i32,
     /// Queued jobs (cluster-wide) before 429.
     pub max_queue: usize,
@@ -132,6 +155,8 @@ pub struct Jobs {
     /// Unix ms of the last successful store call of the maintenance task.
     last_ok_ms: AtomicU64,
     tasks: Mutex<Vec<tokio::task::JoinHandle<()>>>,
+    /// First-use builds (grids, grasp lists, roadmaps) the jobs here wait for.
+    builds: Arc<Builds>,
 }
 
 impl Jobs {
@@ -172,6 +197,7 @@ impl Jobs {
             reachable: AtomicBool::new(true),
             last_ok_ms: AtomicU64::new(now_ms()),
             tasks: Mutex::new(Vec::new()),
+            builds: Arc::new(Builds::new(cfg.planner_nice)),
         });
         jobs.refresh_gauges().await;
         let mut threads = lock(&jobs.threads);
@@ -224,6 +250,11 @@ impl Jobs {
     /// Was the store reachable at the last check (at most a second ago)?
     pub fn store_reachable(&self) -> bool {
         self.reachable.load(Ordering::SeqCst)
+    }
+
+    /// First-use builds running in this process (see [`super::builds`]).
+    pub fn builds_running(&self) -> usize {
+        self.builds.running()
     }
 
     /// Jobs running on this replica.
@@ -531,7 +562,9 @@ impl Jobs {
             }
         });
         let limit = Duration::from_secs_f64(job.time_limit.max(0.0));
-        let mut ctx = JobContext::new(local.stop.clone(), limit, progress);
+        let mut ctx =
+            JobContext::new(local.stop.clone(), limit, progress).with_builds(self.builds.clone());
+        let started = ctx.started;
         let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| p.work.run(&mut ctx)));
         drop(ctx);
         if let Some(v) = lock(&held).take() {
@@ -583,6 +616,15 @@ impl Jobs {
                     )
                 } else if stopped {
                     fail(JobState::Cancelled, "cancelled", message, stats)
+                } else if code == "timeout" && !message.starts_with("time limit ") {
+                    // The real time since the job's start (a planner's own figures count
+                    // only its step).
+                    let message = format!(
+                        "time limit {} s reached {:.3} s after the job started; {message}",
+                        limit.as_secs_f64(),
+                        started.elapsed().as_secs_f64()
+                    );
+                    fail(JobState::Failed, code, message, stats)
                 } else {
                     fail(JobState::Failed, code, message, stats)
                 }
@@ -783,6 +825,8 @@ impl Jobs {
             l.interrupt.store(true, Ordering::SeqCst);
             l.stop.store(true, Ordering::SeqCst);
         }
+        // First-use builds stop too (those a job left for later jobs included).
+        self.builds.halt();
         let threads: Vec<JoinHandle<()>> = lock(&self.threads).drain(..).collect();
         let _ = tokio::task::spawn_blocking(move || {
             for t in threads {

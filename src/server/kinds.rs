@@ -22,6 +22,7 @@ use crate::planning::{
 use super::api::{
     CollisionSweep, GraspPlanRequest, GraspPlanSettings, JointSpacePlan, PlanRequest, SamplerName,
 };
+use super::builds::Builds;
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
 use super::queries::{apply_config, placement_base};
@@ -47,10 +48,15 @@ pub struct JobFailure {
     pub stats: Option<Value>,
 }
 
-/// What a worker gets besides the work: the stop flag, the time limit and a progress sink.
+/// What a worker gets besides the work: the stop flag, the time limit (counted from the job's
+/// start, first-use builds included: see [`super::builds`]), the builds and a progress sink.
 pub struct JobContext {
     pub stop: Arc<AtomicBool>,
     pub time_limit: Duration,
+    /// When the job started on its planner thread.
+    pub started: Instant,
+    /// The first-use builds of this process (grids, grasp lists, roadmaps).
+    pub builds: Arc<Builds>,
     progress: Box<dyn FnMut(Value) + Send>,
 }
 
@@ -63,7 +69,47 @@ impl JobContext {
         JobContext {
             stop,
             time_limit,
+            started: Instant::now(),
+            builds: Arc::new(Builds::default()),
             progress,
+        }
+    }
+
+    /// This context sharing the process's `builds` (a later job waits for a build an earlier
+    /// one started).
+    pub fn with_builds(mut self, builds: Arc<Builds>) -> JobContext {
+        self.builds = builds;
+        self
+    }
+
+    /// Time since the job started.
+    pub fn elapsed(&self) -> Duration {
+        self.started.elapsed()
+    }
+
+    /// Time left before the time limit (zero once it is reached).
+    pub fn remaining(&self) -> Duration {
+        self.time_limit.saturating_sub(self.started.elapsed())
+    }
+
+    /// Has the time limit (counted from the job's start) been reached?
+    pub fn past_limit(&self) -> bool {
+        self.remaining().is_zero()
+    }
+
+    /// The answer of a job whose time limit came while it waited for the first-use build of
+    /// `what` (which goes on in the background for later jobs).
+    pub fn build_timeout(&self, what: &str) -> JobFailure {
+        JobFailure {
+            stopped: false,
+            code: "timeout",
+            message: format!(
+                "time limit {} s reached {:.3} s after the job started, while building {what} \
+                 (first use: the build goes on in the background and later jobs reuse it)",
+                self.time_limit.as_secs_f64(),
+                self.elapsed().as_secs_f64()
+            ),
+            stats: None,
         }
     }
 
@@ -72,9 +118,10 @@ impl JobContext {
         (self.progress)(v)
     }
 
-    /// The planner termination condition of this job: time limit and stop flag.
+    /// The planner termination condition of this job: time limit (from the job's start) and
+    /// stop flag.
     pub fn termination(&self) -> Termination {
-        Termination::new()
+        Termination::since(self.started)
             .with_time_limit(self.time_limit)
             .with_stop_flag(self.stop.clone())
     }
@@ -461,12 +508,15 @@ impl JobWork for SweepWork {
                     stats: Some(summary(free, colliding, &pairs, false)),
                 });
             }
+            // The clock every 8 samples (a sample of a robot with hundreds of links costs
+            // milliseconds); the time limit counts from the job's start (checker build
+            // included).
+            if i % 8 == 0 && ctx.past_limit() {
+                truncated = true;
+                break;
+            }
             if i % 64 == 0 {
                 let now = Instant::now();
-                if now - t0 >= ctx.time_limit {
-                    truncated = true;
-                    break;
-                }
                 if now - last >= Duration::from_millis(100) {
                     last = now;
                     ctx.progress(json!({"samples_done": i, "samples": self.samples, "free": free, "colliding": colliding}));
@@ -577,23 +627,60 @@ enum GraspJob {
     },
 }
 
-/// The arm grid of `robot`'s chain `group` (built on first use, then read from the data
-/// folder), reported as the job's "reachability grids" phase; a build stops with the job.
+/// The grid of `model`'s chain group `group` built with `recipe`, from `grids` (memory, the data
+/// folder, the shared tier) or built on first use on a build thread the job waits for within
+/// its time limit and stop flag ([`super::builds`]); reported as the job's "reachability grids"
+/// phase.
+pub(super) fn ensure_grid(
+    ctx: &mut JobContext,
+    grids: &Arc<GridCache>,
+    model: &Arc<crate::Robot>,
+    group: &str,
+    recipe: GridRecipe,
+) -> Result<Arc<crate::reachability::ReachabilityGrid>, JobFailure> {
+    ctx.progress(json!({"phase": "reachability grids", "robot": model.name, "group": group}));
+    let key = format!(
+        "grid {:x} {:x} {}/{group} {recipe:?}",
+        Arc::as_ptr(grids) as usize,
+        Arc::as_ptr(model) as usize,
+        model.name
+    );
+    let what = format!(
+        "the reachability grid of robot model '{}' group '{group}'",
+        model.name
+    );
+    let (g, m, grp) = (grids.clone(), model.clone(), group.to_string());
+    let builds = ctx.builds.clone();
+    builds.ensure(ctx, key, &what, move |stop| {
+        g.get_until(&m, &grp, recipe, &|| stop.stopped())
+            .map(|_| ())
+            .map_err(|e| match e {
+                ReachError::Stopped => None,
+                e => Some(e.to_string()),
+            })
+    })?;
+    // In memory now: no build.
+    grids
+        .get_until(model, group, recipe, &|| true)
+        .map_err(|e| grid_failure(e, group))
+}
+
+/// The arm grid of `robot`'s chain `group` ([`GridRecipe::arm`], the randomized IK's filter,
+/// 000 §II-D) through [`ensure_grid`]; `None` when the robot has no SRDF group for that chain.
 fn arm_grid_of(
     ctx: &mut JobContext,
-    grids: &GridCache,
+    grids: &Arc<GridCache>,
     s: &Scene,
     robot: &str,
     group: &str,
 ) -> Result<Option<Arc<crate::reachability::ReachabilityGrid>>, JobFailure> {
-    ctx.progress(json!({"phase": "reachability grids", "group": group}));
     let model = scene_model(s, robot)?;
     let arm = ArmChain::new(&model, group)
         .map_err(|e| plan_failure(PlanError::InvalidInput(e.to_string())))?;
-    let stop = ctx.stop.clone();
-    grids
-        .arm_grid_until(&model, &arm, &move || stop.load(Ordering::Relaxed))
-        .map_err(|e| grid_failure(e, group))
+    match crate::reachability::queries::arm_grid_group(&model, &arm) {
+        Some(g) => ensure_grid(ctx, grids, &model, &g, GridRecipe::arm()).map(Some),
+        None => Ok(None),
+    }
 }
 
 /// The model of robot instance `robot` of scene `s`.
@@ -606,7 +693,7 @@ fn scene_model(s: &Scene, robot: &str) -> Result<Arc<crate::Robot>, JobFailure> 
 }
 
 /// A grid build that failed, or that the job's stop flag ended.
-fn grid_failure(e: ReachError, group: &str) -> JobFailure {
+pub(super) fn grid_failure(e: ReachError, group: &str) -> JobFailure {
     match e {
         ReachError::Stopped => JobFailure {
             stopped: true,
@@ -762,23 +849,9 @@ impl JobWork for GraspWork {
                 object,
                 grids,
             } => {
-                ctx.progress(json!({"phase": "reachability grids"}));
                 let model = scene_model(s, robot)?;
-                let stop = ctx.stop.clone();
-                let grid = |g: &str| {
-                    grids
-                        .get_until(&model, g, GridRecipe::default(), &|| {
-                            stop.load(Ordering::Relaxed)
-                        })
-                        .map_err(|e| grid_failure(e, g))
-                };
-                let (gl, gr) = (grid(left)?, grid(right)?);
-                if ctx.stopped() {
-                    return Err(plan_failure(PlanError::stopped(
-                        crate::planning::StopReason::Requested,
-                        PlanStats::default(),
-                    )));
-                }
+                let gl = ensure_grid(ctx, grids, &model, left, GridRecipe::default())?;
+                let gr = ensure_grid(ctx, grids, &model, right, GridRecipe::default())?;
                 ctx.progress(json!({"phase": "planning", "planner": "bimanual_ik_rrt"}));
                 let world = CollisionWorld::from_scene(s);
                 let q0 = CollisionWorld::start_config(s);

@@ -12,6 +12,7 @@
 //! spec.
 
 pub mod api;
+pub mod builds;
 pub mod catalog;
 pub mod dual_arm_ik;
 pub mod error;
@@ -58,8 +59,8 @@ use self::store::embedded::EmbeddedStore;
 use self::store::postgres::{PgOptions, PgStore};
 use self::store::{JobStore, StoreError};
 
-/// Nice value of the heavy query lane's threads: below the light lane (0), above the planner
-/// threads (`planner_nice`, default 10).
+/// Nice levels of the heavy query lane's threads below the process's own priority: below the
+/// light lane (the process's own), above the planner threads (`planner_nice`, default 10).
 pub const HEAVY_NICE: i32 = 5;
 
 /// Shortest bearer token accepted when the bind address is not loopback.
@@ -83,8 +84,9 @@ pub struct Config {
     pub heavy_threads: usize,
     /// Heavy queries queued or running before the heavy lane answers 503 + `Retry-After`.
     pub max_heavy: usize,
-    /// Nice value (0–19) of the planner threads: jobs are background work, so on a busy
-    /// machine the synchronous queries (IK, FK, checks) get the CPU first. 0 = same priority.
+    /// Nice levels (0–19) of the planner threads above the process's own nice value (at most
+    /// 19): jobs are background work, so on a busy machine the synchronous queries (IK, FK,
+    /// checks) get the CPU first. 0 = same priority.
     pub planner_nice: i32,
     /// Jobs waiting for a worker before 429.
     pub max_queue: usize,

@@ -11,8 +11,8 @@ use serde_json::{json, Value};
 use super::catalog::Catalog;
 use super::error::{ApiError, ApiResult};
 use super::kinds::{
-    check_hand, check_object, grasp_settings, plan_failure, time_limit, timing_failure,
-    timing_options, JobContext, JobFailure, JobWork, Prepared,
+    check_hand, check_object, ensure_grid, grasp_settings, plan_failure, time_limit,
+    timing_failure, timing_options, JobContext, JobFailure, JobWork, Prepared,
 };
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::grasp::WrenchSpaceSettings;
@@ -21,6 +21,7 @@ use crate::planning::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotEvent, MultiRobotProblem, MultiRobotSettings, Rejection, MAX_ROBOTS,
 };
 use crate::planning::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory};
+use crate::planning::PlanError;
 use crate::reachability::{GridCache, GridRecipe};
 
 pub use manyhands_api::{MultiRobotRequest, ScheduleRequest, ScheduleTrajectory};
@@ -150,7 +151,17 @@ pub fn prepare_multi_robot(
 impl JobWork for MultiRobotWork {
     fn run(self: Box<Self>, ctx: &mut JobContext) -> Result<Value, JobFailure> {
         let w = *self;
-        ctx.progress(json!({"phase": "reachability grids"}));
+        // The grids first, each within the job's time limit and stop flag (built on first use
+        // on a build thread, see `super::builds`); the problem then finds them in memory.
+        for n in &w.names {
+            let model =
+                w.scene.robot(n).map(|p| p.robot.clone()).ok_or_else(|| {
+                    plan_failure(PlanError::InvalidInput(format!("no robot '{n}'")))
+                })?;
+            for g in [&w.left, &w.right] {
+                ensure_grid(ctx, &w.grids, &model, g, GridRecipe::default())?;
+            }
+        }
         let p = MultiRobotProblem::with_grids(
             &w.scene,
             &w.names,
@@ -162,11 +173,13 @@ impl JobWork for MultiRobotWork {
             Default::default(),
         )
         .map_err(plan_failure)?;
-        if ctx.stopped() {
-            return Err(plan_failure(crate::planning::PlanError::stopped(
-                crate::planning::StopReason::Requested,
-                Default::default(),
-            )));
+        if ctx.stopped() || ctx.past_limit() {
+            let reason = if ctx.stopped() {
+                crate::planning::StopReason::Requested
+            } else {
+                crate::planning::StopReason::TimeLimit
+            };
+            return Err(plan_failure(PlanError::stopped(reason, Default::default())));
         }
         ctx.progress(json!({"phase": "planning", "planner": "multi_robot_rrt"}));
         let mut term = ctx.termination();

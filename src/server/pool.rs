@@ -93,7 +93,8 @@ pub struct PoolConfig {
     pub light_max_in_flight: usize,
     pub heavy_threads: usize,
     pub heavy_max_in_flight: usize,
-    /// Nice value of the heavy lane's threads (0 = the light lane's priority).
+    /// Nice levels of the heavy lane's threads above the process's own (0 = the light lane's
+    /// priority).
     pub heavy_nice: i32,
 }
 

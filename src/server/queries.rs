@@ -271,48 +271,86 @@ pub async fn check(
     ApiJson(req): ApiJson<CheckRequest>,
 ) -> ApiResult<Json<CheckResponse>> {
     let entry = st.catalog.scene(&req.scene, "scene")?;
-    st.pool
-        .run(move || {
-            let scene = &entry.scene;
-            let world = entry.world();
-            let mut q = crate::collision::CollisionWorld::start_config(scene);
-            let mut seen = std::collections::BTreeSet::new();
-            for (i, rc) in req.robots.iter().enumerate() {
-                let field = format!("robots[{i}]");
-                let ri = scene
-                    .robots
-                    .iter()
-                    .position(|p| p.name == rc.name)
-                    .ok_or_else(|| {
-                        ApiError::invalid(
-                            format!("{field}.name"),
-                            format!("scene '{}' has no robot '{}'", scene.name, rc.name),
-                        )
-                    })?;
-                if !seen.insert(ri) {
-                    return Err(ApiError::invalid(
+    // What the check costs is what it tests, not the request's size: a cheap check runs on the
+    // light lane, a costly one on the heavy lane (where it never delays FK, IK and cheap
+    // checks), one past the bound is refused.
+    let pairs = check_pairs(&entry.world());
+    if pairs > MAX_CHECK_PAIRS {
+        return Err(ApiError::invalid(
+            "scene",
+            format!(
+                "a check of scene '{}' tests up to {pairs} pairs of collision shapes (its robots' \
+                 shapes with each other and with its fixed bodies); a synchronous check tests at \
+                 most {MAX_CHECK_PAIRS}: run a collision_sweep job instead",
+                req.scene
+            ),
+        ));
+    }
+    let work = move || {
+        let scene = &entry.scene;
+        let world = entry.world();
+        let mut q = crate::collision::CollisionWorld::start_config(scene);
+        let mut seen = std::collections::BTreeSet::new();
+        for (i, rc) in req.robots.iter().enumerate() {
+            let field = format!("robots[{i}]");
+            let ri = scene
+                .robots
+                .iter()
+                .position(|p| p.name == rc.name)
+                .ok_or_else(|| {
+                    ApiError::invalid(
                         format!("{field}.name"),
-                        format!("robot '{}' listed twice", rc.name),
-                    ));
-                }
-                let p = &scene.robots[ri];
-                let base = placement_base(p, rc.named.as_deref(), &format!("{field}.named"))?;
-                let qr = apply_config(&p.robot, &base, &rc.config, &format!("{field}.config"))?;
-                let off = world.robots[ri].offset;
-                q[off..off + qr.len()].copy_from_slice(&qr);
+                        format!("scene '{}' has no robot '{}'", scene.name, rc.name),
+                    )
+                })?;
+            if !seen.insert(ri) {
+                return Err(ApiError::invalid(
+                    format!("{field}.name"),
+                    format!("robot '{}' listed twice", rc.name),
+                ));
             }
-            let ce = ExactChecker::new(&world).first_contact(&q);
-            let cf = FastChecker::new(&world).first_contact(&q);
-            Ok(CheckResponse {
-                scene: req.scene.clone(),
-                collision: ce.is_some(),
-                pair: ce.map(|c| [c.a, c.b]),
-                fast_checker: CheckFast {
-                    collision: cf.is_some(),
-                    pair: cf.map(|c| [c.a, c.b]),
-                },
-            })
+            let p = &scene.robots[ri];
+            let base = placement_base(p, rc.named.as_deref(), &format!("{field}.named"))?;
+            let qr = apply_config(&p.robot, &base, &rc.config, &format!("{field}.config"))?;
+            let off = world.robots[ri].offset;
+            q[off..off + qr.len()].copy_from_slice(&qr);
+        }
+        let ce = ExactChecker::new(&world).first_contact(&q);
+        let cf = FastChecker::new(&world).first_contact(&q);
+        Ok(CheckResponse {
+            scene: req.scene.clone(),
+            collision: ce.is_some(),
+            pair: ce.map(|c| [c.a, c.b]),
+            fast_checker: CheckFast {
+                collision: cf.is_some(),
+                pair: cf.map(|c| [c.a, c.b]),
+            },
         })
-        .await
-        .map(Json)
+    };
+    if pairs > LIGHT_MAX_PAIRS {
+        st.pool.run_heavy(work).await.map(Json)
+    } else {
+        st.pool.run(work).await.map(Json)
+    }
+}
+
+/// Most shape pairs a `POST /v1/check` may test on the light lane (FK, IK, cheap checks);
+/// a costlier check runs on the heavy lane.
+pub const LIGHT_MAX_PAIRS: u64 = 20_000;
+
+/// Most shape pairs a synchronous `POST /v1/check` may test at all (422 above).
+pub const MAX_CHECK_PAIRS: u64 = 200_000;
+
+/// The pairs of collision shapes a check of `world` may test: the robots' shapes with each
+/// other and with the fixed bodies' (an upper bound: allowed pairs are not subtracted). The
+/// cost of building the checkers and of one check grows with it.
+pub fn check_pairs(world: &crate::collision::CollisionWorld) -> u64 {
+    let robot: u64 = world
+        .robots
+        .iter()
+        .flat_map(|p| p.robot.links.iter())
+        .map(|l| l.collision.len() as u64)
+        .sum();
+    let fixed: u64 = world.statics.iter().map(|b| b.shapes.len() as u64).sum();
+    robot * robot.saturating_sub(1) / 2 + robot * fixed
 }

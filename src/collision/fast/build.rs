@@ -395,8 +395,17 @@ fn pair_can_touch(
     let balls = if a.mount.robot == b.mount.robot {
         let fa = fk[a.mount.robot].ancestors(a.mount.link);
         let fb = fk[b.mount.robot].ancestors(b.mount.link);
-        match fa.iter().find(|l| fb.contains(l)) {
-            Some(&c) => ball(a, c).zip(ball(b, c)),
+        // Both lists end at the root: the first common ancestor is the last element of
+        // their common tail (O(depth), not O(depth²), for a chain of hundreds of links).
+        let common = fa
+            .iter()
+            .rev()
+            .zip(fb.iter().rev())
+            .take_while(|(x, y)| x == y)
+            .last()
+            .map(|(&c, _)| c);
+        match common {
+            Some(c) => ball(a, c).zip(ball(b, c)),
             None => None,
         }
     } else {

@@ -317,7 +317,12 @@ impl SphereChecker {
             let end = bodies.partition_point(|b: &Body| (b.node as usize) <= si) as u32;
             s.bodies = (first, end);
         }
-        let index = |id: BodyId| bodies.iter().position(|b| b.id == id);
+        // By id (a linear search per pair costs O(bodies · pairs) on robots of hundreds of links).
+        let mut by_id: std::collections::HashMap<BodyId, usize> = std::collections::HashMap::new();
+        for (i, b) in bodies.iter().enumerate() {
+            by_id.entry(b.id).or_insert(i);
+        }
+        let index = |id: BodyId| by_id.get(&id).copied();
         let mut self_pairs = Vec::new();
         for &(a, b) in &pairs {
             if let (Some(ia), Some(ib)) = (index(a), index(b)) {
@@ -332,18 +337,24 @@ impl SphereChecker {
         {
             let node_of = |b: u32| bodies[b as usize].node;
             let key = |&(a, b): &(u32, u32)| (node_of(a), node_of(b));
-            let count = |k: (u32, u32)| self_pairs.iter().filter(|p| key(p) == k).count();
+            // The pairs of each node pair, in order (one pass: counting per pair would cost
+            // O(pairs²)).
+            let mut members: std::collections::HashMap<(u32, u32), Vec<(u32, u32)>> =
+                std::collections::HashMap::new();
+            for p in &self_pairs {
+                members.entry(key(p)).or_default().push(*p);
+            }
             let mut grouped = Vec::with_capacity(self_pairs.len());
-            let mut done: Vec<(u32, u32)> = Vec::new();
+            let mut done: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
             for p in &self_pairs {
                 let k = key(p);
-                if count(k) < Self::NODE_CULL_MIN_PAIRS as usize {
+                let group = &members[&k];
+                if group.len() < Self::NODE_CULL_MIN_PAIRS as usize {
                     grouped.push(*p);
                     pair_group_end.push(0);
-                } else if !done.contains(&k) {
-                    done.push(k);
+                } else if done.insert(k) {
                     let first = grouped.len();
-                    grouped.extend(self_pairs.iter().filter(|q| key(q) == k));
+                    grouped.extend(group.iter().copied());
                     pair_group_end.resize(grouped.len(), 0);
                     pair_group_end[first] = grouped.len() as u32;
                 }
