@@ -1,18 +1,21 @@
 //! The JSON body extractor: content type, body size limit (413), nesting depth, strict parsing
 //! with the path of the offending field in every error.
 
+use std::sync::atomic::Ordering;
+
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::{header, StatusCode};
 use serde::de::DeserializeOwned;
 
 use super::error::ApiError;
+use super::BodyRead;
 
 /// Deepest nesting of arrays/objects accepted in a request body.
 pub const MAX_DEPTH: usize = 32;
 
 /// A JSON request body parsed into `T`: 415 without a JSON content type, 413 over the body
-/// limit, 400 for malformed or too deeply nested JSON, 422 for well-formed JSON whose values do
+/// limit, 408 when it does not arrive within the body timeout, 400 for malformed or too deeply nested JSON, 422 for well-formed JSON whose values do
 /// not fit `T` (wrong type, unknown field, …) with the field path.
 pub struct ApiJson<T>(pub T);
 
@@ -45,7 +48,35 @@ where
                 "expected 'Content-Type: application/json'",
             ));
         }
-        let bytes = Bytes::from_request(req, state).await.map_err(|e| {
+        // The body must arrive within the server's body timeout (`BodyRead`, set per request
+        // by the server's middleware); a client stalled mid-body gets 408 and the connection
+        // is closed, so it cannot hold a connection (and its buffers) open.
+        let read = req.extensions().get::<BodyRead>().cloned();
+        // A body announced larger than the limit is refused at once, before any of it is
+        // read (the limit also holds for a body without a length, as it arrives).
+        if let Some(r) = &read {
+            let announced = req
+                .headers()
+                .get(header::CONTENT_LENGTH)
+                .and_then(|v| v.to_str().ok())
+                .and_then(|v| v.trim().parse::<u64>().ok());
+            if announced.is_some_and(|n| n > r.limit as u64) {
+                return Err(ApiError::too_large(r.limit));
+            }
+        }
+        let deadline = read.as_ref().map(|r| r.deadline);
+        let bytes = Bytes::from_request(req, state);
+        let bytes = match deadline {
+            Some(d) => tokio::time::timeout_at(d, bytes).await.map_err(|_| {
+                ApiError::new(
+                    StatusCode::REQUEST_TIMEOUT,
+                    "body_timeout",
+                    "the request body did not arrive in time",
+                )
+            })?,
+            None => bytes.await,
+        }
+        .map_err(|e| {
             if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
                 ApiError::new(
                     StatusCode::PAYLOAD_TOO_LARGE,
@@ -56,6 +87,9 @@ where
                 ApiError::bad_request(format!("cannot read the body: {}", e.body_text()))
             }
         })?;
+        if let Some(r) = read {
+            r.complete.store(true, Ordering::SeqCst);
+        }
         parse_json(&bytes).map(ApiJson)
     }
 }

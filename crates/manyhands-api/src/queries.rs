@@ -119,11 +119,13 @@ pub struct IkRequest {
     pub solver: IkSolver,
     /// Swivel angles enumerated by the analytic solver (1..=3600, default 36).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 3600))]
     pub psi_steps: Option<u32>,
     #[serde(default)]
     pub order: IkOrder,
     /// At most this many solutions are returned (1..=10000, default 16).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10000))]
     pub max_solutions: Option<u32>,
     /// Seed of the random generator (numeric restarts, random order).
     #[serde(default)]
