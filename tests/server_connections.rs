@@ -93,8 +93,7 @@ async fn closed_within(s: &mut TcpStream, within: Duration) -> bool {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_oversized_body_is_answered_413_with_connection_close_and_a_keep_alive_client_goes_on()
-{
+async fn an_oversized_body_is_answered_413_with_connection_close_and_a_keep_alive_client_goes_on() {
     let mut cfg = config("413");
     cfg.max_body = 64 * 1024;
     let server = Server::start(cfg).await.expect("server");
@@ -142,7 +141,10 @@ async fn an_oversized_body_is_answered_413_with_connection_close_and_a_keep_aliv
     s2.write_all(head.as_bytes()).await.expect("write");
     s2.write_all(body).await.expect("write");
     let (lines, _) = read_response(&mut s2, &mut buf2).await.expect("answer");
-    assert!(lines[0].contains(" 404 ") || lines[0].contains(" 422 "), "{lines:?}");
+    assert!(
+        lines[0].contains(" 404 ") || lines[0].contains(" 422 "),
+        "{lines:?}"
+    );
     assert_ne!(header(&lines, "connection"), Some("close"), "{lines:?}");
     s2.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
         .await
@@ -168,10 +170,11 @@ async fn clients_stalled_mid_body_or_mid_headers_are_cut_off() {
     .expect("write");
     let t0 = Instant::now();
     let mut buf = Vec::new();
-    let (lines, body) = tokio::time::timeout(Duration::from_secs(5), read_response(&mut s, &mut buf))
-        .await
-        .expect("answered within 5 s")
-        .expect("an answer before the close");
+    let (lines, body) =
+        tokio::time::timeout(Duration::from_secs(5), read_response(&mut s, &mut buf))
+            .await
+            .expect("answered within 5 s")
+            .expect("an answer before the close");
     let took = t0.elapsed();
     assert!(lines[0].contains(" 408 "), "{lines:?}");
     assert_eq!(

@@ -22,7 +22,7 @@ const REQUIRE_ENV: &str = "MANYHANDS_REQUIRE_SCHEMATHESIS";
 /// Test cases per operation and phase: small, to keep the run within CI's budget.
 const MAX_EXAMPLES: u32 = 12;
 /// Time budget of the whole run, seconds (the run ends early when every phase is done).
-const MAX_SECONDS: u32 = 100;
+const MAX_SECONDS: u32 = 90;
 
 fn python() -> String {
     std::env::var("PYTHON").unwrap_or_else(|_| "python3".into())
@@ -92,10 +92,24 @@ async fn schemathesis_finds_nothing() {
     std::fs::write(&spec, manyhands::server::openapi::openapi_json()).expect("spec");
     // Schema-valid requests may be refused only for the reasons the spec names besides their
     // content: auth, a missing resource, a conflict with the server's state, overload.
+    // Two exceptions, each documented in the spec: an uploaded robot or scene is a document
+    // (URDF, SRDF, scene JSON) whose validity no schema states, and a base-placement map is
+    // bounded by its number of platform poses, (2⌈radius / cell⌉ + 1)² × yaw_bins, a product
+    // of three fields.
     std::fs::write(
         dir.join("schemathesis.toml"),
-        "[checks.positive_data_acceptance]\n\
-         expected-statuses = [\"2xx\", \"401\", \"404\", \"409\", \"429\", \"503\"]\n",
+        r#"[checks.positive_data_acceptance]
+expected-statuses = ["2xx", "401", "404", "409", "429", "503"]
+
+[[operations]]
+include-path-regex = "^/v1/(robots|scenes)/\\{name\\}$"
+include-method = "PUT"
+checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409", "422", "429", "503"]
+
+[[operations]]
+include-path = "/v1/ik/base-placement"
+checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409", "422", "429", "503"]
+"#,
     )
     .expect("config");
     let report = dir.join("report.xml");
@@ -122,14 +136,12 @@ async fn schemathesis_finds_nothing() {
         "examples,coverage,fuzzing".into(),
         "--max-examples".into(),
         MAX_EXAMPLES.to_string(),
-        "--seed".into(),
-        "20240601".into(),
+        // Deterministic generation: the same cases every run (no seed, no example database).
         "--generation-deterministic".into(),
-        "--generation-database".into(),
-        "none".into(),
         "--no-shrink".into(),
+        // One worker: Hypothesis' strategy descriptions are not thread-safe on every Python.
         "--workers".into(),
-        "2".into(),
+        "1".into(),
         "--max-time".into(),
         MAX_SECONDS.to_string(),
         "--request-timeout".into(),

@@ -150,7 +150,13 @@ fn probes(f: &NumField) -> Vec<(String, Value, Value)> {
             json!(x)
         }
     };
-    let step = |x: f64| if f.integer { 1.0 } else { (x.abs() * 1e-6).max(1e-9) };
+    let step = |x: f64| {
+        if f.integer {
+            1.0
+        } else {
+            (x.abs() * 1e-6).max(1e-9)
+        }
+    };
     if let Some(m) = s["minimum"].as_f64() {
         out.push((format!("minimum {m}"), num(m), num(m - step(m))));
     }
@@ -178,10 +184,7 @@ async fn every_numeric_field_of_every_kind_is_checked_at_submission_at_its_bound
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let dir = std::env::temp_dir().join(format!(
-        "manyhands-bounds-{}-{nanos}",
-        std::process::id()
-    ));
+    let dir = std::env::temp_dir().join(format!("manyhands-bounds-{}-{nanos}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir);
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -235,7 +238,10 @@ async fn every_numeric_field_of_every_kind_is_checked_at_submission_at_its_bound
         if j["state"] == "running" {
             break;
         }
-        assert!(t0.elapsed() < Duration::from_secs(10), "the sweep never ran");
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the sweep never ran"
+        );
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     let bodies = base_bodies();
@@ -269,9 +275,7 @@ async fn every_numeric_field_of_every_kind_is_checked_at_submission_at_its_bound
                 if s == 202 {
                     cancel(j["id"].as_str().expect("id").to_string()).await;
                 } else {
-                    failures.push(format!(
-                        "{kind}.{name} = {inside} (inside {what}): {s} {j}"
-                    ));
+                    failures.push(format!("{kind}.{name} = {inside} (inside {what}): {s} {j}"));
                 }
                 // u64 fields: a negative number is refused by the type (422 naming it too).
                 let (s, j) = post(with(body, &f.path, outside.clone())).await;

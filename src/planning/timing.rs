@@ -643,8 +643,12 @@ mod tests {
         assert!(l.scaled(MIN_SCALING, MIN_SCALING).is_ok());
         assert!(l.scaled(MIN_SCALING * 0.99, 1.0).is_err());
         // Limits that underflow the squared velocity bound: a typed error, never a 0 s motion.
-        let e = time_polyline(&[vec![0.0, 0.0], vec![1.0, 0.0]], &limits(1e-300, 1.0, 2), &[])
-            .expect_err("underflow");
+        let e = time_polyline(
+            &[vec![0.0, 0.0], vec![1.0, 0.0]],
+            &limits(1e-300, 1.0, 2),
+            &[],
+        )
+        .expect_err("underflow");
         assert_eq!(e.field, "velocity_limits");
         let p = time_polyline(&[vec![0.0, 0.0]], &l, &[]).expect("one point");
         assert_eq!(p.duration, 0.0);

@@ -401,7 +401,11 @@ pub struct BodyRead {
 /// the body would otherwise be taken for the next request, so the server closes the
 /// connection anyway, and says so (`Connection: close`) for a keep-alive client to open a new
 /// one instead of failing its next request on a dead socket.
-async fn connection_hygiene(State(st): State<Arc<AppState>>, mut req: Request, next: Next) -> Response {
+async fn connection_hygiene(
+    State(st): State<Arc<AppState>>,
+    mut req: Request,
+    next: Next,
+) -> Response {
     let has_body = req.headers().contains_key(header::TRANSFER_ENCODING)
         || req
             .headers()
@@ -415,8 +419,10 @@ async fn connection_hygiene(State(st): State<Arc<AppState>>, mut req: Request, n
     req.extensions_mut().insert(read.clone());
     let mut resp = next.run(req).await;
     if has_body && !read.complete.load(Ordering::SeqCst) {
-        resp.headers_mut()
-            .insert(header::CONNECTION, header::HeaderValue::from_static("close"));
+        resp.headers_mut().insert(
+            header::CONNECTION,
+            header::HeaderValue::from_static("close"),
+        );
     }
     resp
 }

@@ -71,6 +71,7 @@ pub fn openapi_json() -> String {
             close_tagged_unions(&mut v);
             document_common_answers(&mut v);
             grasp_list_frame_rule(&mut v);
+            grasp_quality_source_rule(&mut v);
             serde_json::to_string_pretty(&v)
         }
         Err(e) => Err(e),
@@ -79,6 +80,10 @@ pub fn openapi_json() -> String {
     s.push('\n');
     s
 }
+
+/// Names of robots, scenes and grasp lists: 1–64 of `A-Z a-z 0-9 _ - .`, not starting with `.`
+/// (`catalog::check_name`).
+const NAME_PATTERN: &str = r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}$";
 
 /// Bounds of the query parameters the server enforces (`name`, minimum, maximum); a value
 /// outside is answered 400 or 422 naming the parameter.
@@ -109,18 +114,52 @@ fn document_common_answers(spec: &mut serde_json::Value) {
             let open = op
                 .get("security")
                 .and_then(Value::as_array)
-                .is_some_and(|s| s.iter().all(|r| r.as_object().is_some_and(|o| o.is_empty())));
+                .is_some_and(|s| {
+                    s.iter()
+                        .all(|r| r.as_object().is_some_and(|o| o.is_empty()))
+                });
             let has_body = op.get("requestBody").is_some();
             let has_query = op
                 .get("parameters")
                 .and_then(Value::as_array)
                 .is_some_and(|ps| ps.iter().any(|p| p["in"] == "query"));
+            let has_header = op
+                .get("parameters")
+                .and_then(Value::as_array)
+                .is_some_and(|ps| ps.iter().any(|p| p["in"] == "header"));
             if let Some(ps) = op.get_mut("parameters").and_then(Value::as_array_mut) {
-                for p in ps.iter_mut().filter(|p| p["in"] == "query") {
+                for p in ps.iter_mut() {
                     let name = p["name"].as_str().unwrap_or("").to_string();
+                    let place = p["in"].as_str().unwrap_or("").to_string();
+                    let schema = &mut p["schema"];
+                    // An optional parameter is given or absent, never `null`.
+                    if let Some(types) = schema.get_mut("type").and_then(Value::as_array_mut) {
+                        types.retain(|t| t != "null");
+                        if types.len() == 1 {
+                            schema["type"] = types[0].clone();
+                        }
+                    }
                     if let Some(&(_, lo, hi)) = QUERY_BOUNDS.iter().find(|b| b.0 == name) {
-                        p["schema"]["minimum"] = json!(lo);
-                        p["schema"]["maximum"] = json!(hi);
+                        schema["minimum"] = json!(lo);
+                        schema["maximum"] = json!(hi);
+                    }
+                    match (Some(place.as_str()), name.as_str()) {
+                        // Names of robots, scenes and grasp lists (`catalog::check_name`).
+                        (Some("path"), "name") => schema["pattern"] = json!(NAME_PATTERN),
+                        (Some("path"), "id") if path.starts_with("/v1/grasp-lists") => {
+                            schema["pattern"] = json!(NAME_PATTERN)
+                        }
+                        // `next_cursor` of a page: creation time and job id.
+                        (Some("query"), "cursor") => {
+                            schema["pattern"] = json!(r"^[0-9]{1,19}\.[A-Za-z0-9]{1,64}$")
+                        }
+                        (Some("query"), "kind") => {
+                            schema["enum"] = json!(super::api::PlanRequest::KINDS)
+                        }
+                        (Some("header"), "Last-Event-ID") => {
+                            schema["maximum"] = json!(u64::MAX);
+                        }
+                        _ => {}
                     }
                 }
             }
@@ -153,6 +192,9 @@ fn document_common_answers(spec: &mut serde_json::Value) {
             }
             if has_query {
                 add("400", "an unknown query parameter, or a malformed one");
+            }
+            if has_header {
+                add("400", "a malformed header parameter");
             }
             // The synchronous queries and uploads run on the bounded CPU pool, the jobs and
             // grasp lists live in the job store.
@@ -195,6 +237,28 @@ fn grasp_list_frame_rule(spec: &mut serde_json::Value) {
         })
         .collect();
     s["allOf"] = Value::Array(rules);
+    // Each weight of the quality score (`GraspListParams::validate`).
+    if s["properties"]["weights"].is_object() {
+        s["properties"]["weights"]["items"] =
+            json!({"type": "number", "minimum": 0, "maximum": 1e6});
+    }
+}
+
+/// What a grasp-quality request scores, in its schema: `scene` with `object` (their grasps, and
+/// the contacts if any), or neither and at least one contact.
+fn grasp_quality_source_rule(spec: &mut serde_json::Value) {
+    use serde_json::json;
+    let s = &mut spec["components"]["schemas"]["GraspQualityRequest"];
+    if !s["properties"]["contacts"].is_object() {
+        return;
+    }
+    s["anyOf"] = json!([
+        {"required": ["scene", "object"],
+         "properties": {"scene": {"type": "string"}, "object": {"type": "string"}}},
+        {"required": ["contacts"],
+         "properties": {"contacts": {"minItems": 1}, "scene": {"type": "null"},
+                        "object": {"type": "null"}}},
+    ]);
 }
 
 /// Makes the schemas of internally tagged enums (`PlanRequest`: `#[serde(tag = "kind")]`)

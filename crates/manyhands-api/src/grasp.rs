@@ -72,7 +72,9 @@ pub struct GraspIkResponse {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct RegionJson {
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub min: [f64; 3],
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub max: [f64; 3],
 }
 
@@ -136,7 +138,9 @@ pub struct BasePlacementRequest {
     #[serde(default)]
     #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 5.0))]
     pub radius: Option<f64>,
-    /// Cell of the base-position grid (m, [0.02, 1], default 0.1).
+    /// Cell of the base-position grid (m, [0.02, 1], default 0.1). One request evaluates at
+    /// most 250000 platform poses, (2⌈radius / cell⌉ + 1)² × yaw_bins, with radius / cell at
+    /// most 200 (refused with 422 naming `cell` beyond).
     #[serde(default)]
     #[cfg_attr(feature = "openapi", schema(minimum = 0.02, maximum = 1.0))]
     pub cell: Option<f64>,
@@ -202,8 +206,10 @@ pub struct TwoHandIkResponse {
 #[serde(deny_unknown_fields)]
 pub struct GraspContact {
     /// Contact point [x, y, z] in metres.
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub point: [f64; 3],
     /// Inward surface normal (the direction of the finger force); any non-zero length.
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub normal: [f64; 3],
 }
 
@@ -222,6 +228,7 @@ pub struct GraspQualityRequest {
     /// Centre of mass of the object, same frame as the contacts. Required without `scene` +
     /// `object`; with them the default is the object's centre of mass (uniform density).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub centre: Option<[f64; 3]>,
     /// Scene of `object`.
     #[serde(default)]
@@ -306,6 +313,7 @@ pub struct GraspQualityResponse {
     /// contacts; null only for an object of radius 0 without contacts).
     pub lambda: Option<f64>,
     /// Centre of mass used.
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub centre: [f64; 3],
     /// Upper bound of the object's extent from `centre` (with `scene` + `object`).
     pub radius: Option<f64>,

@@ -228,6 +228,7 @@ pub struct GraspListParamsBody {
     /// Weights of the force-closure, centroid, force-ellipsoid and curvature scores (default
     /// 1, 1, 1, 6 as paper 003).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(min_items = 4, max_items = 4))]
     pub weights: Option<[f64; 4]>,
     /// Most grasps kept (1..=100000, default 2000).
     #[serde(default)]
@@ -682,6 +683,7 @@ pub struct PickPlaceTaskPlan {
     pub place_hand: String,
     /// `roadmap` (default, 003 §V-B) or `rrt_connect` (plain single-query planner).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(pattern = "^(roadmap|rrt_connect)$"))]
     pub planner: Option<String>,
     /// Key-configuration searches (each a new seed) tried at most (1..=100, default 4).
     #[serde(default)]
