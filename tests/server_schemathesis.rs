@@ -92,10 +92,11 @@ async fn schemathesis_finds_nothing() {
     std::fs::write(&spec, manyhands::server::openapi::openapi_json()).expect("spec");
     // Schema-valid requests may be refused only for the reasons the spec names besides their
     // content: auth, a missing resource, a conflict with the server's state, overload.
-    // Two exceptions, each documented in the spec: an uploaded robot or scene is a document
-    // (URDF, SRDF, scene JSON) whose validity no schema states, and a base-placement map is
+    // Three exceptions, each documented in the spec: an uploaded robot or scene is a document
+    // (URDF, SRDF, scene JSON) whose validity no schema states, a base-placement map is
     // bounded by its number of platform poses, (2⌈radius / cell⌉ + 1)² × yaw_bins, a product
-    // of three fields.
+    // of three fields, and grasp contacts must be geometrically sound (non-zero normals,
+    // wrenches within range).
     std::fs::write(
         dir.join("schemathesis.toml"),
         r#"[checks.positive_data_acceptance]
@@ -108,6 +109,10 @@ checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409",
 
 [[operations]]
 include-path = "/v1/ik/base-placement"
+checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409", "422", "429", "503"]
+
+[[operations]]
+include-path = "/v1/grasp-quality"
 checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409", "422", "429", "503"]
 "#,
     )
