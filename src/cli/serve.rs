@@ -50,6 +50,14 @@ pub struct ServeArgs {
     /// Request body limit in bytes.
     #[arg(long, env = "MANYHANDS_MAX_BODY", default_value_t = 2 * 1024 * 1024)]
     pub max_body: usize,
+    /// Seconds a client may take to send a request's headers (also the longest a kept-alive
+    /// connection stays idle); then the connection is closed.
+    #[arg(long, env = "MANYHANDS_HEADER_TIMEOUT", default_value_t = 15.0)]
+    pub header_timeout: f64,
+    /// Seconds a client may take to send a request's body after its headers; then the request
+    /// is answered 408 and the connection closed.
+    #[arg(long, env = "MANYHANDS_BODY_TIMEOUT", default_value_t = 20.0)]
+    pub body_timeout: f64,
     /// Finished jobs older than this many hours are deleted.
     #[arg(long, env = "MANYHANDS_RETENTION_HOURS", default_value_t = 168.0)]
     pub retention_hours: f64,
@@ -144,6 +152,8 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     cfg.max_plan_seconds = a.max_plan_seconds;
     cfg.token = a.token.clone().filter(|t| !t.is_empty());
     cfg.max_body = a.max_body;
+    cfg.header_timeout = seconds("header-timeout", a.header_timeout)?;
+    cfg.body_timeout = seconds("body-timeout", a.body_timeout)?;
     cfg.retention = seconds("retention-hours", a.retention_hours * 3600.0)?;
     cfg.shutdown_grace = seconds("shutdown-grace", a.shutdown_grace)?;
     cfg.drain = seconds("drain", a.drain)?;

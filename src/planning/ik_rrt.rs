@@ -49,6 +49,24 @@ pub struct IkRrtSettings {
     pub rrt: RrtConnectSettings,
 }
 
+impl IkRrtSettings {
+    /// Checks `p_ik` (in (0, 1]), `max_goals` (> 0) and the RRT settings that do not depend
+    /// on the space ([`RrtConnectSettings::validate`]), so that a caller can refuse bad
+    /// settings before any work (the planner checks them again when built).
+    pub fn validate(&self) -> Result<(), PlanError> {
+        if !(self.p_ik.is_finite() && self.p_ik > 0.0 && self.p_ik <= 1.0) {
+            return Err(PlanError::InvalidInput(format!(
+                "p_ik must be in (0, 1], got {}",
+                self.p_ik
+            )));
+        }
+        if self.max_goals == 0 {
+            return Err(PlanError::InvalidInput("max_goals must be > 0".into()));
+        }
+        self.rrt.validate()
+    }
+}
+
 impl Default for IkRrtSettings {
     fn default() -> Self {
         IkRrtSettings {
@@ -91,15 +109,7 @@ impl<C: SegmentChecker> IkRrt<C> {
         checker: C,
         settings: IkRrtSettings,
     ) -> Result<Self, PlanError> {
-        if !(settings.p_ik.is_finite() && settings.p_ik > 0.0 && settings.p_ik <= 1.0) {
-            return Err(PlanError::InvalidInput(format!(
-                "p_ik must be in (0, 1], got {}",
-                settings.p_ik
-            )));
-        }
-        if settings.max_goals == 0 {
-            return Err(PlanError::InvalidInput("max_goals must be > 0".into()));
-        }
+        settings.validate()?;
         let range = settings.rrt.checked_range(&space)?;
         let dim = space.dim();
         let weights = space.weights().to_vec();

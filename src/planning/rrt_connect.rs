@@ -107,6 +107,24 @@ impl RrtConnectSettings {
     /// Checks the resolutions and returns the EXTEND range for `space` (explicit, or 0.2 × the
     /// space's maximum extent).
     pub fn checked_range(&self, space: &JointSpace) -> Result<f64, PlanError> {
+        self.validate()?;
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        let range = match self.range {
+            Some(r) => r,
+            None => 0.2 * space.max_extent(),
+        };
+        if !pos(range) {
+            return Err(PlanError::InvalidInput(
+                "the space has no extent (all bounds equal)".into(),
+            ));
+        }
+        Ok(range)
+    }
+
+    /// Checks the settings that do not depend on the space (resolutions, EXTEND range,
+    /// dynamic-domain radius, certification inflation), so that a caller can refuse bad settings
+    /// before any work.
+    pub fn validate(&self) -> Result<(), PlanError> {
         let pos = |v: f64| v.is_finite() && v > 0.0;
         if !pos(self.angular_resolution) || !pos(self.linear_resolution) {
             return Err(PlanError::InvalidInput(
@@ -127,21 +145,12 @@ impl RrtConnectSettings {
                 )));
             }
         }
-        let range = match self.range {
-            Some(r) if pos(r) => r,
-            Some(r) => {
-                return Err(PlanError::InvalidInput(format!(
-                    "range must be finite and > 0, got {r}"
-                )))
-            }
-            None => 0.2 * space.max_extent(),
-        };
-        if !pos(range) {
-            return Err(PlanError::InvalidInput(
-                "the space has no extent (all bounds equal)".into(),
-            ));
+        if let Some(r) = self.range.filter(|&r| !pos(r)) {
+            return Err(PlanError::InvalidInput(format!(
+                "range must be finite and > 0, got {r}"
+            )));
         }
-        Ok(range)
+        Ok(())
     }
 }
 

@@ -57,6 +57,11 @@ pub const DEFAULT_SAMPLE_PERIOD: f64 = 0.01;
 pub const MIN_SAMPLE_PERIOD: f64 = 0.001;
 pub const MAX_SAMPLE_PERIOD: f64 = 10.0;
 
+/// Smallest velocity or acceleration scaling factor: a factor of 1e-300 would scale the limits
+/// below what the squared velocity bound can hold (x̄ = v² underflows to 0) and time a motion
+/// in 0 s; at 10⁻³ every limit keeps twelve orders of magnitude of headroom.
+pub const MIN_SCALING: f64 = 0.001;
+
 /// Most sampled points of one trajectory.
 pub const MAX_POINTS: usize = 100_000;
 
@@ -91,7 +96,7 @@ pub struct TimingLimits {
 
 impl TimingLimits {
     /// Limits scaled as MoveIt's `velocity_scaling_factor` / `acceleration_scaling_factor`
-    /// (each in (0, 1]).
+    /// (each in [`MIN_SCALING`], 1]).
     pub fn scaled(&self, velocity: f64, acceleration: f64) -> Result<TimingLimits, TimingError> {
         check_scaling("velocity_scaling", velocity)?;
         check_scaling("acceleration_scaling", acceleration)?;
@@ -117,12 +122,12 @@ impl TimingLimits {
     }
 }
 
-/// Checks a scaling factor: finite, in (0, 1].
+/// Checks a scaling factor: finite, within [[`MIN_SCALING`], 1].
 pub fn check_scaling(field: &str, s: f64) -> Result<(), TimingError> {
-    if s.is_finite() && s > 0.0 && s <= 1.0 {
+    if s.is_finite() && (MIN_SCALING..=1.0).contains(&s) {
         Ok(())
     } else {
-        Err(err(field, format!("{s} is not within (0, 1]")))
+        Err(err(field, format!("{s} is not within [{MIN_SCALING}, 1]")))
     }
 }
 
@@ -321,6 +326,18 @@ pub fn time_polyline(
         });
         t += dt;
         x = x1;
+    }
+    // A motion of non-zero length takes a finite, positive time; limits so small that the
+    // squared velocity bound underflows (or so large that it overflows) would answer an
+    // instant jump or an endless one.
+    if total > 0.0 && !(t.is_finite() && t > 0.0) {
+        return Err(err(
+            "velocity_limits",
+            format!(
+                "the limits are outside what can time this path (a motion of length {total} \
+                 would take {t} s)"
+            ),
+        ));
     }
     let mut tp = TimedPath {
         waypoints: waypoints.to_vec(),
@@ -621,6 +638,18 @@ mod tests {
         let e = time_polyline(&[vec![0.0, 0.0]], &limits(0.0, 1.0, 2), &[]).expect_err("v");
         assert_eq!(e.field, "velocity_limits[0]");
         assert!(l.scaled(0.0, 1.0).is_err() && l.scaled(1.0, 1.5).is_err());
+        let e = l.scaled(1e-300, 1.0).expect_err("tiny");
+        assert_eq!(e.field, "velocity_scaling");
+        assert!(l.scaled(MIN_SCALING, MIN_SCALING).is_ok());
+        assert!(l.scaled(MIN_SCALING * 0.99, 1.0).is_err());
+        // Limits that underflow the squared velocity bound: a typed error, never a 0 s motion.
+        let e = time_polyline(
+            &[vec![0.0, 0.0], vec![1.0, 0.0]],
+            &limits(1e-300, 1.0, 2),
+            &[],
+        )
+        .expect_err("underflow");
+        assert_eq!(e.field, "velocity_limits");
         let p = time_polyline(&[vec![0.0, 0.0]], &l, &[]).expect("one point");
         assert_eq!(p.duration, 0.0);
         assert_eq!(p.sample(0.01, "sample_period").expect("s").len(), 1);

@@ -291,6 +291,11 @@ fn prepare_joint_space(r: &JointSpacePlan, catalog: &Catalog, max: f64) -> ApiRe
         },
         ..RrtConnectSettings::default()
     };
+    // The fields were checked one by one above; what the planner would refuse once running is
+    // refused here too, at submission.
+    settings
+        .validate()
+        .map_err(|e| ApiError::invalid("range", e.to_string()))?;
     Ok(Prepared {
         work: Box::new(JointSpaceWork {
             world,
@@ -547,10 +552,10 @@ pub(super) fn grasp_settings(
 ) -> ApiResult<(f64, u64, IkRrtSettings, RandomizedIkSettings)> {
     let limit = time_limit(s.time_limit, max)?;
     let p_ik = s.p_ik.unwrap_or(default_p_ik);
-    if !(0.0..=1.0).contains(&p_ik) {
+    if !(p_ik.is_finite() && p_ik > 0.0 && p_ik <= 1.0) {
         return Err(ApiError::invalid(
             "p_ik",
-            format!("{p_ik} is not a probability in [0, 1]"),
+            format!("{p_ik} is not a probability in (0, 1]"),
         ));
     }
     let tries = s.ik_tries.unwrap_or(50);
@@ -571,6 +576,10 @@ pub(super) fn grasp_settings(
         max_tries: tries,
         ..RandomizedIkSettings::default()
     };
+    // Everything the planner would refuse once running is refused here, at submission.
+    planner
+        .validate()
+        .map_err(|e| ApiError::invalid("p_ik", e.to_string()))?;
     Ok((limit, s.seed.unwrap_or(1), planner, ik))
 }
 

@@ -96,6 +96,12 @@ pub struct Config {
     pub token: Option<String>,
     /// Request body limit in bytes.
     pub max_body: usize,
+    /// Longest a client may take to send a request's headers (from the first byte, or from the
+    /// end of the previous request on a kept-alive connection); then the connection is closed.
+    pub header_timeout: Duration,
+    /// Longest a client may take to send a request's body, from the end of its headers; then
+    /// the request is answered 408 and the connection closed.
+    pub body_timeout: Duration,
     /// Final jobs older than this are deleted.
     pub retention: Duration,
     /// Running jobs get this long to finish at shutdown.
@@ -147,6 +153,8 @@ impl Config {
             max_plan_seconds: 60.0,
             token: None,
             max_body: 2 * 1024 * 1024,
+            header_timeout: Duration::from_secs(15),
+            body_timeout: Duration::from_secs(20),
             retention: Duration::from_secs(7 * 24 * 3600),
             shutdown_grace: Duration::from_secs(10),
             drain: Duration::from_secs(5),
@@ -159,6 +167,25 @@ impl Config {
     }
 
     pub fn validate(&self) -> Result<(), ServerError> {
+        if let Some(t) = self.token.as_deref().filter(|t| !t.is_empty()) {
+            // The bearer check compares the header's token after trimming it, and a header
+            // cannot carry control characters: such a token would refuse every request.
+            if t.trim().is_empty() {
+                return Err(ServerError::Config(
+                    "the token is blank (only whitespace): no request could ever match it; give a token of visible characters".into(),
+                ));
+            }
+            if t.trim() != t {
+                return Err(ServerError::Config(
+                    "the token starts or ends with whitespace, which an Authorization header cannot carry; remove it".into(),
+                ));
+            }
+            if t.chars().any(char::is_control) {
+                return Err(ServerError::Config(
+                    "the token contains control characters, which an Authorization header cannot carry".into(),
+                ));
+            }
+        }
         if !self.bind.ip().is_loopback() && self.token.as_deref().is_none_or(str::is_empty) {
             return Err(ServerError::Config(format!(
                 "binding {} (not loopback) requires a token (--token or MANYHANDS_TOKEN)",
@@ -204,6 +231,11 @@ impl Config {
         if self.replica.is_empty() || self.replica.len() > 128 {
             return Err(ServerError::Config(
                 "the replica id must be 1-128 characters".into(),
+            ));
+        }
+        if self.header_timeout.is_zero() || self.body_timeout.is_zero() {
+            return Err(ServerError::Config(
+                "the header and body read timeouts must be positive".into(),
             ));
         }
         if !(self.max_plan_seconds.is_finite() && self.max_plan_seconds > 0.0) {
@@ -355,6 +387,48 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
     a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
+/// The time left to read a request's body ([`Config::body_timeout`] from the end of its
+/// headers), and whether it was read to its end; set per request by [`connection_hygiene`],
+/// used by the JSON extractor ([`extract::ApiJson`]).
+#[derive(Clone)]
+pub struct BodyRead {
+    /// [`Config::max_body`].
+    pub limit: usize,
+    pub deadline: tokio::time::Instant,
+    pub complete: Arc<AtomicBool>,
+}
+
+/// Closes the connection after an answer given without reading the whole request body (a
+/// refusal before the body: 401, 404, 413, 415, …; a body that timed out): the unread rest of
+/// the body would otherwise be taken for the next request, so the server closes the
+/// connection anyway, and says so (`Connection: close`) for a keep-alive client to open a new
+/// one instead of failing its next request on a dead socket.
+async fn connection_hygiene(
+    State(st): State<Arc<AppState>>,
+    mut req: Request,
+    next: Next,
+) -> Response {
+    let has_body = req.headers().contains_key(header::TRANSFER_ENCODING)
+        || req
+            .headers()
+            .get(header::CONTENT_LENGTH)
+            .is_some_and(|v| v.as_bytes().iter().any(|b| (b'1'..=b'9').contains(b)));
+    let read = BodyRead {
+        limit: st.cfg.max_body,
+        deadline: tokio::time::Instant::now() + st.cfg.body_timeout,
+        complete: Arc::new(AtomicBool::new(false)),
+    };
+    req.extensions_mut().insert(read.clone());
+    let mut resp = next.run(req).await;
+    if has_body && !read.complete.load(Ordering::SeqCst) {
+        resp.headers_mut().insert(
+            header::CONNECTION,
+            header::HeaderValue::from_static("close"),
+        );
+    }
+    resp
+}
+
 /// Request metrics and a debug log line per request (errors at warn/error).
 async fn observe(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
     let t0 = Instant::now();
@@ -420,10 +494,58 @@ pub fn router(state: Arc<AppState>) -> Router {
         .layer(middleware::from_fn_with_state(state.clone(), auth))
         .route_layer(middleware::from_fn_with_state(state.clone(), observe))
         .layer(DefaultBodyLimit::max(max_body))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            connection_hygiene,
+        ))
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(|_| {
             ApiError::internal("handler panicked").into_response()
         }))
         .with_state(state)
+}
+
+/// Accepts connections and serves HTTP/1.1 on each (keep-alive) — what `axum::serve` does,
+/// plus hyper's header read timeout ([`Config::header_timeout`]): a client that opens a
+/// connection, or keeps one open, without sending a whole request head in time is
+/// disconnected. Once `stop` turns true no connection is accepted any more; each open one
+/// finishes the request in flight and is closed (graceful shutdown).
+async fn serve_http1(
+    listener: tokio::net::TcpListener,
+    app: Router,
+    header_timeout: Duration,
+    mut stop: watch::Receiver<bool>,
+) -> std::io::Result<()> {
+    use hyper_util::rt::{TokioIo, TokioTimer};
+    use hyper_util::service::TowerToHyperService;
+    let graceful = hyper_util::server::graceful::GracefulShutdown::new();
+    loop {
+        let accepted = tokio::select! {
+            r = listener.accept() => r,
+            _ = stop.wait_for(|s| *s) => break,
+        };
+        let stream = match accepted {
+            Ok((stream, _)) => stream,
+            Err(e) => {
+                // Out of file descriptors and the like: wait for connections to close.
+                tracing::warn!(error = %e, "cannot accept a connection");
+                tokio::time::sleep(Duration::from_millis(100)).await;
+                continue;
+            }
+        };
+        let conn = hyper::server::conn::http1::Builder::new()
+            .timer(TokioTimer::new())
+            .header_read_timeout(header_timeout)
+            .serve_connection(TokioIo::new(stream), TowerToHyperService::new(app.clone()));
+        let conn = graceful.watch(conn);
+        tokio::spawn(async move {
+            if let Err(e) = conn.await {
+                tracing::debug!(error = %e, "connection ended with an error");
+            }
+        });
+    }
+    drop(listener);
+    graceful.shutdown().await;
+    Ok(())
 }
 
 /// A running server.
@@ -548,15 +670,14 @@ impl Server {
         tracing::info!(%addr, robots, scenes, workers = state.cfg.workers, max_queue = state.cfg.max_queue,
             data_dir = %state.cfg.data_dir.display(), store = state.jobs.store().backend(),
             replica = %state.cfg.replica, "manyhands server listening");
-        let (stop_tx, mut stop_rx) = watch::channel(false);
+        let (stop_tx, stop_rx) = watch::channel(false);
         let app = router(state.clone());
-        let serve = tokio::spawn(async move {
-            axum::serve(listener, app)
-                .with_graceful_shutdown(async move {
-                    let _ = stop_rx.wait_for(|s| *s).await;
-                })
-                .await
-        });
+        let serve = tokio::spawn(serve_http1(
+            listener,
+            app,
+            state.cfg.header_timeout,
+            stop_rx,
+        ));
         Ok(Server {
             addr,
             state,

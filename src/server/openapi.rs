@@ -69,6 +69,9 @@ pub fn openapi_json() -> String {
     let mut s = match serde_json::to_value(&spec) {
         Ok(mut v) => {
             close_tagged_unions(&mut v);
+            document_common_answers(&mut v);
+            grasp_list_frame_rule(&mut v);
+            grasp_quality_source_rule(&mut v);
             serde_json::to_string_pretty(&v)
         }
         Err(e) => Err(e),
@@ -76,6 +79,186 @@ pub fn openapi_json() -> String {
     .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
     s.push('\n');
     s
+}
+
+/// Names of robots, scenes and grasp lists: 1–64 of `A-Z a-z 0-9 _ - .`, not starting with `.`
+/// (`catalog::check_name`).
+const NAME_PATTERN: &str = r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}$";
+
+/// Bounds of the query parameters the server enforces (`name`, minimum, maximum); a value
+/// outside is answered 400 or 422 naming the parameter.
+const QUERY_BOUNDS: [(&str, f64, f64); 2] = [
+    ("wait", 0.0, super::plans::MAX_WAIT),
+    ("limit", 1.0, super::plans::MAX_PAGE as f64),
+];
+
+/// Adds to every operation the answers the server gives before its handler runs, so that the
+/// spec lists every status an operation can return: 401 on the operations behind the bearer
+/// token, 400 (malformed JSON, too deep, an unknown query parameter), 408 (body timeout), 413
+/// (body limit) and 415 (content type) on those that read a JSON body; and puts the bounds the
+/// server enforces on the query parameters into their schemas.
+fn document_common_answers(spec: &mut serde_json::Value) {
+    use serde_json::{json, Value};
+    let error = |d: &str| {
+        json!({"description": d, "content": {"application/json": {"schema":
+            {"$ref": "#/components/schemas/ErrorBody"}}}})
+    };
+    let Some(paths) = spec["paths"].as_object_mut() else {
+        return;
+    };
+    for (path, ops) in paths.iter_mut() {
+        let Some(ops) = ops.as_object_mut() else {
+            continue;
+        };
+        for op in ops.values_mut() {
+            let open = op
+                .get("security")
+                .and_then(Value::as_array)
+                .is_some_and(|s| {
+                    s.iter()
+                        .all(|r| r.as_object().is_some_and(|o| o.is_empty()))
+                });
+            let has_body = op.get("requestBody").is_some();
+            let has_query = op
+                .get("parameters")
+                .and_then(Value::as_array)
+                .is_some_and(|ps| ps.iter().any(|p| p["in"] == "query"));
+            let has_header = op
+                .get("parameters")
+                .and_then(Value::as_array)
+                .is_some_and(|ps| ps.iter().any(|p| p["in"] == "header"));
+            if let Some(ps) = op.get_mut("parameters").and_then(Value::as_array_mut) {
+                for p in ps.iter_mut() {
+                    let name = p["name"].as_str().unwrap_or("").to_string();
+                    let place = p["in"].as_str().unwrap_or("").to_string();
+                    let schema = &mut p["schema"];
+                    // An optional parameter is given or absent, never `null`.
+                    if let Some(types) = schema.get_mut("type").and_then(Value::as_array_mut) {
+                        types.retain(|t| t != "null");
+                        if types.len() == 1 {
+                            schema["type"] = types[0].clone();
+                        }
+                    }
+                    if let Some(&(_, lo, hi)) = QUERY_BOUNDS.iter().find(|b| b.0 == name) {
+                        schema["minimum"] = json!(lo);
+                        schema["maximum"] = json!(hi);
+                    }
+                    match (Some(place.as_str()), name.as_str()) {
+                        // Names of robots, scenes and grasp lists (`catalog::check_name`).
+                        (Some("path"), "name") => schema["pattern"] = json!(NAME_PATTERN),
+                        (Some("path"), "id") if path.starts_with("/v1/grasp-lists") => {
+                            schema["pattern"] = json!(NAME_PATTERN)
+                        }
+                        // `next_cursor` of a page: creation time and job id.
+                        (Some("query"), "cursor") => {
+                            schema["pattern"] = json!(r"^[0-9]{1,19}\.[A-Za-z0-9]{1,64}$")
+                        }
+                        (Some("query"), "kind") => {
+                            schema["enum"] = json!(super::api::PlanRequest::KINDS)
+                        }
+                        (Some("header"), "Last-Event-ID") => {
+                            schema["maximum"] = json!(u64::MAX);
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            let Some(responses) = op.get_mut("responses").and_then(Value::as_object_mut) else {
+                continue;
+            };
+            let mut add = |code: &str, d: &str| {
+                responses.entry(code).or_insert_with(|| error(d));
+            };
+            if path.starts_with("/v1/") && !open {
+                add(
+                    "401",
+                    "missing or wrong bearer token (when the server has one); see `WWW-Authenticate`",
+                );
+            }
+            if has_body {
+                add(
+                    "400",
+                    "malformed JSON, or JSON nested deeper than 32 levels",
+                );
+                add(
+                    "408",
+                    "the request body did not arrive within the server's body timeout (`--body-timeout`); the connection is closed",
+                );
+                add(
+                    "413",
+                    "the request body is larger than the server's limit (`--max-body`); the connection is closed",
+                );
+                add("415", "the body is not `Content-Type: application/json`");
+            }
+            if has_query {
+                add("400", "an unknown query parameter, or a malformed one");
+            }
+            if has_header {
+                add("400", "a malformed header parameter");
+            }
+            // The synchronous queries and uploads run on the bounded CPU pool, the jobs and
+            // grasp lists live in the job store.
+            if has_body || path.starts_with("/v1/plans") || path.starts_with("/v1/grasp-lists") {
+                add(
+                    "503",
+                    "overloaded (the query pool is full), shutting down, or the job store is unreachable; see `Retry-After`",
+                );
+            }
+        }
+    }
+}
+
+/// The bound of a single-grasp list's size, positions × 72 · 8^level orientations ≤
+/// [`MAX_FRAMES`](crate::grasp::list::MAX_FRAMES), in the schema of its parameters: `positions`
+/// at most the level-0 bound, and for each higher level (`if` it is given, `then`) the bound of
+/// that level — with `positions` required where its default exceeds it.
+fn grasp_list_frame_rule(spec: &mut serde_json::Value) {
+    use crate::grasp::list::{GraspListParams, MAX_FRAMES, MAX_POSITIONS};
+    use crate::grasp::so3_grid::{so3_grid_len, MAX_SO3_LEVEL};
+    use serde_json::{json, Value};
+    let s = &mut spec["components"]["schemas"]["GraspListParamsBody"];
+    if !s["properties"]["positions"].is_object() {
+        return;
+    }
+    let cap = |level: u32| (MAX_FRAMES / so3_grid_len(level)).min(MAX_POSITIONS);
+    s["properties"]["positions"]["maximum"] = json!(cap(0));
+    let default_positions = GraspListParams::default().positions;
+    let rules: Vec<Value> = (1..=MAX_SO3_LEVEL)
+        .map(|level| {
+            let mut then = json!({"properties": {"positions": {"maximum": cap(level)}}});
+            if default_positions > cap(level) {
+                then["required"] = json!(["positions"]);
+            }
+            json!({
+                "if": {"properties": {"orientation_level": {"const": level}},
+                       "required": ["orientation_level"]},
+                "then": then,
+            })
+        })
+        .collect();
+    s["allOf"] = Value::Array(rules);
+    // Each weight of the quality score (`GraspListParams::validate`).
+    if s["properties"]["weights"].is_object() {
+        s["properties"]["weights"]["items"] =
+            json!({"type": "number", "minimum": 0, "maximum": 1e6});
+    }
+}
+
+/// What a grasp-quality request scores, in its schema: `scene` with `object` (their grasps, and
+/// the contacts if any), or neither and at least one contact.
+fn grasp_quality_source_rule(spec: &mut serde_json::Value) {
+    use serde_json::json;
+    let s = &mut spec["components"]["schemas"]["GraspQualityRequest"];
+    if !s["properties"]["contacts"].is_object() {
+        return;
+    }
+    s["anyOf"] = json!([
+        {"required": ["scene", "object"],
+         "properties": {"scene": {"type": "string"}, "object": {"type": "string"}}},
+        {"required": ["contacts"],
+         "properties": {"contacts": {"minItems": 1}, "scene": {"type": "null"},
+                        "object": {"type": "null"}}},
+    ]);
 }
 
 /// Makes the schemas of internally tagged enums (`PlanRequest`: `#[serde(tag = "kind")]`)

@@ -29,7 +29,7 @@ use super::{kinds, AppState};
 /// every phase, stops soon after and its late answer is dropped).
 pub const CANCEL_WAIT: Duration = Duration::from_millis(5);
 
-/// Longest `?wait=` honoured, in seconds.
+/// Longest `?wait=` accepted, in seconds (a longer one is refused, 400 naming `wait`).
 pub const MAX_WAIT: f64 = 600.0;
 
 /// Decodes one `application/x-www-form-urlencoded` query component (`%XX`, `+` = space).
@@ -83,12 +83,14 @@ fn parse_wait(q: Option<String>) -> ApiResult<Option<Duration>> {
                 let s: f64 = v
                     .parse()
                     .ok()
-                    .filter(|s: &f64| s.is_finite() && *s >= 0.0)
+                    .filter(|s: &f64| s.is_finite() && (0.0..=MAX_WAIT).contains(s))
                     .ok_or_else(|| {
-                        ApiError::bad_request(format!("wait: '{v}' is not a number of seconds ≥ 0"))
-                            .at("wait")
+                        ApiError::bad_request(format!(
+                            "wait: '{v}' is not a number of seconds in [0, {MAX_WAIT}]"
+                        ))
+                        .at("wait")
                     })?;
-                wait = Some(Duration::from_secs_f64(s.min(MAX_WAIT)));
+                wait = Some(Duration::from_secs_f64(s));
             }
             other => {
                 return Err(
@@ -180,7 +182,7 @@ fn unknown(id: &str) -> ApiError {
 }
 
 #[utoipa::path(post, path = "/v1/plans", tag = "plans", request_body = PlanRequest,
-    params(("wait" = Option<f64>, Query, description = "seconds to wait for the final state (≤ 600)")),
+    params(("wait" = Option<f64>, Query, description = "seconds to wait for the final state (0..=600)")),
     responses((status = 202, body = Job, description = "accepted; `Location` names the job"),
               (status = 200, body = Job, description = "final state reached within `wait`"),
               (status = 404, body = ErrorBody), (status = 422, body = ErrorBody),
@@ -338,7 +340,7 @@ pub async fn list(
 }
 
 #[utoipa::path(get, path = "/v1/plans/{id}", tag = "plans",
-    params(("id" = String, Path), ("wait" = Option<f64>, Query, description = "seconds to wait for the final state")),
+    params(("id" = String, Path), ("wait" = Option<f64>, Query, description = "seconds to wait for the final state (0..=600)")),
     responses((status = 200, body = Job), (status = 404, body = ErrorBody)))]
 pub async fn get(
     State(st): State<Arc<AppState>>,

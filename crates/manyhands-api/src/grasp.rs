@@ -20,9 +20,11 @@ pub struct GraspIkRequest {
     pub object: String,
     /// Samples of the free joints before "no solution" (1..=1000000, default 20000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 1000000))]
     pub max_tries: Option<u64>,
     /// Swivel angles per arm-IK call (1..=360, default 8).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 360))]
     pub psi_samples: Option<u32>,
     /// Random seed (default 1): same request and seed, same answer.
     #[serde(default)]
@@ -70,7 +72,9 @@ pub struct GraspIkResponse {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct RegionJson {
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub min: [f64; 3],
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub max: [f64; 3],
 }
 
@@ -102,9 +106,11 @@ pub struct DualArmIkRequest {
     pub reachability: Option<bool>,
     /// Samples of object pose and hip before "no solution" (1..=1000000, default 20000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 1000000))]
     pub max_tries: Option<u64>,
     /// Swivel angles per arm-IK call (1..=360, default 8).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 360))]
     pub psi_samples: Option<u32>,
     /// Random seed (default 1): same request and seed, same answer.
     #[serde(default)]
@@ -130,18 +136,25 @@ pub struct BasePlacementRequest {
     pub right_group: Option<String>,
     /// Base positions within this distance of the object (m, (0, 5], default 1.5).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 5.0))]
     pub radius: Option<f64>,
-    /// Cell of the base-position grid (m, [0.02, 1], default 0.1).
+    /// Cell of the base-position grid (m, [0.02, 1], default 0.1). One request evaluates at
+    /// most 250000 platform poses, (2⌈radius / cell⌉ + 1)² × yaw_bins, with radius / cell at
+    /// most 200 (refused with 422 naming `cell` beyond).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.02, maximum = 1.0))]
     pub cell: Option<f64>,
     /// Base yaw bins (1..=360, default 16).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 360))]
     pub yaw_bins: Option<usize>,
     /// Base samples before "no solution" (1..=1000000, default 20000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 1000000))]
     pub max_tries: Option<u64>,
     /// Swivel angles per arm-IK call (1..=360, default 8).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 360))]
     pub psi_samples: Option<u32>,
     /// Random seed (default 1): same request and seed, same answer.
     #[serde(default)]
@@ -193,8 +206,10 @@ pub struct TwoHandIkResponse {
 #[serde(deny_unknown_fields)]
 pub struct GraspContact {
     /// Contact point [x, y, z] in metres.
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub point: [f64; 3],
     /// Inward surface normal (the direction of the finger force); any non-zero length.
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub normal: [f64; 3],
 }
 
@@ -208,10 +223,12 @@ pub struct GraspQualityRequest {
     /// Contacts to score (at most 64, and at most 1024 primitive wrenches: contacts ×
     /// (cone_edges + 2 with soft fingers)).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(max_items = 64))]
     pub contacts: Vec<GraspContact>,
     /// Centre of mass of the object, same frame as the contacts. Required without `scene` +
     /// `object`; with them the default is the object's centre of mass (uniform density).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub centre: Option<[f64; 3]>,
     /// Scene of `object`.
     #[serde(default)]
@@ -224,18 +241,22 @@ pub struct GraspQualityRequest {
     pub grasps: Option<Vec<String>>,
     /// Coulomb friction coefficient μ > 0 (default 0.5).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub mu: Option<f64>,
     /// Edges of the linearised friction cone, 3..=32 (default 8).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 3, maximum = 32))]
     pub cone_edges: Option<u32>,
     /// Torque scale λ in 1/m. Default: 1 / the object's radius about the centre (GraspIt!'s
     /// 1 / max radius) with `scene` + `object`, else 1 / the largest contact distance from
     /// `centre`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub lambda: Option<f64>,
     /// Soft-finger torsional friction γ > 0 in metres: adds the wrenches [0; ±λγn] per contact
     /// (default: point contacts with friction).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub soft_finger: Option<f64>,
 }
 
@@ -292,6 +313,7 @@ pub struct GraspQualityResponse {
     /// contacts; null only for an object of radius 0 without contacts).
     pub lambda: Option<f64>,
     /// Centre of mass used.
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub centre: [f64; 3],
     /// Upper bound of the object's extent from `centre` (with `scene` + `object`).
     pub radius: Option<f64>,

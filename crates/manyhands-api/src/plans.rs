@@ -32,39 +32,48 @@ pub struct PlanRobot {
 #[serde(deny_unknown_fields)]
 pub struct JointSpacePlan {
     pub scene: String,
+    #[cfg_attr(feature = "openapi", schema(min_items = 1))]
     pub robots: Vec<PlanRobot>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
     /// Shortcut the path (default true).
     #[serde(default)]
     pub simplify: Option<bool>,
     /// EXTEND step (joint-space distance; default 0.2 × the space's extent).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub range: Option<f64>,
     /// Dynamic-domain sampling radius (joint-space distance, Yershova et al. 2005; VAMP uses
     /// 4). Default: off.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub dynamic_domain: Option<f64>,
     /// Grow the smaller tree each iteration instead of alternating (default false).
     #[serde(default)]
@@ -73,6 +82,7 @@ pub struct JointSpacePlan {
     /// continuous motion, spheres inflated by at most this many metres per checked state
     /// (0 < certify ≤ 0.5). Other robots keep checking states at the resolution. Default: off.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 0.5))]
     pub certify: Option<f64>,
     /// Sample source: `uniform` (draws from the seeded generator, the default) or `halton`
     /// (the Halton sequence in bases 3, 5, 7, … from its first point, the same for every seed:
@@ -101,20 +111,24 @@ pub struct CollisionSweep {
     #[serde(default)]
     pub robots: Option<Vec<String>>,
     /// Number of samples (1..=1e9).
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 1000000000))]
     pub samples: u64,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
 }
 
@@ -145,15 +159,18 @@ pub struct GraspListPlan {
     pub params: Option<GraspListParamsBody>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
 }
 
@@ -162,45 +179,60 @@ pub struct GraspListPlan {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct GraspListParamsBody {
-    /// Grasp positions in the object's box, about (1..=100000, default 125).
+    /// Grasp positions in the object's box, about (default 125); positions × orientations
+    /// (72 · 8^`orientation_level`) at most 2097152 frames: 1..=29127 at level 0, 3640 at
+    /// level 1, 455 at 2, 56 at 3, 7 at 4.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1))]
     pub positions: Option<usize>,
     /// SO(3) grid level, 72 · 8^level orientations (0..=4, default 0).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0, maximum = 4))]
     pub orientation_level: Option<u32>,
     /// Spacing of the surface samples in m (default: the smallest fingertip radius).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.0001, maximum = 0.1))]
     pub surface_spacing: Option<f64>,
     /// Grid values per finger joint for the workspace spheres (3..=40, default 12).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 3, maximum = 40))]
     pub workspace_steps: Option<usize>,
     /// Most workspace spheres per finger (1..=64, default 16).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 64))]
     pub max_spheres: Option<usize>,
     /// Smallest workspace sphere radius in m (default: half the fingertip radius).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.0001, maximum = 0.1))]
     pub min_sphere_radius: Option<f64>,
     /// Surface points tried per workspace sphere (1..=64, default 4).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 64))]
     pub candidates_per_sphere: Option<usize>,
     /// Values tried for a thumb's base joints (1..=16, default 3).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 16))]
     pub base_steps: Option<usize>,
     /// Depth in m a fingertip may enter the object at its contact (0..=0.01, default 0.001).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.0, maximum = 0.01))]
     pub contact_tolerance: Option<f64>,
     /// Friction coefficient of the force-closure test (default 0.5).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub mu: Option<f64>,
     /// Friction-cone edges (3..=32, default 8).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 3, maximum = 32))]
     pub cone_edges: Option<usize>,
     /// Weights of the force-closure, centroid, force-ellipsoid and curvature scores (default
     /// 1, 1, 1, 6 as paper 003).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(min_items = 4, max_items = 4))]
     pub weights: Option<[f64; 4]>,
     /// Most grasps kept (1..=100000, default 2000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100000))]
     pub max_grasps: Option<usize>,
     /// Seed of the surface sampling and the finger IK restarts (default 1).
     #[serde(default)]
@@ -228,33 +260,41 @@ pub struct ReachPlan {
     pub planner: Option<GraspPlannerName>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 1.0))]
     pub p_ik: Option<f64>,
     /// Randomized-IK tries per goal query (1..=100000, default 50).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100000))]
     pub ik_tries: Option<u64>,
     /// Prune (shortcut) the paths (default true).
     #[serde(default)]
@@ -304,33 +344,41 @@ pub struct RegraspPlan {
     pub planner: Option<GraspPlannerName>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 1.0))]
     pub p_ik: Option<f64>,
     /// Randomized-IK tries per goal query (1..=100000, default 50).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100000))]
     pub ik_tries: Option<u64>,
     /// Prune (shortcut) the paths (default true).
     #[serde(default)]
@@ -348,33 +396,41 @@ pub struct KitchenTaskPlan {
     pub scene: String,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 1.0))]
     pub p_ik: Option<f64>,
     /// Randomized-IK tries per goal query (1..=100000, default 50).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100000))]
     pub ik_tries: Option<u64>,
     /// Prune (shortcut) the paths (default true).
     #[serde(default)]
@@ -399,33 +455,41 @@ pub struct BimanualPlan {
     pub object: String,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
     /// Probability of an IK query per iteration (000 Alg. 3 / 002 Alg. 2); default 0.1, bimanual
     /// 0.03 (002 §VI).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 1.0))]
     pub p_ik: Option<f64>,
     /// Randomized-IK tries per goal query (1..=100000, default 50).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100000))]
     pub ik_tries: Option<u64>,
     /// Prune (shortcut) the paths (default true).
     #[serde(default)]
@@ -444,6 +508,7 @@ pub struct MultiRobotRequest {
     pub scene: String,
     /// Robot instances of the scene (default: all of them).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(min_items = 1, max_items = 8))]
     pub robots: Option<Vec<String>>,
     /// Left and right chain groups from the platform (default `torso_left_arm`,
     /// `torso_right_arm`).
@@ -455,27 +520,34 @@ pub struct MultiRobotRequest {
     /// Minimum grasp score s_min: ε of the L1 wrench space of all contacts must exceed it
     /// (default 0: any force-closure combination).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.0))]
     pub s_min: Option<f64>,
     /// Friction coefficient μ of the score (default 0.5).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub mu: Option<f64>,
     /// Friction cone edges of the score (3..=32, default 8).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 3, maximum = 32))]
     pub cone_edges: Option<usize>,
     /// Torque scale λ of the score (default 1 / the object's radius).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub lambda: Option<f64>,
     /// Probability of an IK query per worker iteration (default 0.03, 002 §VI).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0, maximum = 1.0))]
     pub p_ik: Option<f64>,
     /// Randomized-IK tries per goal query (1..=100000, default 50).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100000))]
     pub ik_tries: Option<u64>,
     /// Prune (shortcut) the workers' paths (default true).
     #[serde(default)]
     pub simplify: Option<bool>,
     /// Most solution trajectories per worker (1..=256, default 32).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 256))]
     pub max_solutions: Option<usize>,
     /// Workers stepped round-robin on one thread, so request + seed give the same plan
     /// (default false: one thread per worker).
@@ -483,27 +555,33 @@ pub struct MultiRobotRequest {
     pub deterministic: Option<bool>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of every robot's `trajectories` entry (0.001..=10, default
     /// 0.01); when given, the schedule is also sampled (`schedule.samples`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
 }
 
@@ -520,12 +598,14 @@ pub struct ScheduleTrajectory {
     #[serde(default)]
     pub joints: Option<Vec<String>>,
     /// Waypoints (at least one), each with one value per joint of `joints`.
+    #[cfg_attr(feature = "openapi", schema(min_items = 1, max_items = 10000))]
     pub path: Vec<Vec<f64>>,
     /// Acceleration limits by joint name (rad/s² or m/s²); joints not named use
     /// `max_acceleration`, else the robot's (its `joint_limits.yaml`, default 1).
     #[serde(default)]
     pub accelerations: Option<HashMap<String, f64>>,
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub max_acceleration: Option<f64>,
 }
 
@@ -542,33 +622,40 @@ pub struct ScheduleRequest {
     pub trajectories: Vec<ScheduleTrajectory>,
     /// ε_extend of Alg. 4 in phase units (0.001..=1, default 0.1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub extend: Option<f64>,
     /// Fall back to one robot after the other when the search fails (default true).
     #[serde(default)]
     pub sequential_fallback: Option<bool>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of every robot's `trajectories` entry (0.001..=10, default
     /// 0.01); when given, the schedule is also sampled (`schedule.samples`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
 }
 
@@ -596,32 +683,40 @@ pub struct PickPlaceTaskPlan {
     pub place_hand: String,
     /// `roadmap` (default, 003 §V-B) or `rrt_connect` (plain single-query planner).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(pattern = "^(roadmap|rrt_connect)$"))]
     pub planner: Option<String>,
     /// Key-configuration searches (each a new seed) tried at most (1..=100, default 4).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 100))]
     pub attempts: Option<usize>,
     /// Seconds (default 10; capped by the server's `--max-plan-seconds`).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(exclusive_minimum = 0.0))]
     pub time_limit: Option<f64>,
     /// Queue priority: higher runs first, equal priorities oldest first (default 0;
     /// -1000..=1000).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1000, maximum = 1000))]
     pub priority: Option<i32>,
     /// Attempts allowed (1..=10, default 1): when the replica running the job dies or
     /// stalls past its lease, the job is run again while attempts remain, else it ends
     /// `interrupted`.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10))]
     pub max_attempts: Option<u32>,
     #[serde(default)]
     pub seed: Option<u64>,
     /// Seconds between the points of the answer's `trajectory` (0.001..=10, default 0.01).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
-    /// Factor (0, 1] on the joints' velocity limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' velocity limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on the joints' acceleration limits for the `trajectory` (default 1).
+    /// Factor (0.001..=1) on the joints' acceleration limits for the `trajectory` (default 1).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
 }
 

@@ -14,10 +14,13 @@ pub type ConfigMap = BTreeMap<String, f64>;
 #[serde(deny_unknown_fields)]
 pub struct PoseBody {
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub position: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub rpy: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "openapi", schema(min_items = 4, max_items = 4))]
     pub quat_xyzw: Option<[f64; 4]>,
 }
 
@@ -25,8 +28,11 @@ pub struct PoseBody {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct PoseOut {
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub position: [f64; 3],
+    #[cfg_attr(feature = "openapi", schema(min_items = 3, max_items = 3))]
     pub rpy: [f64; 3],
+    #[cfg_attr(feature = "openapi", schema(min_items = 4, max_items = 4))]
     pub quat_xyzw: [f64; 4],
 }
 
@@ -119,11 +125,13 @@ pub struct IkRequest {
     pub solver: IkSolver,
     /// Swivel angles enumerated by the analytic solver (1..=3600, default 36).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 3600))]
     pub psi_steps: Option<u32>,
     #[serde(default)]
     pub order: IkOrder,
     /// At most this many solutions are returned (1..=10000, default 16).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 10000))]
     pub max_solutions: Option<u32>,
     /// Seed of the random generator (numeric restarts, random order).
     #[serde(default)]
@@ -174,6 +182,7 @@ pub struct CheckRequest {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct CheckFast {
     pub collision: bool,
+    #[cfg_attr(feature = "openapi", schema(min_items = 2, max_items = 2))]
     pub pair: Option<[String; 2]>,
 }
 
@@ -184,6 +193,7 @@ pub struct CheckResponse {
     /// Exact (parry) answer.
     pub collision: bool,
     /// The first colliding pair (`robot/link`, `obstacle:name`, `object:name`).
+    #[cfg_attr(feature = "openapi", schema(min_items = 2, max_items = 2))]
     pub pair: Option<[String; 2]>,
     /// The conservative fast checker's answer (may report contact where the exact one does not).
     pub fast_checker: CheckFast,

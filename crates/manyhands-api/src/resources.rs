@@ -41,6 +41,7 @@ pub struct GroupInfo {
     pub name: String,
     pub joints: Vec<String>,
     /// `[base_link, tip_link]` for chain groups.
+    #[cfg_attr(feature = "openapi", schema(min_items = 2, max_items = 2))]
     pub chain: Option<[String; 2]>,
 }
 

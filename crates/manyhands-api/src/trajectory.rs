@@ -79,6 +79,7 @@ pub struct TrajectoryRequest {
     #[serde(default)]
     pub group: Option<String>,
     /// Waypoints (1..=10000), each one value per joint.
+    #[cfg_attr(feature = "openapi", schema(min_items = 1, max_items = 10000))]
     pub waypoints: Vec<Vec<f64>>,
     /// Velocity limits by joint name, overriding the robot's (rad/s or m/s, > 0).
     #[serde(default)]
@@ -86,14 +87,17 @@ pub struct TrajectoryRequest {
     /// Acceleration limits by joint name, overriding the robot's (rad/s² or m/s², > 0).
     #[serde(default)]
     pub max_acceleration: Option<HashMap<String, f64>>,
-    /// Factor (0, 1] on every velocity limit (default 1), as MoveIt's.
+    /// Factor (0.001..=1) on every velocity limit (default 1), as MoveIt's.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub velocity_scaling: Option<f64>,
-    /// Factor (0, 1] on every acceleration limit (default 1), as MoveIt's.
+    /// Factor (0.001..=1) on every acceleration limit (default 1), as MoveIt's.
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 1.0))]
     pub acceleration_scaling: Option<f64>,
     /// Seconds between points (0.001..=10, default 0.01; at most 100000 points and 500000
     /// values, points × joints).
     #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.001, maximum = 10.0))]
     pub sample_period: Option<f64>,
 }
