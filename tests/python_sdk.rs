@@ -180,7 +180,7 @@ async fn python_sdk_suite_passes_against_a_live_server() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let record = std::env::temp_dir().join(format!(
+    let record = common::tmp::run_root().join(format!(
         "manyhands-sdk-record-{}-{nanos}.jsonl",
         std::process::id()
     ));
@@ -244,7 +244,8 @@ fn pip_install_leaves_the_source_folder_clean() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let target = std::env::temp_dir().join(format!("manyhands-pip-{}-{nanos}", std::process::id()));
+    let target =
+        common::tmp::run_root().join(format!("manyhands-pip-{}-{nanos}", std::process::id()));
     let out = std::process::Command::new(&python)
         .args([
             "-m",

@@ -4,6 +4,7 @@
 
 pub mod server;
 pub mod spec;
+pub mod tmp;
 
 use std::path::PathBuf;
 

@@ -8,6 +8,9 @@
 //! (else `nobody`) and the server runs as that user through `runuser` (else `setpriv`).
 #![allow(dead_code)]
 
+#[path = "../common/tmp.rs"]
+mod tmp;
+
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -23,7 +26,7 @@ pub struct PgCluster {
     user: Option<String>,
 }
 
-const SKIP: &str = "SKIPPED (no PostgreSQL: install Debian's postgresql)";
+const WHY: &str = "no PostgreSQL: install Debian's postgresql";
 
 fn has_initdb(dir: &Path) -> bool {
     ["initdb", "pg_ctl", "postgres"]
@@ -100,11 +103,9 @@ impl PgCluster {
     pub fn start(test_name: &str) -> Option<PgCluster> {
         let Some(bin) = find_bin() else {
             if std::env::var("MANYHANDS_REQUIRE_POSTGRES").is_ok_and(|v| v == "1") {
-                panic!("{SKIP}: {test_name} (MANYHANDS_REQUIRE_POSTGRES=1)");
+                panic!("SKIPPED ({WHY}): {test_name} (MANYHANDS_REQUIRE_POSTGRES=1)");
             }
-            // Straight to the stderr handle: println!/eprintln! are captured by the harness.
-            let line = format!("{SKIP}: {test_name}\n");
-            let _ = std::io::Write::write_all(&mut std::io::stderr().lock(), line.as_bytes());
+            manyhands::skips::report(WHY);
             return None;
         };
         let user = is_root().then(|| {
@@ -120,7 +121,7 @@ impl PgCluster {
             .filter(|c| c.is_ascii_alphanumeric())
             .take(16)
             .collect();
-        let dir = std::env::temp_dir().join(format!(
+        let dir = tmp::run_root().join(format!(
             "mh-pg-{short}-{}-{}",
             std::process::id(),
             CLUSTERS.fetch_add(1, Ordering::Relaxed)
