@@ -318,6 +318,37 @@ fn point(v: &serde_json::Value) -> (f64, f64) {
     )
 }
 
+/// Height of the 3-D canvas on a screenshot: the rows above the control bar's top border (a
+/// row of #ccccdd).
+fn canvas_rows(px: &[[u8; 3]], w: usize) -> usize {
+    let rows = px.len() / w;
+    (0..rows)
+        .find(|&y| {
+            let row = &px[y * w..(y + 1) * w];
+            let border = row
+                .iter()
+                .filter(|p| p[0].abs_diff(0xcc) < 4 && p[1].abs_diff(0xcc) < 4 && p[2].abs_diff(0xdd) < 4)
+                .count();
+            border * 10 > w * 9
+        })
+        .unwrap_or(rows)
+}
+
+/// A `#probe` point of a page dumped at another viewport height (Chromium's `--dump-dom` window
+/// is shorter than its `--screenshot` one) on a screenshot whose canvas is `w` × `h`: the
+/// camera keeps its vertical field of view, so offsets from the centre scale with the height.
+fn on_shot(p: &serde_json::Value, at: (f64, f64), w: usize, h: usize) -> (f64, f64) {
+    let (wd, hd) = (
+        p["canvas"][0].as_f64().expect("probe width"),
+        p["canvas"][1].as_f64().expect("probe height"),
+    );
+    let k = h as f64 / hd;
+    (
+        w as f64 / 2.0 + (at.0 - wd / 2.0) * k,
+        h as f64 / 2.0 + (at.1 - hd / 2.0) * k,
+    )
+}
+
 /// The pick-and-place plan: the statuette (a mesh object) is drawn on the desk at the start and
 /// in the right hand half-way through its carry (between the pick and the hand-over), checked by
 /// its colour around the hand's place on the screenshot.
@@ -398,8 +429,10 @@ async fn pick_and_place_shows_the_statuette_in_the_hand() {
     }
     let (dom, (px, w)) = &carry;
     let p = probe(dom);
-    let hand = point(&p["hands"]["justin/right_hand"]);
-    let object = point(&p["objects"]["statuette"]);
+    eprintln!("probe at mid-carry: {p}; screenshot {} x {}", w, px.len() / w);
+    let h_canvas = canvas_rows(px, *w);
+    let hand = on_shot(&p, point(&p["hands"]["justin/right_hand"]), *w, h_canvas);
+    let object = on_shot(&p, point(&p["objects"]["statuette"]), *w, h_canvas);
     let total = px.iter().filter(|q| orange(q)).count();
     let near = count_near(px, *w, object, 60.0, orange);
     eprintln!(
@@ -419,7 +452,13 @@ async fn pick_and_place_shows_the_statuette_in_the_hand() {
         "statuette at {object:?}, right hand at {hand:?}"
     );
     let (sdom, (spx, sw)) = &start;
-    let s_object = point(&probe(sdom)["objects"]["statuette"]);
+    let sp = probe(sdom);
+    let s_object = on_shot(
+        &sp,
+        point(&sp["objects"]["statuette"]),
+        *sw,
+        canvas_rows(spx, *sw),
+    );
     let s_near = count_near(spx, *sw, s_object, 60.0, orange);
     assert!(
         s_near > 150,
