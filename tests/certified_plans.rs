@@ -7,7 +7,7 @@
 //! certified again by a fresh fast checker of that world. 0 penetrations allowed.
 
 mod common;
-use common::{root, scene};
+use common::scene;
 
 use std::sync::Arc;
 use std::time::Duration;

@@ -327,7 +327,9 @@ fn canvas_rows(px: &[[u8; 3]], w: usize) -> usize {
             let row = &px[y * w..(y + 1) * w];
             let border = row
                 .iter()
-                .filter(|p| p[0].abs_diff(0xcc) < 4 && p[1].abs_diff(0xcc) < 4 && p[2].abs_diff(0xdd) < 4)
+                .filter(|p| {
+                    p[0].abs_diff(0xcc) < 4 && p[1].abs_diff(0xcc) < 4 && p[2].abs_diff(0xdd) < 4
+                })
                 .count();
             border * 10 > w * 9
         })
@@ -429,7 +431,11 @@ async fn pick_and_place_shows_the_statuette_in_the_hand() {
     }
     let (dom, (px, w)) = &carry;
     let p = probe(dom);
-    eprintln!("probe at mid-carry: {p}; screenshot {} x {}", w, px.len() / w);
+    eprintln!(
+        "probe at mid-carry: {p}; screenshot {} x {}",
+        w,
+        px.len() / w
+    );
     let h_canvas = canvas_rows(px, *w);
     let hand = on_shot(&p, point(&p["hands"]["justin/right_hand"]), *w, h_canvas);
     let object = on_shot(&p, point(&p["objects"]["statuette"]), *w, h_canvas);

@@ -1,4 +1,5 @@
-//! A throwaway PostgreSQL cluster for a test: `initdb` in a temporary folder, a server on a
+//! A throwaway PostgreSQL cluster for a test: `initdb` in a folder of the test run (`crate::tmp`,
+//! `tests/common/tmp.rs`, which every test using this module declares), a server on a
 //! free loopback port, a fresh database `manyhands`; stopped and removed when dropped.
 //!
 //! The binaries come from `MANYHANDS_PG_BIN` (a folder), else `PATH`, else the newest
@@ -7,9 +8,6 @@
 //! PostgreSQL refuses to run as root: as root, the folder is given to the `postgres` user
 //! (else `nobody`) and the server runs as that user through `runuser` (else `setpriv`).
 #![allow(dead_code)]
-
-#[path = "../common/tmp.rs"]
-mod tmp;
 
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
@@ -121,7 +119,7 @@ impl PgCluster {
             .filter(|c| c.is_ascii_alphanumeric())
             .take(16)
             .collect();
-        let dir = tmp::run_root().join(format!(
+        let dir = crate::tmp::run_root().join(format!(
             "mh-pg-{short}-{}-{}",
             std::process::id(),
             CLUSTERS.fetch_add(1, Ordering::Relaxed)
