@@ -130,7 +130,8 @@ async fn kitchen_plan_in_a_headless_browser() {
     let (status, job) = h
         .post(
             "/v1/plans?wait=120",
-            &json!({"kind": "kitchen_task", "scene": "kitchen", "seed": 1}),
+            // (A generous time limit: the viewer tests run side by side with browsers.)
+            &json!({"kind": "kitchen_task", "scene": "kitchen", "seed": 1, "time_limit": 60}),
         )
         .await;
     assert!(status.is_success(), "{status}: {job}");
@@ -215,7 +216,7 @@ async fn kitchen_plan_in_a_headless_browser() {
         .post(
             "/v1/plans?wait=120",
             &json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table",
-                    "seed": 2, "s_min": 0.1, "deterministic": true}),
+                    "seed": 2, "s_min": 0.1, "deterministic": true, "time_limit": 60}),
         )
         .await;
     assert!(status.is_success(), "{status}: {job}");
