@@ -2,13 +2,17 @@
 #   docker build -t manyhands .
 #   docker run -p 8080:8080 -e MANYHANDS_TOKEN=change-me-long-random-token -v manyhands-data:/var/lib/manyhands manyhands
 # (binding 0.0.0.0 in the container requires a token of at least 16 characters; clients send
-# `Authorization: Bearer change-me-long-random-token`)
+# `Authorization: Bearer change-me-long-random-token`). Check a configuration without starting:
+#   docker run --rm -e MANYHANDS_TOKEN=… manyhands serve --check
 
 FROM rust:1-slim-bookworm AS build
 # clang/libclang: for crates with bindgen build scripts (bundled C libraries).
+# nodejs/npm: build.rs bundles the 3-D viewer (/viewer) with npm (Node.js 18 in bookworm);
+# MANYHANDS_REQUIRE_VIEWER=1 makes a failed viewer build fail the image build.
 RUN apt-get update \
- && apt-get install -y --no-install-recommends clang libclang-dev pkg-config \
+ && apt-get install -y --no-install-recommends clang libclang-dev pkg-config nodejs npm \
  && rm -rf /var/lib/apt/lists/*
+ENV MANYHANDS_REQUIRE_VIEWER=1
 WORKDIR /src
 COPY . .
 RUN cargo build --release --locked --bin manyhands \

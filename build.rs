@@ -5,7 +5,8 @@
 //! The sources are copied to `OUT_DIR/viewer` and built there (`npm ci`, `npm run build`), so
 //! the source tree stays clean. Without npm, or when the build fails (no registry), the binary is
 //! built anyway: `viewer.js` is then empty and `/viewer` answers with a page that says why and how
-//! to fix it (install Node.js ≥ 18 with npm, rebuild). `MANYHANDS_NPM` names another npm binary.
+//! to fix it (install Node.js ≥ 18 with npm, rebuild). `MANYHANDS_NPM` names another npm binary;
+//! `MANYHANDS_REQUIRE_VIEWER=1` (the Dockerfile's build stage) makes a failed viewer build an error.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -78,6 +79,7 @@ fn main() {
         println!("cargo:rerun-if-changed=viewer/{f}");
     }
     println!("cargo:rerun-if-env-changed=MANYHANDS_NPM");
+    println!("cargo:rerun-if-env-changed=MANYHANDS_REQUIRE_VIEWER");
     let (js, why) = match build(Path::new("viewer"), &out.join("viewer")) {
         Ok(js) if !js.is_empty() => (js, String::new()),
         Ok(_) => (String::new(), "the bundle came out empty".to_string()),
@@ -86,6 +88,9 @@ fn main() {
             (String::new(), why)
         }
     };
+    if !why.is_empty() && std::env::var("MANYHANDS_REQUIRE_VIEWER").is_ok_and(|v| v == "1") {
+        panic!("MANYHANDS_REQUIRE_VIEWER=1 but the 3-D viewer was not built: {why}");
+    }
     fs::write(out.join("viewer.js"), js).expect("writing OUT_DIR/viewer.js");
     fs::write(out.join("viewer_status.txt"), why).expect("writing OUT_DIR/viewer_status.txt");
 }

@@ -15,5 +15,6 @@ pub mod model;
 pub mod planning;
 pub mod reachability;
 pub mod server;
+pub mod skips;
 
 pub use model::{Robot, Scene};

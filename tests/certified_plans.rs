@@ -7,7 +7,7 @@
 //! certified again by a fresh fast checker of that world. 0 penetrations allowed.
 
 mod common;
-use common::{root, scene};
+use common::scene;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -119,7 +119,7 @@ fn recheck(label: &str, plan: &TaskPlan) -> Result<(usize, usize), Vec<String>> 
 
 #[test]
 fn grasp_plans_are_free_under_a_dense_exact_recheck() {
-    let cache = GridCache::new(Some(root().join("target/test-data/reach")));
+    let cache = GridCache::new(Some(common::tmp::test_root().join("test-data/reach")));
     let kitchen = scene("kitchen");
     let obstacle = scene("obstacle");
     let handoff = scene("handoff");

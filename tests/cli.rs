@@ -158,7 +158,7 @@ fn check_names_the_colliding_pair() {
 
 #[test]
 fn random_boxes_scene_is_written_and_loads() {
-    let path = std::env::temp_dir().join(format!("manyhands-boxes-{}.json", std::process::id()));
+    let path = common::tmp::run_root().join(format!("manyhands-boxes-{}.json", std::process::id()));
     let p = path.to_str().unwrap();
     let (code, _, err) = run(&[
         "scene",
@@ -188,7 +188,7 @@ fn bench_mbm_writes_an_ompl_benchmark_log() {
     let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("manyhands-ompl-log-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-ompl-log-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("tmp dir");
     let log = dir.join("mbm.log");
     let urdf = data.join("panda/panda_spherized.urdf");
@@ -267,7 +267,7 @@ fn bench_mbm_writes_an_ompl_benchmark_log() {
 
 #[test]
 fn query_runs_the_grasp_ik_endpoints_locally() {
-    let dir = std::env::temp_dir().join(format!("manyhands-cli-query-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-cli-query-{}", std::process::id()));
     let d = dir.to_string_lossy().to_string();
     // The dual-arm IK with the wok held: same body as POST /v1/ik/dual-arm, same answer shape.
     let body = r#"{"scene":"kitchen","robot":"armar","object":"wok","held":"wok_l_02","seed":3,
@@ -307,7 +307,7 @@ fn query_runs_the_grasp_ik_endpoints_locally() {
 /// and without it: a plan with its grasp events either way.
 #[test]
 fn plan_reach_and_regrasp_with_and_without_the_arm_grid() {
-    let dir = std::env::temp_dir().join(format!("manyhands-cli-grids-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-cli-grids-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let grid_dir = dir.to_string_lossy().into_owned();
     for (command, seed, extra) in [
@@ -351,7 +351,7 @@ fn plan_regrasp_with_dual_arm_j_plus_rrt() {
 /// and `bench mbm --robot panda` without any data folder says how to get one.
 #[test]
 fn data_mbm_checks_the_package_and_bench_mbm_names_the_fetch() {
-    let dir = std::env::temp_dir().join(format!("manyhands-data-mbm-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-data-mbm-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("tmp dir");
     let fake = dir.join("vamp_planner-0.6.4.tar.gz");

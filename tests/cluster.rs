@@ -5,6 +5,8 @@
 
 mod pg;
 mod process;
+#[path = "common/tmp.rs"]
+mod tmp;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -19,7 +21,7 @@ fn temp_dir(name: &str) -> PathBuf {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let d = std::env::temp_dir().join(format!(
+    let d = tmp::run_root().join(format!(
         "manyhands-cluster-{name}-{}-{nanos}",
         std::process::id()
     ));

@@ -364,7 +364,7 @@ fn check_segments(
 
 #[test]
 fn certified_segments_of_primitive_robots_are_free_under_a_dense_exact_check() {
-    let dir = std::env::temp_dir().join(format!("manyhands-certified-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-certified-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let mut missed = 0;
     for (name, world) in worlds(&dir) {

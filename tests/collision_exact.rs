@@ -461,7 +461,8 @@ fn mesh_uses_its_convex_hull() {
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
         .as_nanos();
-    let dir = std::env::temp_dir().join(format!("manyhands_exact_{}_{nanos}", std::process::id()));
+    let dir =
+        common::tmp::run_root().join(format!("manyhands_exact_{}_{nanos}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("cube.obj"), cube_obj(0.1, [0.0; 3])).unwrap();
     // A cube shifted by +0.3 in x inside its own frame.

@@ -159,15 +159,10 @@ fn deploy() {
         Ok(v) => v,
         Err(why) => {
             let required = std::env::var(REQUIRE_ENV).is_ok_and(|v| v == "1");
-            let line = format!(
-                "SKIPPED (no manifest validators: pip install {TOOLS}): {}",
-                std::thread::current().name().unwrap_or("deploy")
-            );
+            let skip = format!("no manifest validators: pip install {TOOLS}");
+            let line = manyhands::skips::line(&skip);
             assert!(!required, "{REQUIRE_ENV}=1 but {why}: {line}");
-            // Past the harness's capture, so that a run can count it.
-            let _ = std::io::stderr()
-                .lock()
-                .write_all(format!("{line}\n").as_bytes());
+            manyhands::skips::report(&skip);
             return;
         }
     };

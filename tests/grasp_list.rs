@@ -411,7 +411,7 @@ fn list_files_are_refused_when_hand_object_or_parameters_differ() {
     let left = hand("left_hand", &p);
     let obj = statuette();
     let l = build_grasp_list(&left, &obj, &p, &|_, _| {}, &|| false).unwrap();
-    let dir = std::env::temp_dir().join(format!("manyhands-grasp-list-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-grasp-list-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("left.grasps.json");
     save_grasp_list(&l, &file).unwrap();
@@ -560,7 +560,7 @@ fn list_caches_sharing_a_tier_build_a_list_once() {
     let obj = statuette();
     let dirs: Vec<_> = (1..=3)
         .map(|i| {
-            let d = std::env::temp_dir()
+            let d = common::tmp::run_root()
                 .join(format!("manyhands-grasp-tier-{}-{i}", std::process::id()));
             let _ = std::fs::remove_dir_all(&d);
             d

@@ -1,6 +1,8 @@
 //! Grasp wrench space: the reference values of `../shared/notes/grasp-quality.md`, the own
 //! 6-D hull against brute force, invariances, input errors, and the `grasp quality` command.
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::process::Command;
 
 use manyhands::grasp::{
@@ -620,7 +622,7 @@ fn cli_scores_scene_grasps_and_contact_files() {
     assert_ne!(code, 0);
     assert!(err.contains("nope"), "{err}");
 
-    let dir = std::env::temp_dir().join(format!("manyhands-grasp-cli-{}", std::process::id()));
+    let dir = tmp::run_root().join(format!("manyhands-grasp-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let file = dir.join("cube.json");
     let body = serde_json::json!({"contacts": [

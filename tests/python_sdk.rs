@@ -93,10 +93,11 @@ fn check_recorded(lines: &str) -> usize {
         }
         n += 1;
     }
-    // Coverage: every operation with a request body, every job kind.
+    // Coverage: every operation with a JSON request body, every job kind.
     for (t, ops) in spec["paths"].as_object().expect("paths") {
         for (m, op) in ops.as_object().expect("operations") {
-            if op.get("requestBody").is_some() {
+            // (JSON bodies: the record holds them; a raw upload such as a mesh file is not.)
+            if op["requestBody"]["content"]["application/json"].is_object() {
                 let key = format!("{m} {t}");
                 assert!(
                     accepted_ops.contains(&key),
@@ -180,7 +181,7 @@ async fn python_sdk_suite_passes_against_a_live_server() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let record = std::env::temp_dir().join(format!(
+    let record = common::tmp::run_root().join(format!(
         "manyhands-sdk-record-{}-{nanos}.jsonl",
         std::process::id()
     ));
@@ -244,7 +245,8 @@ fn pip_install_leaves_the_source_folder_clean() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let target = std::env::temp_dir().join(format!("manyhands-pip-{}-{nanos}", std::process::id()));
+    let target =
+        common::tmp::run_root().join(format!("manyhands-pip-{}-{nanos}", std::process::id()));
     let out = std::process::Command::new(&python)
         .args([
             "-m",

@@ -1,6 +1,8 @@
 //! Reachability grids (paper 000 §II-B): deterministic parallel build, versioned file refused on
 //! other parameters / chain / kinematics / corruption, lookups consistent with FK.
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -28,7 +30,7 @@ fn params(robot: &Robot, group: &str, samples: u64, seed: u64) -> GridParams {
 }
 
 fn tmp(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("manyhands-reach-{}-{name}", std::process::id()))
+    tmp::run_root().join(format!("manyhands-reach-{}-{name}", std::process::id()))
 }
 
 #[test]

@@ -8,6 +8,8 @@
 //! reach.json` reads what `plan reach … > reach.json` wrote; the caches under the folder are
 //! shared between the examples of one group only).
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
@@ -95,7 +97,7 @@ fn run_in_order(list: &[String], tag: &str) {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let dir = std::env::temp_dir().join(format!(
+    let dir = tmp::run_root().join(format!(
         "manyhands-readme-{tag}-{}-{nanos}",
         std::process::id()
     ));

@@ -4,6 +4,8 @@
 //! suite's sphere robot `tests/robots/twin_arms.urdf` modified here and written to a
 //! temporary folder.
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -30,7 +32,7 @@ fn read(name: &str) -> String {
 
 /// A fresh temporary folder for this test.
 fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("manyhands-robust-{tag}-{}", std::process::id()));
+    let d = tmp::run_root().join(format!("manyhands-robust-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("temp dir");
     d

@@ -1,6 +1,8 @@
 //! Integration tests of `manyhands serve`: the real server in-process on an ephemeral loopback
 //! port, exercised over HTTP with reqwest. Every test starts its own server and data directory.
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -23,7 +25,7 @@ fn temp_dir(name: &str) -> PathBuf {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let d = std::env::temp_dir().join(format!(
+    let d = tmp::run_root().join(format!(
         "manyhands-server-{name}-{}-{nanos}",
         std::process::id()
     ));

@@ -2,6 +2,8 @@
 //! use, a fresh data folder), planning. The answer comes at once and says `cancelled`, and the
 //! planner itself has stopped by then (the job's error is the planner's, not the forced record).
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -21,8 +23,7 @@ impl Harness {
             .duration_since(std::time::UNIX_EPOCH)
             .map(|d| d.as_nanos())
             .unwrap_or(0);
-        let dir =
-            std::env::temp_dir().join(format!("manyhands-cancel-{}-{nanos}", std::process::id()));
+        let dir = tmp::run_root().join(format!("manyhands-cancel-{}-{nanos}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("dir");
         let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
         let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir);

@@ -3,6 +3,8 @@
 //! `WWW-Authenticate` on every 401, uploads named as uploaded and bounded in size, a capped
 //! `time_limit` said in the answer.
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -17,8 +19,7 @@ async fn start(token: Option<&str>) -> Server {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let dir =
-        std::env::temp_dir().join(format!("manyhands-contract-{}-{nanos}", std::process::id()));
+    let dir = tmp::run_root().join(format!("manyhands-contract-{}-{nanos}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir);
@@ -222,7 +223,7 @@ async fn bearer_scheme_is_case_insensitive_and_401_says_how() {
     server.shutdown().await.expect("shutdown");
 
     // Off loopback a token needs 16 characters.
-    let mut cfg = Config::new("0.0.0.0:0".parse().expect("addr"), std::env::temp_dir());
+    let mut cfg = Config::new("0.0.0.0:0".parse().expect("addr"), tmp::run_root());
     cfg.token = Some("short-token".into());
     let e = cfg.validate().expect_err("short token off loopback");
     assert!(e.to_string().contains("16"), "{e}");

@@ -4,6 +4,8 @@
 //! the process exits cleanly.
 
 mod process;
+#[path = "common/tmp.rs"]
+mod tmp;
 
 use std::time::{Duration, Instant};
 
@@ -17,7 +19,7 @@ async fn sigterm_drains_then_closes() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let data = std::env::temp_dir().join(format!("manyhands-drain-{}-{nanos}", std::process::id()));
+    let data = tmp::run_root().join(format!("manyhands-drain-{}-{nanos}", std::process::id()));
     std::fs::create_dir_all(&data).expect("dir");
     let mut p = spawn(&data, &["--shutdown-grace", "4", "--drain", "2"]);
     let base = format!("http://{}", p.addr);

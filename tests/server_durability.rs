@@ -3,6 +3,8 @@
 //! and must serve the very same job, byte for byte.
 
 mod process;
+#[path = "common/tmp.rs"]
+mod tmp;
 
 use std::time::Duration;
 
@@ -15,7 +17,7 @@ async fn a_succeeded_answer_survives_kill_9_byte_identical() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let data = std::env::temp_dir().join(format!(
+    let data = tmp::run_root().join(format!(
         "manyhands-durability-{}-{nanos}",
         std::process::id()
     ));

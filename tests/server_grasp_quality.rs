@@ -1,6 +1,8 @@
 //! `POST /v1/grasp-quality` against the real server on an ephemeral loopback port: the reference
 //! value of the notes, scene grasps, and input errors naming the field.
 
+#[path = "common/tmp.rs"]
+mod tmp;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -20,7 +22,7 @@ fn temp_dir(name: &str) -> PathBuf {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let d = std::env::temp_dir().join(format!(
+    let d = tmp::run_root().join(format!(
         "manyhands-server-{name}-{}-{nanos}",
         std::process::id()
     ));

@@ -154,7 +154,8 @@ async fn readme_bodies_and_answers_validate_against_the_spec() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let dir = std::env::temp_dir().join(format!("manyhands-spec-{}-{nanos}", std::process::id()));
+    let dir =
+        common::tmp::run_root().join(format!("manyhands-spec-{}-{nanos}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let mut cfg = manyhands::server::Config::new("127.0.0.1:0".parse().expect("addr"), dir.clone());

@@ -99,7 +99,7 @@ async fn planner_threads_yield_to_queries() {
 
 #[test]
 fn planner_nice_outside_0_to_19_is_refused() {
-    let dir = std::env::temp_dir();
+    let dir = common::tmp::run_root();
     for bad in [-1, 20, 40] {
         let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir.clone());
         cfg.planner_nice = bad;

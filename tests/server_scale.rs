@@ -5,6 +5,8 @@
 mod job_store;
 mod pg;
 mod process;
+#[path = "common/tmp.rs"]
+mod tmp;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -22,7 +24,7 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let d = std::env::temp_dir().join(format!(
+    let d = tmp::run_root().join(format!(
         "manyhands-scale-{name}-{}-{nanos}",
         std::process::id()
     ));

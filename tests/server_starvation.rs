@@ -5,6 +5,8 @@
 //! latency stays low. A base placement over the cost bound is a 422 naming `cell`, at once.
 
 mod process;
+#[path = "common/tmp.rs"]
+mod tmp;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -42,7 +44,7 @@ async fn ik_keeps_its_latency_under_a_grasp_quality_flood() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let data = std::env::temp_dir().join(format!(
+    let data = tmp::run_root().join(format!(
         "manyhands-starvation-{}-{nanos}",
         std::process::id()
     ));

@@ -5,6 +5,8 @@
 
 mod job_store;
 mod pg;
+#[path = "common/tmp.rs"]
+mod tmp;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -23,8 +25,7 @@ async fn embedded_store_meets_the_contract() {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let dir =
-        std::env::temp_dir().join(format!("manyhands-contract-{}-{nanos}", std::process::id()));
+    let dir = tmp::run_root().join(format!("manyhands-contract-{}-{nanos}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let store = EmbeddedStore::open(&dir.join("jobs.redb")).expect("open");
     job_store::contract(Arc::new(store)).await;

@@ -198,7 +198,7 @@ fn super_edges_only_where_both_elementary_links_exist_and_the_motion_is_free() {
 fn roadmap_files_are_refused_for_another_robot_scene_or_parameters() {
     let s = setup();
     let p = params(1);
-    let dir = std::env::temp_dir().join(format!("manyhands-roadmap-{}", std::process::id()));
+    let dir = common::tmp::run_root().join(format!("manyhands-roadmap-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut term = Termination::new();
     let (g, file, src) =
@@ -259,7 +259,7 @@ fn roadmaps_are_built_once_by_processes_sharing_a_tier() {
     let p = params(3);
     let dirs: Vec<_> = (1..=3)
         .map(|i| {
-            let d = std::env::temp_dir()
+            let d = common::tmp::run_root()
                 .join(format!("manyhands-roadmap-tier-{}-{i}", std::process::id()));
             let _ = std::fs::remove_dir_all(&d);
             d

@@ -19,7 +19,7 @@ fn require() -> bool {
 
 fn skip(why: &str) {
     assert!(!require(), "MANYHANDS_REQUIRE_BROWSER=1 but {why}");
-    eprintln!("SKIPPED (viewer test): {why}");
+    manyhands::skips::report(&format!("viewer test: {why}"));
 }
 
 fn chromium() -> Option<PathBuf> {
@@ -130,15 +130,15 @@ async fn kitchen_plan_in_a_headless_browser() {
     let (status, job) = h
         .post(
             "/v1/plans?wait=120",
-            &json!({"kind": "kitchen_task", "scene": "kitchen", "seed": 1}),
+            // (A generous time limit: the viewer tests run side by side with browsers.)
+            &json!({"kind": "kitchen_task", "scene": "kitchen", "seed": 1, "time_limit": 60}),
         )
         .await;
     assert!(status.is_success(), "{status}: {job}");
     assert_eq!(job["state"], "succeeded", "{job}");
     let id = job["id"].as_str().expect("job id").to_string();
 
-    let dir = std::env::temp_dir().join(format!("manyhands-viewer-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let dir = common::tmp::TestDir::new("viewer");
     let base = h.base.clone();
     let shots = tokio::task::spawn_blocking(move || {
         let profile = dir.join("profile");
@@ -216,7 +216,7 @@ async fn kitchen_plan_in_a_headless_browser() {
         .post(
             "/v1/plans?wait=120",
             &json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table",
-                    "seed": 2, "s_min": 0.1, "deterministic": true}),
+                    "seed": 2, "s_min": 0.1, "deterministic": true, "time_limit": 60}),
         )
         .await;
     assert!(status.is_success(), "{status}: {job}");
@@ -224,9 +224,9 @@ async fn kitchen_plan_in_a_headless_browser() {
     let id = job["id"].as_str().expect("job id").to_string();
     let bin = chromium().expect("chromium");
     let base = h.base.clone();
+    let mr = common::tmp::TestDir::new("viewer-mr");
+    let profile = mr.to_path_buf();
     let dom = tokio::task::spawn_blocking(move || {
-        let profile =
-            std::env::temp_dir().join(format!("manyhands-viewer-mr-{}", std::process::id()));
         browse(
             &bin,
             &profile,
@@ -246,6 +246,392 @@ async fn kitchen_plan_in_a_headless_browser() {
     assert!(
         !dom.contains("<canvas id=\"phase\" hidden"),
         "the phase-space panel is hidden for a multi-robot plan"
+    );
+    h.server.shutdown().await.expect("shutdown");
+}
+
+/// The `#probe` JSON of a dumped page: where objects and hands are on the canvas.
+fn probe(dom: &str) -> serde_json::Value {
+    let text = element_text(dom, "probe").unwrap_or("");
+    serde_json::from_str(text).unwrap_or_else(|e| panic!("probe {text:?}: {e}"))
+}
+
+/// The dumped DOM and a screenshot of `url`, in a fresh browser profile under `dir`.
+fn dom_and_shot(
+    bin: &Path,
+    dir: &Path,
+    url: &str,
+    extra: &[String],
+) -> (String, (Vec<[u8; 3]>, usize)) {
+    std::fs::create_dir_all(dir).expect("shot dir");
+    let profile = dir.join("profile");
+    let mut args = extra.to_vec();
+    args.push("--dump-dom".into());
+    let dom = browse(bin, &profile, url, &args);
+    let file = dir.join("shot.png");
+    let mut args = extra.to_vec();
+    args.push(format!("--screenshot={}", file.display()));
+    browse(bin, &profile, url, &args);
+    (dom, read_png(&file))
+}
+
+fn assert_ready(dom: &str, what: &str) {
+    assert!(
+        dom.contains("<title>manyhands viewer: ready</title>"),
+        "{what}: the page did not get ready: status {:?}, errors {:?}",
+        element_text(dom, "status"),
+        element_text(dom, "errors")
+    );
+    assert_eq!(
+        element_text(dom, "errors").map(str::trim),
+        Some(""),
+        "{what}: console errors on the page"
+    );
+}
+
+/// Pixels of the scene's object colour (orange, shaded): red well over green over blue.
+fn orange(p: &[u8; 3]) -> bool {
+    let [r, g, b] = p.map(i32::from);
+    r > g + 35 && g > b + 35 && r > 120
+}
+
+/// Pixels within `radius` of `at` (x, y) in an image `w` wide that pass `pick`.
+fn count_near(
+    px: &[[u8; 3]],
+    w: usize,
+    at: (f64, f64),
+    radius: f64,
+    pick: impl Fn(&[u8; 3]) -> bool,
+) -> usize {
+    px.iter()
+        .enumerate()
+        .filter(|(i, p)| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            (x - at.0).hypot(y - at.1) <= radius && pick(p)
+        })
+        .count()
+}
+
+fn point(v: &serde_json::Value) -> (f64, f64) {
+    (
+        v[0].as_f64().expect("probe x"),
+        v[1].as_f64().expect("probe y"),
+    )
+}
+
+/// Height of the 3-D canvas on a screenshot: the rows above the control bar's top border (a
+/// row of #ccccdd).
+fn canvas_rows(px: &[[u8; 3]], w: usize) -> usize {
+    let rows = px.len() / w;
+    (0..rows)
+        .find(|&y| {
+            let row = &px[y * w..(y + 1) * w];
+            let border = row
+                .iter()
+                .filter(|p| {
+                    p[0].abs_diff(0xcc) < 4 && p[1].abs_diff(0xcc) < 4 && p[2].abs_diff(0xdd) < 4
+                })
+                .count();
+            border * 10 > w * 9
+        })
+        .unwrap_or(rows)
+}
+
+/// A `#probe` point of a page dumped at another viewport height (Chromium's `--dump-dom` window
+/// is shorter than its `--screenshot` one) on a screenshot whose canvas is `w` × `h`: the
+/// camera keeps its vertical field of view, so offsets from the centre scale with the height.
+fn on_shot(p: &serde_json::Value, at: (f64, f64), w: usize, h: usize) -> (f64, f64) {
+    let (wd, hd) = (
+        p["canvas"][0].as_f64().expect("probe width"),
+        p["canvas"][1].as_f64().expect("probe height"),
+    );
+    let k = h as f64 / hd;
+    (
+        w as f64 / 2.0 + (at.0 - wd / 2.0) * k,
+        h as f64 / 2.0 + (at.1 - hd / 2.0) * k,
+    )
+}
+
+/// The pick-and-place plan: the statuette (a mesh object) is drawn on the desk at the start and
+/// in the right hand half-way through its carry (between the pick and the hand-over), checked by
+/// its colour around the hand's place on the screenshot.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pick_and_place_shows_the_statuette_in_the_hand() {
+    let Some(bin) = chromium() else {
+        return skip("no chromium on PATH (MANYHANDS_CHROMIUM names one)");
+    };
+    if !manyhands::server::viewer::built() {
+        return skip("this build has no viewer bundle (npm was missing when it was compiled)");
+    }
+    let h = common::server::start("viewer-pp").await;
+    // The scene's mesh as the viewer reads it: OBJ text of the loaded statuette.
+    let r = h
+        .http
+        .get(format!(
+            "{}/v1/scenes/pick_place/meshes/objects/0/0",
+            h.base
+        ))
+        .send()
+        .await
+        .expect("GET");
+    assert_eq!(r.status(), 200);
+    let obj = r.text().await.expect("text");
+    assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 1312);
+    for bad in ["obstacles/0/0", "objects/0/9", "objects/x/0", "walls/0/0"] {
+        let r = h
+            .http
+            .get(format!("{}/v1/scenes/pick_place/meshes/{bad}", h.base))
+            .send()
+            .await
+            .expect("GET");
+        assert_eq!(r.status(), 404, "{bad}");
+    }
+
+    let (status, job) = h
+        .post(
+            "/v1/plans?wait=120",
+            &json!({"kind": "pick_place", "scene": "pick_place", "robot": "justin",
+                    "object": "statuette", "pick_hand": "right_hand", "place_hand": "left_hand",
+                    "seed": 1, "time_limit": 60}),
+        )
+        .await;
+    assert!(status.is_success(), "{status}: {job}");
+    assert_eq!(job["state"], "succeeded", "{job}");
+    let id = job["id"].as_str().expect("job id").to_string();
+    let r = &job["result"];
+    let events = r["trajectory"]["events"]
+        .as_array()
+        .or(r["events"].as_array())
+        .expect("events");
+    let time = |e: &serde_json::Value| {
+        e["time_from_start"]
+            .as_f64()
+            .or(e["time"].as_f64())
+            .expect("event time")
+    };
+    let (t_pick, t_next) = (time(&events[0]), time(&events[1]));
+    assert!(t_next > t_pick, "{events:?}");
+    let mid = 0.5 * (t_pick + t_next);
+
+    let dir = common::tmp::TestDir::new("viewer-pp");
+    let base = h.base.clone();
+    let dir2 = dir.to_path_buf();
+    let (start, carry) = tokio::task::spawn_blocking(move || {
+        let url = |t: f64| format!("{base}/viewer?plan={id}&t={t}");
+        (
+            dom_and_shot(&bin, &dir2.join("start"), &url(0.0), &[]),
+            dom_and_shot(&bin, &dir2.join("carry"), &url(mid), &[]),
+        )
+    })
+    .await
+    .expect("browser task");
+    for (what, (dom, _)) in [("start", &start), ("mid-carry", &carry)] {
+        assert_ready(dom, what);
+        let status = element_text(dom, "status").unwrap_or("");
+        assert!(!status.contains("not drawn"), "{what}: {status}");
+    }
+    let (dom, (px, w)) = &carry;
+    let p = probe(dom);
+    eprintln!(
+        "probe at mid-carry: {p}; screenshot {} x {}",
+        w,
+        px.len() / w
+    );
+    let h_canvas = canvas_rows(px, *w);
+    let hand = on_shot(&p, point(&p["hands"]["justin/right_hand"]), *w, h_canvas);
+    let object = on_shot(&p, point(&p["objects"]["statuette"]), *w, h_canvas);
+    let total = px.iter().filter(|q| orange(q)).count();
+    let near = count_near(px, *w, object, 60.0, orange);
+    eprintln!(
+        "mid-carry (t = {mid:.2} s): {total} statuette pixels, {near} around its place {object:?}; hand at {hand:?}"
+    );
+    assert!(
+        total > 150,
+        "the statuette is not visible at mid-carry ({total} pixels)"
+    );
+    assert!(
+        near * 10 > total * 8,
+        "the statuette's pixels are not where it is ({near} of {total})"
+    );
+    // In the hand: the object is drawn next to the hand's link.
+    assert!(
+        (object.0 - hand.0).hypot(object.1 - hand.1) < 80.0,
+        "statuette at {object:?}, right hand at {hand:?}"
+    );
+    let (sdom, (spx, sw)) = &start;
+    let sp = probe(sdom);
+    let s_object = on_shot(
+        &sp,
+        point(&sp["objects"]["statuette"]),
+        *sw,
+        canvas_rows(spx, *sw),
+    );
+    let s_near = count_near(spx, *sw, s_object, 60.0, orange);
+    assert!(
+        s_near > 150,
+        "the statuette is not drawn on the desk at the start ({s_near})"
+    );
+    assert!(
+        (s_object.0 - object.0).hypot(s_object.1 - object.1) > 20.0,
+        "the statuette did not move: {s_object:?} → {object:?}"
+    );
+    h.server.shutdown().await.expect("shutdown");
+}
+
+/// Without WebGL the page says so (and does not stay at "loading…").
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn without_webgl_the_page_says_so() {
+    let Some(bin) = chromium() else {
+        return skip("no chromium on PATH (MANYHANDS_CHROMIUM names one)");
+    };
+    if !manyhands::server::viewer::built() {
+        return skip("this build has no viewer bundle (npm was missing when it was compiled)");
+    }
+    let h = common::server::start("viewer-nogl").await;
+    let base = h.base.clone();
+    let dir = common::tmp::TestDir::new("viewer-nogl");
+    let dir2 = dir.to_path_buf();
+    let dom = tokio::task::spawn_blocking(move || {
+        browse(
+            &bin,
+            &dir2.join("profile"),
+            &format!("{base}/viewer?scene=kitchen"),
+            &[
+                "--disable-3d-apis".into(),
+                "--disable-webgl".into(),
+                "--dump-dom".into(),
+            ],
+        )
+    })
+    .await
+    .expect("browser task");
+    assert!(
+        dom.contains("<title>manyhands viewer: no WebGL</title>"),
+        "status {:?}",
+        element_text(&dom, "status")
+    );
+    let status = element_text(&dom, "status").unwrap_or("");
+    assert!(status.contains("WebGL is not available"), "{status}");
+    h.server.shutdown().await.expect("shutdown");
+}
+
+/// The four-Panda cell's `schedule` job: the page draws the four arms and the phase-space panel
+/// (one pair of robots chosen from the six), checked by the path's green in the panel's corner.
+/// Needs the MotionBenchMaker data (`manyhands data mbm`). Its Panda comes without its visual
+/// meshes, so the arms are drawn from their collision spheres.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn panda_four_schedule_shows_its_phase_panel() {
+    let Some(bin) = chromium() else {
+        return skip("no chromium on PATH (MANYHANDS_CHROMIUM names one)");
+    };
+    if !manyhands::server::viewer::built() {
+        return skip("this build has no viewer bundle (npm was missing when it was compiled)");
+    }
+    let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
+        return;
+    };
+    let h = common::server::start("viewer-panda").await;
+    let f = manyhands::planning::mbm_data::robot_files(&data, "panda");
+    let urdf = std::fs::read_to_string(&f.urdf).expect("urdf");
+    let srdf = std::fs::read_to_string(&f.srdf).expect("srdf");
+    for (path, body) in [
+        (
+            "/v1/robots/panda".to_string(),
+            json!({"urdf": urdf, "srdf": srdf}),
+        ),
+        (
+            "/v1/scenes/panda_four".to_string(),
+            serde_json::to_value(manyhands::model::panda_four("panda")).expect("json"),
+        ),
+    ] {
+        let r = h
+            .http
+            .put(format!("{}{path}", h.base))
+            .json(&body)
+            .send()
+            .await
+            .expect("PUT");
+        assert!(r.status().is_success(), "{path}: {}", r.status());
+    }
+    let scene = serde_json::to_value(manyhands::model::panda_four("panda")).expect("json");
+    let mut trajectories = Vec::new();
+    for r in scene["robots"].as_array().expect("robots") {
+        let name = r["name"].as_str().expect("name");
+        let req = json!({"kind": "joint_space", "scene": "panda_four", "seed": 2,
+            "robots": [{"name": name, "goal": r["configs"]["goal"]}]});
+        let (s, v) = h.post("/v1/plans?wait=60", &req).await;
+        assert!(s.is_success() && v["state"] == "succeeded", "{s} {v}");
+        trajectories.push(json!({"robot": name, "joints": v["result"]["joints"],
+            "path": v["result"]["path"]}));
+    }
+    let (s, job) = h
+        .post(
+            "/v1/plans?wait=60",
+            &json!({"kind": "schedule", "scene": "panda_four", "trajectories": trajectories}),
+        )
+        .await;
+    assert!(s.is_success() && job["state"] == "succeeded", "{s} {job}");
+    let id = job["id"].as_str().expect("id").to_string();
+    let duration = job["result"]["duration"].as_f64().expect("duration");
+
+    let dir = common::tmp::TestDir::new("viewer-panda");
+    let base = h.base.clone();
+    let dir2 = dir.to_path_buf();
+    let (dom, (px, w)) = tokio::task::spawn_blocking(move || {
+        dom_and_shot(
+            &bin,
+            &dir2,
+            &format!("{base}/viewer?plan={id}&t={}", 0.5 * duration),
+            &[],
+        )
+    })
+    .await
+    .expect("browser task");
+    assert_ready(&dom, "panda_four schedule");
+    assert!(
+        !dom.contains("<canvas id=\"phase\" hidden"),
+        "the phase-space panel is hidden for a schedule job"
+    );
+    assert!(
+        !dom.contains(
+            "<select id=\"phase-pair\" title=\"robot pair of the phase-space panel\" hidden"
+        ),
+        "no robot-pair choice for four robots"
+    );
+    let rows = px.len() / w;
+    // The panel (220 px square under the pair choice) in the top right corner.
+    let in_panel = |i: usize| i % w + 250 >= w && i / w < 280;
+    let path_green = |p: &[u8; 3]| {
+        let [r, g, b] = p.map(i32::from);
+        (r - 0x1a).abs() < 30 && (g - 0x9a).abs() < 30 && (b - 0x3a).abs() < 30 && g > r + 80
+    };
+    let green = px
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| in_panel(*i) && path_green(p))
+        .count();
+    let red = px
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| in_panel(*i) && p[0] > 180 && p[1] < 70 && p[2] < 70)
+        .count();
+    eprintln!("phase panel: {green} path pixels, {red} marker pixels");
+    assert!(green > 150, "no phase path in the panel ({green} pixels)");
+    assert!(
+        red > 10,
+        "no current-phase marker in the panel ({red} pixels)"
+    );
+    // The four arms: each scene robot in its own palette colour, away from the panel.
+    let canvas = w * (rows - 80);
+    let blue = |p: &[u8; 3]| p[2] as i32 > p[0] as i32 + 40 && p[2] as i32 > p[1] as i32 + 15;
+    let arms = px[..canvas]
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| !in_panel(*i) && blue(p))
+        .count();
+    assert!(
+        arms * 400 > canvas,
+        "the first arm is barely drawn ({arms} pixels)"
     );
     h.server.shutdown().await.expect("shutdown");
 }

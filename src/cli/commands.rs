@@ -67,7 +67,28 @@ impl Ctx {
         let path = if p.extension().and_then(|e| e.to_str()) == Some("json") {
             p.to_path_buf()
         } else {
-            self.scenes_dir.join(format!("{name}.json"))
+            let path = self.scenes_dir.join(format!("{name}.json"));
+            if !path.is_file() {
+                let mut names: Vec<String> = std::fs::read_dir(&self.scenes_dir)
+                    .map(|rd| {
+                        rd.filter_map(|e| e.ok())
+                            .filter_map(|e| {
+                                let p = e.path();
+                                (p.extension().and_then(|x| x.to_str()) == Some("json"))
+                                    .then(|| p.file_stem()?.to_str().map(str::to_string))
+                                    .flatten()
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                names.sort();
+                return Err(anyhow!(
+                    "unknown scene '{name}' (known in {}: {}; or give a path to a .json)",
+                    self.scenes_dir.display(),
+                    names.join(", ")
+                ));
+            }
+            path
         };
         Ok(Scene::from_file(&path, &lib)?)
     }

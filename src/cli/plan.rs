@@ -16,8 +16,8 @@ use manyhands::model::Scene;
 use manyhands::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
 use manyhands::planning::grasping::arm_grid;
 use manyhands::planning::task::{
-    bimanual_task, kitchen_task, reach_task, regrasp_task, GraspAlgorithm, KitchenTask,
-    RegraspTask, TaskPlan,
+    bimanual_task, kitchen_task, precheck_reach, reach_task, regrasp_task, GraspAlgorithm,
+    KitchenTask, RegraspTask, TaskPlan,
 };
 use manyhands::planning::timing::TimingOptions;
 use manyhands::planning::{IkRrtSettings, Termination};
@@ -298,6 +298,8 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
         } => {
             let s = ctx.scene(scene)?;
             let (planner, ik) = settings(common, 0.1)?;
+            // An object out of reach fails here, before a grid is built.
+            precheck_reach(&s, robot, group, object)?;
             let grid = match algorithm {
                 GraspAlgorithm::IkRrt => grids.grid(&s, robot, group)?,
                 GraspAlgorithm::JPlusRrt => None,

@@ -95,6 +95,11 @@ pub struct ServeArgs {
     /// Print the OpenAPI spec and exit.
     #[arg(long)]
     pub print_openapi: bool,
+    /// Check the configuration (flags and MANYHANDS_* environment) and the built-in robots and
+    /// scenes, say what would be served (and whether this binary has the 3-D viewer), and exit
+    /// without binding: 0 when `serve` would start, 2 when it would refuse.
+    #[arg(long)]
+    pub check: bool,
 }
 
 fn seconds(name: &str, v: f64) -> Result<Duration> {
@@ -117,11 +122,41 @@ pub fn init_tracing(format: &str, filter: &str) -> Result<()> {
             .flatten_event(true)
             .with_current_span(false)
             .try_init(),
-        "text" => builder.try_init(),
+        // Colours only on a terminal (a redirected log stays plain text).
+        "text" => builder
+            .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+            .try_init(),
         f => bail!("--log-format: '{f}' is not 'text' or 'json'"),
     };
     // Already initialised (tests): keep the existing subscriber.
     let _ = r;
+    Ok(())
+}
+
+/// `serve --check`: what `serve` would load and serve, without binding or writing.
+fn check(cfg: &Config) -> Result<()> {
+    let lib = manyhands::model::load_robot_dir(&cfg.robots_dir)
+        .with_context(|| format!("robots in {}", cfg.robots_dir.display()))?;
+    let (scenes, bad) = manyhands::model::load_scene_dir_lenient(&cfg.scenes_dir, &lib)
+        .with_context(|| format!("scenes in {}", cfg.scenes_dir.display()))?;
+    for (_, e) in &bad {
+        eprintln!("scene not loaded (serve leaves it out): {e}");
+    }
+    let viewer = if server::viewer::built() {
+        "built".to_string()
+    } else {
+        format!("NOT built ({})", server::viewer::not_built_reason())
+    };
+    println!(
+        "ok: would serve on {} ({}), data in {}, {} robots from {}, {} scenes from {}, viewer {viewer}",
+        cfg.bind,
+        if cfg.token.is_some() { "token required" } else { "no token" },
+        cfg.data_dir.display(),
+        lib.len(),
+        cfg.robots_dir.display(),
+        scenes.len(),
+        cfg.scenes_dir.display(),
+    );
     Ok(())
 }
 
@@ -168,6 +203,9 @@ pub fn run(ctx: &Ctx, a: &ServeArgs) -> Result<()> {
     }
     cfg.store_pool = a.store_pool;
     cfg.validate()?;
+    if a.check {
+        return check(&cfg);
+    }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .thread_name("manyhands-io")

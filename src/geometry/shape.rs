@@ -43,6 +43,33 @@ impl Mesh {
             .merge_meshes(true)
             .load(path)
             .map_err(|e| format!("mesh '{}': {e}", path.display()))?;
+        Mesh::from_loaded(path.display().to_string(), &scene, scale)
+    }
+
+    /// Reads STL, OBJ or COLLADA bytes (the format by `name`'s extension and the content)
+    /// without touching the file system: an OBJ's `mtllib` is refused rather than read.
+    /// `name` names the mesh in messages.
+    pub fn parse(bytes: &[u8], name: &str, scale: [f64; 3]) -> Result<Mesh, String> {
+        let scene = mesh_loader::Loader::default()
+            .merge_meshes(true)
+            .load_from_slice_with_reader(bytes, Path::new(name), |p: &Path| {
+                Err::<Vec<u8>, _>(std::io::Error::new(
+                    std::io::ErrorKind::PermissionDenied,
+                    format!(
+                        "'{}' is not read (a mesh may not refer to other files)",
+                        p.display()
+                    ),
+                ))
+            })
+            .map_err(|e| format!("mesh '{name}': {e}"))?;
+        Mesh::from_loaded(name.to_string(), &scene, scale)
+    }
+
+    fn from_loaded(
+        source: String,
+        scene: &mesh_loader::Scene,
+        scale: [f64; 3],
+    ) -> Result<Mesh, String> {
         let mut vertices = Vec::new();
         let mut triangles = Vec::new();
         for m in &scene.meshes {
@@ -58,7 +85,20 @@ impl Mesh {
                 triangles.push([f[0] + base, f[1] + base, f[2] + base]);
             }
         }
-        Mesh::from_triangles(path.display().to_string(), vertices, triangles)
+        Mesh::from_triangles(source, vertices, triangles)
+    }
+
+    /// The mesh as Wavefront OBJ text (vertices in the shape frame, scale applied).
+    pub fn to_obj(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::with_capacity(32 * (self.vertices.len() + self.triangles.len()));
+        for v in &self.vertices {
+            let _ = writeln!(out, "v {} {} {}", v.x, v.y, v.z);
+        }
+        for t in &self.triangles {
+            let _ = writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        out
     }
 
     /// A mesh from vertices and triangles (`source` names it in messages); the solid is found

@@ -128,7 +128,7 @@ pub fn panda_four(model: &str) -> SceneJson {
     arm_cell(&ArmCell {
         name: "panda_four".into(),
         description: format!(
-            "Issue 23 (5c): four '{model}' arms on the corners of a 1.2 m square table facing \
+            "Four '{model}' arms on the corners of a 1.2 m square table facing \
              its centre; each swings from `start` (reaching over the table on its left) to \
              `goal` (low on its right). The straight-line motions cross above the centre: plan \
              each arm alone (kind joint_space), then schedule them (kind schedule)."

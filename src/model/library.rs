@@ -41,6 +41,32 @@ pub fn load_scene_dir(
     Ok(out)
 }
 
+/// Loads `dir/*.json` as scenes, keyed by file stem, skipping the files that do not load: the
+/// scenes that loaded, and each file that did not with its error (sorted by file name). Only an
+/// unreadable folder is an error.
+#[allow(clippy::type_complexity)]
+pub fn load_scene_dir_lenient(
+    dir: &Path,
+    robots: &RobotLibrary,
+) -> Result<(BTreeMap<String, Scene>, Vec<(PathBuf, ModelError)>), ModelError> {
+    let mut out = BTreeMap::new();
+    let mut bad = Vec::new();
+    for p in sorted_files(dir, "json")? {
+        let stem = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("scene")
+            .to_string();
+        match Scene::from_file(&p, robots) {
+            Ok(s) => {
+                out.insert(stem, s);
+            }
+            Err(e) => bad.push((p, e)),
+        }
+    }
+    Ok((out, bad))
+}
+
 fn sorted_files(dir: &Path, ext: &str) -> Result<Vec<PathBuf>, ModelError> {
     let rd = std::fs::read_dir(dir).map_err(|e| ModelError::Io {
         file: dir.display().to_string(),

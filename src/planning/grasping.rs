@@ -88,6 +88,66 @@ impl Hand {
     }
 }
 
+impl Hand {
+    /// A ball `(world centre, radius)` that holds the TCP in every configuration of the chain
+    /// within its joint limits, with the rest of the world at `world_q`: about the origin of the
+    /// chain's first joint (fixed while only the chain moves), covering every joint offset and
+    /// prismatic travel on the way to the TCP ([`crate::kinematics::FkModel::reach_ball`]).
+    /// Collisions and revolute limits are ignored, so a target outside it is certainly out of
+    /// reach. `None` when a prismatic joint of the chain has unbounded travel.
+    pub fn reach_ball(
+        &self,
+        world: &CollisionWorld,
+        world_q: &[f64],
+    ) -> Option<(Vector3<f64>, f64)> {
+        let p = &world.robots[self.robot];
+        let model = &p.robot;
+        let fk = crate::kinematics::FkModel::new(model);
+        let (tip, offset) = fk.mount(self.arm.chain.tip_link);
+        let (base, _) = fk.mount(self.arm.chain.base_link);
+        let centre = offset.map(|f| f.t).unwrap_or_else(Vector3::zeros);
+        let (c, r) = fk.reach_ball(model, tip, &centre, 0.0, base)?;
+        let q = world.robot_config(self.robot, world_q);
+        let base_pose = p.base * crate::kinematics::link_pose(model, q, base);
+        Some((base_pose * nalgebra::Point3::from(c), r)).map(|(c, r)| (c.coords, r))
+    }
+
+    /// Fails at once with [`PlanError::InvalidGoal`] saying why when every TCP target (world
+    /// poses) lies outside [`Hand::reach_ball`]: IK-based goal sampling (000 §II-D) could
+    /// never find a goal there, and the search would only run into its time limit.
+    /// `what` names the targets in the message (e.g. "every grasp of 'wok'").
+    pub fn check_reach(
+        &self,
+        world: &CollisionWorld,
+        world_q: &[f64],
+        targets: &[Pose],
+        what: &str,
+    ) -> Result<(), PlanError> {
+        let Some((centre, radius)) = self.reach_ball(world, world_q) else {
+            return Ok(());
+        };
+        let gap = targets
+            .iter()
+            .map(|t| (t.translation.vector - centre).norm() - radius)
+            .fold(f64::INFINITY, f64::min);
+        if targets.is_empty() || gap <= 0.0 {
+            return Ok(());
+        }
+        let model = &world.robots[self.robot].robot;
+        Err(PlanError::InvalidGoal {
+            count: targets.len(),
+            reason: format!(
+                "{what} is out of reach of the {} ('{}' of {}): every TCP target lies beyond \
+                 the chain's reach of {radius:.3} m from '{}' (nearest by {gap:.3} m)",
+                self.end_effector,
+                self.arm.group,
+                world.robots[self.robot].name,
+                model.links[self.arm.chain.base_link].name,
+            ),
+        })
+    }
+}
+
 fn finite_pose(p: &Pose) -> bool {
     p.translation.vector.iter().all(|v| v.is_finite())
         && p.rotation.coords.iter().all(|v| v.is_finite())
@@ -206,6 +266,13 @@ impl ReachProblem {
             .ok_or_else(|| {
                 PlanError::InvalidInput(format!("'{object}' is not a free object of the scene"))
             })?;
+        let targets: Vec<Pose> = set.tcps.iter().map(|g| object_pose * g).collect();
+        hand.check_reach(
+            world,
+            world_q,
+            &targets,
+            &format!("every grasp of '{object}'"),
+        )?;
         let w = world.clone();
         let space = JointSpace::new(&w, &hand.world_vars(&w), world_q.to_vec())?;
         let start = space.from_world(world_q);
@@ -247,6 +314,13 @@ impl ReachProblem {
                 "'{object}' is not held by a hand"
             )));
         }
+        let targets: Vec<Pose> = place_poses.iter().map(|p| p * grasp).collect();
+        hand.check_reach(
+            world,
+            world_q,
+            &targets,
+            &format!("every place pose of '{object}'"),
+        )?;
         let space = JointSpace::new(world, &hand.world_vars(world), world_q.to_vec())?;
         let start = space.from_world(world_q);
         // Goals as TCP poses in the world: object pose = identity, "grasps" = place · grasp.
@@ -434,6 +508,28 @@ impl HandOffProblem {
         }
         let set = grasp_set(scene, object, &r.end_effector)
             .map_err(|e| PlanError::InvalidInput(e.to_string()))?;
+        // The receiver's TCP is within |held⁻¹ · grasp| of the giver's TCP: the two reach balls
+        // must come that close for some grasp.
+        if let (Some((cg, rg)), Some((cr, rr))) =
+            (g.reach_ball(world, world_q), r.reach_ball(world, world_q))
+        {
+            let apart = (cg - cr).norm() - rg - rr;
+            let gap = set
+                .tcps
+                .iter()
+                .map(|t| apart - (held.inverse() * t).translation.vector.norm())
+                .fold(f64::INFINITY, f64::min);
+            if !set.tcps.is_empty() && gap > 0.0 {
+                return Err(PlanError::InvalidGoal {
+                    count: set.tcps.len(),
+                    reason: format!(
+                        "the {} and the {} cannot meet to pass '{object}': their reaches stay \
+                         apart by {gap:.3} m for every grasp",
+                        g.end_effector, r.end_effector
+                    ),
+                });
+            }
+        }
         let mut w = world.clone();
         if !w.attached.iter().any(|a| a.name == object) {
             attach_by_grasp(&mut w, &g, object, &held, world_q)?;

@@ -25,7 +25,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::Arc;
@@ -178,8 +178,8 @@ pub fn data_required() -> bool {
 }
 
 /// The first line of a test that needs the data: the data folder, or — without one — `None`
-/// after printing `SKIPPED (…): TEST` on stderr, past the test harness's capture, so that a run
-/// can count the tests that did not run. Panics instead when [`data_required`].
+/// after reporting `SKIPPED (…): TEST` ([`crate::skips::report`]), so that a run can count the
+/// tests that did not run. Panics instead when [`data_required`].
 pub fn data_for_test() -> Option<PathBuf> {
     match locate() {
         Ok(d) => Some(d),
@@ -188,15 +188,9 @@ pub fn data_for_test() -> Option<PathBuf> {
                 !data_required(),
                 "{REQUIRE_ENV} is set and the MotionBenchMaker data is missing: {why}"
             );
-            let name = std::thread::current()
-                .name()
-                .unwrap_or("unnamed test")
-                .to_string();
-            let line = format!(
-                "SKIPPED (no MotionBenchMaker data: set {MBM_DIR_ENV} or run manyhands data mbm): {name}\n"
-            );
-            // Written to the stderr handle, not with eprintln!, which the harness captures.
-            let _ = std::io::stderr().lock().write_all(line.as_bytes());
+            crate::skips::report(&format!(
+                "no MotionBenchMaker data: set {MBM_DIR_ENV} or run manyhands data mbm"
+            ));
             None
         }
     }

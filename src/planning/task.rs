@@ -727,6 +727,20 @@ impl TaskPlan {
     }
 }
 
+/// The checks of [`reach_task`]'s problem without planning: the hand, the object and — before
+/// any reachability grid is built — whether any of its grasps is within the arm's reach
+/// ([`crate::planning::grasping::Hand::check_reach`]). Cheap (no search).
+pub fn precheck_reach(
+    scene: &Scene,
+    robot: &str,
+    group: &str,
+    object: &str,
+) -> Result<(), PlanError> {
+    let world = CollisionWorld::from_scene(scene);
+    let q0 = CollisionWorld::start_config(scene);
+    ReachProblem::grasp(scene, &world, &q0, robot, group, object).map(|_| ())
+}
+
 /// A single grasp (000 §IV: IK-RRT or J+-RRT) from `scene`'s start as a one-phase plan ending
 /// in a grasp event.
 #[allow(clippy::too_many_arguments)]

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex, OnceLock, RwLock};
 
 use crate::collision::CollisionWorld;
 use crate::kinematics::{Chain, SrsArm, SrsError};
-use crate::model::{load_robot_dir, load_scene_dir, ModelError, RobotLibrary, SceneJson};
+use crate::model::{load_robot_dir, load_scene_dir_lenient, ModelError, RobotLibrary, SceneJson};
 use crate::{Robot, Scene};
 
 use super::api::Source;
@@ -90,6 +90,8 @@ pub struct Catalog {
     grasp_dir: PathBuf,
     /// The built-in scenes' `meshes/` folder (objects of `kind: grasp_list` by name).
     meshes_dir: PathBuf,
+    /// Uploaded meshes, `<data-dir>/scenes/meshes` (an uploaded scene's `meshes/NAME`).
+    upload_meshes_dir: PathBuf,
     /// The shared store behind the caches (grids, grasp lists, roadmaps), with a shared store.
     tier: std::sync::OnceLock<Arc<dyn crate::cache_tier::CacheTier>>,
 }
@@ -187,8 +189,9 @@ fn check_urdf_size(urdf: &str) -> ApiResult<()> {
 }
 
 impl Catalog {
-    /// Loads built-in robots and scenes from `robots_dir` / `scenes_dir` (errors there are fatal)
-    /// and the uploaded ones under `data_dir` (a broken upload is skipped with a warning).
+    /// Loads built-in robots and scenes from `robots_dir` / `scenes_dir` (a robot that does not
+    /// load is fatal; a scene file that does not load is left out and logged, every one) and the
+    /// uploaded ones under `data_dir` (a broken upload is skipped with a warning).
     pub fn load(
         robots_dir: &Path,
         scenes_dir: &Path,
@@ -196,7 +199,8 @@ impl Catalog {
     ) -> Result<Catalog, ModelError> {
         let up_robots = data_dir.join("robots");
         let up_scenes = data_dir.join("scenes");
-        for d in [&up_robots, &up_scenes] {
+        let up_meshes = up_scenes.join("meshes");
+        for d in [&up_robots, &up_scenes, &up_meshes] {
             std::fs::create_dir_all(d).map_err(|e| ModelError::Io {
                 file: d.display().to_string(),
                 reason: e.to_string(),
@@ -244,8 +248,22 @@ impl Catalog {
             .collect();
         let mut scenes = BTreeMap::new();
         if scenes_dir.is_dir() {
-            for (name, s) in load_scene_dir(scenes_dir, &lib)? {
+            // A scene file that does not load is left out (each one named in the log); the
+            // others are served.
+            let (good, bad) = load_scene_dir_lenient(scenes_dir, &lib)?;
+            for (name, s) in good {
                 scenes.insert(name, Arc::new(SceneEntry::new(s, Source::Builtin)));
+            }
+            for (_, e) in &bad {
+                tracing::error!(error = %e, "scene not loaded");
+            }
+            if !bad.is_empty() {
+                let files: Vec<String> = bad.iter().map(|(f, _)| f.display().to_string()).collect();
+                tracing::error!(
+                    count = bad.len(),
+                    files = %files.join(", "),
+                    "scene files not loaded (the others are served)"
+                );
             }
         }
         if let Ok(rd) = std::fs::read_dir(&up_scenes) {
@@ -284,6 +302,7 @@ impl Catalog {
             ))),
             grasp_dir: data_dir.join("grasps"),
             meshes_dir: scenes_dir.join("meshes"),
+            upload_meshes_dir: up_meshes,
             tier: std::sync::OnceLock::new(),
         })
     }
@@ -347,22 +366,49 @@ impl Catalog {
 
     /// A robot by name, or 404 naming `field`.
     pub fn robot(&self, name: &str, field: &str) -> ApiResult<Arc<RobotEntry>> {
-        self.robots
+        let found = self
+            .robots
             .read()
             .unwrap_or_else(lock_err)
             .get(name)
-            .cloned()
-            .ok_or_else(|| ApiError::not_found(field, format!("unknown robot '{name}'")))
+            .cloned();
+        found.ok_or_else(|| {
+            ApiError::not_found(
+                field,
+                format!(
+                    "unknown robot '{name}' (known: {})",
+                    self.names(&self.robots)
+                ),
+            )
+        })
     }
 
     /// A scene by name, or 404 naming `field`.
     pub fn scene(&self, name: &str, field: &str) -> ApiResult<Arc<SceneEntry>> {
-        self.scenes
+        let found = self
+            .scenes
             .read()
             .unwrap_or_else(lock_err)
             .get(name)
-            .cloned()
-            .ok_or_else(|| ApiError::not_found(field, format!("unknown scene '{name}'")))
+            .cloned();
+        found.ok_or_else(|| {
+            ApiError::not_found(
+                field,
+                format!(
+                    "unknown scene '{name}' (known: {})",
+                    self.names(&self.scenes)
+                ),
+            )
+        })
+    }
+
+    /// The names of a map, comma-separated (for "unknown …" messages).
+    fn names<T>(&self, map: &RwLock<BTreeMap<String, T>>) -> String {
+        let m = map.read().unwrap_or_else(lock_err);
+        if m.is_empty() {
+            return "none".into();
+        }
+        m.keys().cloned().collect::<Vec<_>>().join(", ")
     }
 
     fn library(&self) -> RobotLibrary {
@@ -530,6 +576,25 @@ impl Catalog {
                 ));
             }
         }
+        for (list, bodies) in [("obstacles", &json.obstacles), ("objects", &json.objects)] {
+            for (i, b) in bodies.iter().enumerate() {
+                for (j, g) in b.shapes.iter().enumerate() {
+                    let Some(p) = &g.path else { continue };
+                    if !self.scenes_dir.join(p).is_file() {
+                        let hint = match mesh_upload_name(p) {
+                            Some(m) => format!("upload it first with PUT /v1/meshes/{m}"),
+                            None => "an uploaded scene names an uploaded mesh as 'meshes/NAME' \
+                                     (PUT /v1/meshes/NAME)"
+                                .to_string(),
+                        };
+                        return Err(ApiError::invalid(
+                            format!("{list}[{i}].shapes[{j}].path"),
+                            format!("no mesh '{p}' on the server; {hint}"),
+                        ));
+                    }
+                }
+            }
+        }
         let text =
             serde_json::to_string_pretty(&json).map_err(|e| ApiError::internal(e.to_string()))?;
         let scene = Scene::from_json(json, name, &self.scenes_dir, &lib)
@@ -575,4 +640,190 @@ fn check_urdf_meshes(urdf: &str) -> ApiResult<()> {
         }
     }
     Ok(())
+}
+
+/// Largest uploaded mesh file (bytes).
+pub const MAX_MESH_BYTES: usize = 16 << 20;
+/// Most triangles of an uploaded mesh.
+pub const MAX_MESH_TRIANGLES: usize = 200_000;
+
+/// An uploaded mesh as `GET /v1/meshes` lists it.
+#[derive(Debug, Clone, serde::Serialize, utoipa::ToSchema)]
+pub struct MeshSummary {
+    /// File name; an uploaded scene names it as `meshes/NAME` in a shape's `path`.
+    pub name: String,
+    pub bytes: u64,
+    /// Vertices and triangles as read (present in upload answers).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vertices: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub triangles: Option<usize>,
+    /// Whether it bounds a solid (closed, consistently oriented); else it is checked as its
+    /// convex hull (present in upload answers).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solid: Option<bool>,
+}
+
+/// The upload name of a scene shape path `meshes/NAME` (`./` parts ignored), else `None`.
+fn mesh_upload_name(path: &str) -> Option<String> {
+    let parts: Vec<&str> = Path::new(path)
+        .components()
+        .filter(|c| !matches!(c, std::path::Component::CurDir))
+        .map(|c| c.as_os_str().to_str())
+        .collect::<Option<_>>()?;
+    match parts.as_slice() {
+        ["meshes", name] => Some((*name).to_string()),
+        _ => None,
+    }
+}
+
+/// A mesh upload name: a file name ([`check_name`]) ending in `.stl`, `.obj` or `.dae`.
+pub fn check_mesh_name(name: &str) -> ApiResult<()> {
+    check_name(name, "mesh")?;
+    let ext = Path::new(name)
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    if !matches!(ext.as_deref(), Some("stl" | "obj" | "dae")) {
+        return Err(ApiError::invalid(
+            "name",
+            format!("mesh name '{name}' must end in .stl, .obj or .dae (the format)"),
+        ));
+    }
+    Ok(())
+}
+
+impl Catalog {
+    fn scenes_using_mesh(&self, name: &str) -> Vec<(String, Arc<SceneEntry>)> {
+        self.scenes()
+            .into_iter()
+            .filter(|(_, e)| {
+                e.source == Source::Uploaded
+                    && e.scene
+                        .json
+                        .obstacles
+                        .iter()
+                        .chain(&e.scene.json.objects)
+                        .flat_map(|b| &b.shapes)
+                        .filter_map(|g| g.path.as_deref())
+                        .any(|p| mesh_upload_name(p).as_deref() == Some(name))
+            })
+            .collect()
+    }
+
+    /// Validates and stores an uploaded mesh (STL, OBJ or COLLADA; CPU work: call it off the
+    /// async runtime): at most [`MAX_MESH_BYTES`] and [`MAX_MESH_TRIANGLES`], read without
+    /// following references to other files. Uploaded scenes using it must still validate.
+    /// Returns whether it was created (false: replaced) and its summary.
+    pub fn put_mesh(&self, name: &str, bytes: &[u8]) -> ApiResult<(bool, MeshSummary)> {
+        check_mesh_name(name)?;
+        if bytes.len() > MAX_MESH_BYTES {
+            return Err(ApiError::invalid(
+                "body",
+                format!(
+                    "{} bytes; a mesh may have at most {MAX_MESH_BYTES}",
+                    bytes.len()
+                ),
+            ));
+        }
+        let mesh = crate::geometry::Mesh::parse(bytes, name, [1.0; 3])
+            .map_err(|m| ApiError::invalid("body", m))?;
+        if mesh.triangles.is_empty() || mesh.triangles.len() > MAX_MESH_TRIANGLES {
+            return Err(ApiError::invalid(
+                "body",
+                format!(
+                    "mesh '{name}' has {} triangles; 1 to {MAX_MESH_TRIANGLES} are accepted",
+                    mesh.triangles.len()
+                ),
+            ));
+        }
+        let _w = self.write.lock().unwrap_or_else(lock_err);
+        let path = self.upload_meshes_dir.join(name);
+        let old = std::fs::read(&path).ok();
+        let tmp = self.upload_meshes_dir.join(format!(".{name}.tmp-upload"));
+        std::fs::write(&tmp, bytes)
+            .and_then(|_| std::fs::rename(&tmp, &path))
+            .map_err(|e| ApiError::internal(format!("writing {}: {e}", path.display())))?;
+        // Scenes using the mesh are rebuilt with the new one (or the old one is put back).
+        let lib = self.library();
+        let mut rescoped = Vec::new();
+        for (sname, entry) in self.scenes_using_mesh(name) {
+            match Scene::from_json(entry.scene.json.clone(), &sname, &self.scenes_dir, &lib) {
+                Ok(s) => rescoped.push((sname, SceneEntry::new(s, entry.source))),
+                Err(e) => {
+                    let _ = match &old {
+                        Some(b) => std::fs::write(&path, b),
+                        None => std::fs::remove_file(&path),
+                    };
+                    return Err(ApiError::conflict(format!(
+                        "scene '{sname}' uses mesh '{name}' and does not validate with the new one: {e}"
+                    )));
+                }
+            }
+        }
+        let mut scenes = self.scenes.write().unwrap_or_else(lock_err);
+        for (sname, e) in rescoped {
+            scenes.insert(sname, Arc::new(e));
+        }
+        Ok((
+            old.is_none(),
+            MeshSummary {
+                name: name.to_string(),
+                bytes: bytes.len() as u64,
+                vertices: Some(mesh.vertices.len()),
+                triangles: Some(mesh.triangles.len()),
+                solid: Some(mesh.solid.is_ok()),
+            },
+        ))
+    }
+
+    /// The uploaded meshes, by name.
+    pub fn meshes(&self) -> Vec<MeshSummary> {
+        let mut out: Vec<MeshSummary> = std::fs::read_dir(&self.upload_meshes_dir)
+            .map(|rd| {
+                rd.filter_map(|e| e.ok())
+                    .filter_map(|e| {
+                        let name = e.file_name().to_str()?.to_string();
+                        check_mesh_name(&name).ok()?;
+                        let meta = e.metadata().ok().filter(|m| m.is_file())?;
+                        Some(MeshSummary {
+                            name,
+                            bytes: meta.len(),
+                            vertices: None,
+                            triangles: None,
+                            solid: None,
+                        })
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        out.sort_by(|a, b| a.name.cmp(&b.name));
+        out
+    }
+
+    /// The bytes of an uploaded mesh (404 naming `name`).
+    pub fn mesh_bytes(&self, name: &str) -> ApiResult<Vec<u8>> {
+        check_mesh_name(name)?;
+        std::fs::read(self.upload_meshes_dir.join(name))
+            .map_err(|_| ApiError::not_found("name", format!("unknown mesh '{name}'")))
+    }
+
+    /// Deletes an uploaded mesh (409 while an uploaded scene uses it).
+    pub fn delete_mesh(&self, name: &str) -> ApiResult<()> {
+        check_mesh_name(name)?;
+        let _w = self.write.lock().unwrap_or_else(lock_err);
+        let path = self.upload_meshes_dir.join(name);
+        if !path.is_file() {
+            return Err(ApiError::not_found(
+                "name",
+                format!("unknown mesh '{name}'"),
+            ));
+        }
+        if let Some((s, _)) = self.scenes_using_mesh(name).into_iter().next() {
+            return Err(ApiError::conflict(format!(
+                "mesh '{name}' is used by scene '{s}'; delete the scene first"
+            )));
+        }
+        remove_file(&path)
+    }
 }

@@ -101,7 +101,7 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
     check_depth(bytes, MAX_DEPTH)?;
     let mut de = serde_json::Deserializer::from_slice(bytes);
     let mut value: serde_json::Value = serde_path_to_error::deserialize(&mut de).map_err(|e| {
-        let path = e.path().to_string();
+        let path = known_path(&e.path().to_string());
         classify(
             e.into_inner(),
             if path == "." { String::new() } else { path },
@@ -110,7 +110,7 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
     de.end().map_err(|e| classify(e, String::new()))?;
     integral_floats_to_integers(&mut value);
     serde_path_to_error::deserialize(value).map_err(|e| {
-        let path = e.path().to_string();
+        let path = known_path(&e.path().to_string());
         let inner = e.into_inner();
         classify(inner, if path == "." { String::new() } else { path })
     })
@@ -135,6 +135,18 @@ fn integral_floats_to_integers(v: &mut serde_json::Value) {
         Value::Object(o) => o.values_mut().for_each(integral_floats_to_integers),
         _ => {}
     }
+}
+
+/// The field path without the segments serde could not name (`?`, e.g. inside malformed JSON):
+/// `robots[0].?` → `robots[0]`, `?` and `.` → none.
+fn known_path(path: &str) -> String {
+    if path == "." {
+        return String::new();
+    }
+    path.split('.')
+        .take_while(|seg| *seg != "?" && !seg.starts_with("?["))
+        .collect::<Vec<_>>()
+        .join(".")
 }
 
 fn classify(e: serde_json::Error, path: String) -> ApiError {
@@ -233,6 +245,21 @@ mod tests {
         assert_eq!(e.field.as_deref(), Some("n"));
         let v: I = parse_json(br#"{"n": 1, "x": -0.0}"#).expect("zero");
         assert_eq!(v.x, 0.0);
+    }
+
+    #[test]
+    fn malformed_json_names_no_unknown_field() {
+        let e = parse_json::<T>(b"{\"a\": [{\"x\": 1}, {\"x\": ").unwrap_err();
+        assert_eq!(e.code, "malformed_json");
+        assert!(
+            !e.field.as_deref().unwrap_or("").contains('?'),
+            "{:?}",
+            e.field
+        );
+        let e = parse_json::<T>(b"{\"a\" 1}").unwrap_err();
+        assert_eq!(e.field, None);
+        assert_eq!(known_path("robots[0].?"), "robots[0]");
+        assert_eq!(known_path("?"), "");
     }
 
     #[test]

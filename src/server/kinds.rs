@@ -592,15 +592,26 @@ pub(super) fn check_hand(scene: &Scene, robot: &str, group: &str, field: &str) -
         .ok_or_else(|| {
             ApiError::invalid(
                 format!("{field}robot"),
-                format!("scene '{}' has no robot '{robot}'", scene.name),
+                format!(
+                    "scene '{}' has no robot '{robot}' (its robots: {})",
+                    scene.name,
+                    names(scene.robots.iter().map(|r| r.name.as_str()))
+                ),
             )
         })?;
     if p.robot.group(group).and_then(|g| g.chain).is_none() {
         return Err(ApiError::invalid(
             format!("{field}group"),
             format!(
-                "robot model '{}' has no chain group '{group}'",
-                p.robot.name
+                "robot model '{}' has no chain group '{group}' (its chain groups: {})",
+                p.robot.name,
+                names(
+                    p.robot
+                        .groups
+                        .iter()
+                        .filter(|g| g.chain.is_some())
+                        .map(|g| g.name.as_str())
+                )
             ),
         ));
     }
@@ -611,10 +622,24 @@ pub(super) fn check_object(scene: &Scene, object: &str) -> ApiResult<()> {
     if scene.object(object).is_none() {
         return Err(ApiError::invalid(
             "object",
-            format!("scene '{}' has no object '{object}'", scene.name),
+            format!(
+                "scene '{}' has no object '{object}' (its objects: {})",
+                scene.name,
+                names(scene.objects.iter().map(|o| o.body.name.as_str()))
+            ),
         ));
     }
     Ok(())
+}
+
+/// Names for a message: `a, b, c`, or `none`.
+pub(super) fn names<'a>(it: impl Iterator<Item = &'a str>) -> String {
+    let v: Vec<&str> = it.collect();
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(", ")
+    }
 }
 
 /// What a grasp job runs: a chained task of the planning library.
@@ -824,6 +849,9 @@ impl JobWork for GraspWork {
                 object,
                 algorithm,
             } => {
+                // An object out of reach fails here, before a grid is built.
+                crate::planning::task::precheck_reach(s, robot, group, object)
+                    .map_err(plan_failure)?;
                 let grid = match algorithm {
                     GraspAlgorithm::IkRrt => arm_grid_of(ctx, &w.grids, s, robot, group)?,
                     GraspAlgorithm::JPlusRrt => None,
@@ -844,6 +872,8 @@ impl JobWork for GraspWork {
             }
             GraspJob::Kitchen(t) => {
                 let mut t = t.clone();
+                crate::planning::task::precheck_reach(s, &t.robot, &t.first, &t.object)
+                    .map_err(plan_failure)?;
                 t.grids = (
                     arm_grid_of(ctx, &w.grids, s, &t.robot, &t.first)?,
                     arm_grid_of(ctx, &w.grids, s, &t.robot, &t.second)?,

@@ -22,6 +22,7 @@ pub mod grasp_lists;
 pub mod grasp_quality;
 pub mod jobs;
 pub mod kinds;
+pub mod meshes;
 pub mod metrics;
 pub mod multi_robot;
 pub mod openapi;
@@ -257,12 +258,19 @@ pub enum ServerError {
         addr: SocketAddr,
         source: std::io::Error,
     },
+    /// (Not a `source`: the message already holds it, and `{:#}` would print it twice.)
     #[error("loading models: {0}")]
-    Model(#[from] crate::model::ModelError),
+    Model(crate::model::ModelError),
     #[error(transparent)]
     Store(#[from] StoreError),
     #[error("server: {0}")]
     Io(#[from] std::io::Error),
+}
+
+impl From<crate::model::ModelError> for ServerError {
+    fn from(e: crate::model::ModelError) -> ServerError {
+        ServerError::Model(e)
+    }
 }
 
 /// State shared by all handlers.
@@ -468,6 +476,20 @@ pub fn router(state: Arc<AppState>) -> Router {
         )
         .route("/v1/robots/{name}/urdf", get(resources::get_robot_urdf))
         .route("/v1/scenes", get(resources::list_scenes))
+        .route(
+            "/v1/scenes/{name}/meshes/{list}/{index}/{shape}",
+            get(meshes::scene_mesh),
+        )
+        .route("/v1/meshes", get(meshes::list_meshes))
+        .route(
+            "/v1/meshes/{name}",
+            get(meshes::get_mesh)
+                .put(meshes::put_mesh)
+                .delete(meshes::delete_mesh)
+                // A mesh file may be larger than a JSON request (its own bound, checked again
+                // by the catalog).
+                .layer(DefaultBodyLimit::max(catalog::MAX_MESH_BYTES)),
+        )
         .route(
             "/v1/scenes/{name}",
             get(resources::get_scene)

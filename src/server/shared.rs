@@ -1,4 +1,4 @@
-//! Uploaded robots and scenes shared by the replicas of a shared job store (PostgreSQL).
+//! Uploaded robots, meshes and scenes shared by the replicas of a shared job store (PostgreSQL).
 //!
 //! An upload through any replica is validated there, kept in its catalog (and its data
 //! directory, as a local copy) and written to the store, which announces it; every other
@@ -70,8 +70,8 @@ impl crate::cache_tier::CacheTier for StoreTier {
     }
 }
 
-/// Kinds of shared resources, in the order they load (scenes name robots).
-pub const KINDS: [&str; 2] = ["robot", "scene"];
+/// Kinds of shared resources, in the order they load (scenes name robots and meshes).
+pub const KINDS: [&str; 3] = ["robot", "mesh", "scene"];
 
 /// What this replica has applied: (kind, name) → the upload's time.
 #[derive(Default)]
@@ -160,6 +160,11 @@ async fn apply(st: &Arc<AppState>, kind: &str, name: &str, r: Option<Resource>) 
                         })
                         .await?;
                 }
+                "mesh" => {
+                    st.pool
+                        .run_heavy(move || st2.catalog.put_mesh(&n, &body).map(|_| ()))
+                        .await?;
+                }
                 _ => {
                     let json: SceneJson = serde_json::from_slice(&body)
                         .map_err(|e| ApiError::internal(format!("stored scene '{n}': {e}")))?;
@@ -182,6 +187,7 @@ async fn apply(st: &Arc<AppState>, kind: &str, name: &str, r: Option<Resource>) 
                 .pool
                 .run(move || match k.as_str() {
                     "robot" => st2.catalog.delete_robot(&n),
+                    "mesh" => st2.catalog.delete_mesh(&n),
                     _ => st2.catalog.delete_scene(&n),
                 })
                 .await;

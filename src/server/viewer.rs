@@ -19,6 +19,11 @@ pub fn built() -> bool {
     !VIEWER_JS.is_empty()
 }
 
+/// Why the bundle is missing (empty when it was built).
+pub fn not_built_reason() -> &'static str {
+    VIEWER_STATUS
+}
+
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")

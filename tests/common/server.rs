@@ -1,5 +1,6 @@
 //! The real server on an ephemeral loopback port with the shipped robots and scenes, its data
-//! under a fresh temporary folder, and a JSON client for it.
+//! under a fresh folder of the target directory (removed with the harness), and a JSON client
+//! for it.
 
 use std::time::Duration;
 
@@ -11,20 +12,14 @@ pub struct Harness {
     pub server: Server,
     pub base: String,
     pub http: reqwest::Client,
+    /// The server's data folder (removed when the harness is dropped).
+    pub dir: super::tmp::TestDir,
 }
 
 /// Starts a server whose data folder is named after `name`.
 pub async fn start(name: &str) -> Harness {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos())
-        .unwrap_or(0);
-    let dir = std::env::temp_dir().join(format!(
-        "manyhands-test-{name}-{}-{nanos}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).expect("dir");
-    let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir);
+    let dir = super::tmp::TestDir::new(&format!("test-{name}"));
+    let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir.to_path_buf());
     cfg.robots_dir = super::root().join("robots");
     cfg.scenes_dir = super::root().join("scenes");
     cfg.workers = 2;
@@ -37,6 +32,7 @@ pub async fn start(name: &str) -> Harness {
             .timeout(Duration::from_secs(120))
             .build()
             .expect("client"),
+        dir,
     }
 }
 

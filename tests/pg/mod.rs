@@ -1,4 +1,5 @@
-//! A throwaway PostgreSQL cluster for a test: `initdb` in a temporary folder, a server on a
+//! A throwaway PostgreSQL cluster for a test: `initdb` in a folder of the test run (`crate::tmp`,
+//! `tests/common/tmp.rs`, which every test using this module declares), a server on a
 //! free loopback port, a fresh database `manyhands`; stopped and removed when dropped.
 //!
 //! The binaries come from `MANYHANDS_PG_BIN` (a folder), else `PATH`, else the newest
@@ -23,7 +24,7 @@ pub struct PgCluster {
     user: Option<String>,
 }
 
-const SKIP: &str = "SKIPPED (no PostgreSQL: install Debian's postgresql)";
+const WHY: &str = "no PostgreSQL: install Debian's postgresql";
 
 fn has_initdb(dir: &Path) -> bool {
     ["initdb", "pg_ctl", "postgres"]
@@ -100,11 +101,9 @@ impl PgCluster {
     pub fn start(test_name: &str) -> Option<PgCluster> {
         let Some(bin) = find_bin() else {
             if std::env::var("MANYHANDS_REQUIRE_POSTGRES").is_ok_and(|v| v == "1") {
-                panic!("{SKIP}: {test_name} (MANYHANDS_REQUIRE_POSTGRES=1)");
+                panic!("SKIPPED ({WHY}): {test_name} (MANYHANDS_REQUIRE_POSTGRES=1)");
             }
-            // Straight to the stderr handle: println!/eprintln! are captured by the harness.
-            let line = format!("{SKIP}: {test_name}\n");
-            let _ = std::io::Write::write_all(&mut std::io::stderr().lock(), line.as_bytes());
+            manyhands::skips::report(WHY);
             return None;
         };
         let user = is_root().then(|| {
@@ -120,7 +119,7 @@ impl PgCluster {
             .filter(|c| c.is_ascii_alphanumeric())
             .take(16)
             .collect();
-        let dir = std::env::temp_dir().join(format!(
+        let dir = crate::tmp::run_root().join(format!(
             "mh-pg-{short}-{}-{}",
             std::process::id(),
             CLUSTERS.fetch_add(1, Ordering::Relaxed)

@@ -9,7 +9,7 @@ import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import URDFLoader from 'urdf-loader';
 import { buildScene, poseMatrix } from './scene.js';
 import { timelineOfJob, phaseAt, UNTIMED_SPEED } from './timeline.js';
-import { drawPhase } from './phase.js';
+import { drawPhase, phasePairs } from './phase.js';
 
 const params = new URLSearchParams(window.location.search);
 const token = params.get('token');
@@ -54,8 +54,28 @@ async function api(path, as = 'json') {
 
 // ---- three.js setup -------------------------------------------------------------------------
 const canvas = document.getElementById('view');
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio || 1);
+/** Why this browser cannot draw WebGL (null when it can). */
+function noWebGl() {
+  try {
+    const c = document.createElement('canvas');
+    if (!(window.WebGL2RenderingContext && c.getContext('webgl2')) && !c.getContext('webgl')) {
+      return 'the browser offers no WebGL context';
+    }
+    return null;
+  } catch (e) {
+    return String(e.message || e);
+  }
+}
+let renderer = null;
+let webglProblem = noWebGl();
+if (!webglProblem) {
+  try {
+    renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    renderer.setPixelRatio(window.devicePixelRatio || 1);
+  } catch (e) {
+    webglProblem = String(e.message || e);
+  }
+}
 const scene3 = new THREE.Scene();
 scene3.background = new THREE.Color(0xf4f6f8);
 const camera = new THREE.PerspectiveCamera(45, 1, 0.02, 200);
@@ -212,7 +232,31 @@ function setTime(t) {
   world.updateMatrixWorld(true);
   slider.value = String(state.time);
   timeLabel.textContent = `${state.time.toFixed(2)} / ${state.duration.toFixed(2)} s`;
-  if (timeline.phase) drawPhase(phaseCanvas, timeline.phase, phaseAt(timeline.phase, state.time));
+  if (timeline.phase) drawPhase(phaseCanvas, timeline.phase, phaseAt(timeline.phase, state.time), phaseShown());
+}
+
+/** The robot pairs shown in the phase panel: all of them for two or three robots, else the pair chosen. */
+const phasePick = document.getElementById('phase-pair');
+function phaseShown() {
+  if (phasePick.hidden || phasePick.value === 'all') return null;
+  return [parseInt(phasePick.value, 10)];
+}
+function setupPhasePick(phase) {
+  const ps = phasePairs(phase.robots.length);
+  if (ps.length <= 3) return;
+  ps.forEach(([i, j], k) => {
+    const o = document.createElement('option');
+    o.value = String(k);
+    o.textContent = `φ ${phase.robots[i]} × φ ${phase.robots[j]}`;
+    phasePick.appendChild(o);
+  });
+  const all = document.createElement('option');
+  all.value = 'all';
+  all.textContent = `all ${ps.length} pairs`;
+  phasePick.appendChild(all);
+  phasePick.value = '0';
+  phasePick.hidden = false;
+  phasePick.addEventListener('change', () => setTime(state.time));
 }
 
 // ---- controls -------------------------------------------------------------------------------
@@ -312,18 +356,61 @@ function render(now) {
   controls.update();
   fadeOccluders();
   renderer.render(scene3, camera);
+  writeProbe();
   requestAnimationFrame(render);
 }
+
+/**
+ * Where the objects' centres and the end effectors' links are on the canvas (CSS pixels from
+ * its top left), as JSON in the hidden `#probe` element: tests read it beside a screenshot.
+ */
+const probeEl = document.getElementById('probe');
+function writeProbe() {
+  const w = canvas.clientWidth;
+  const h = canvas.clientHeight;
+  const px = (v) => {
+    const p = v.clone().project(camera);
+    return [Math.round(((p.x + 1) / 2) * w), Math.round(((1 - p.y) / 2) * h)];
+  };
+  const out = { canvas: [w, h], objects: {}, hands: {} };
+  for (const [name, g] of objects) {
+    const b = new THREE.Box3().setFromObject(g);
+    if (!b.isEmpty()) out.objects[name] = px(b.getCenter(new THREE.Vector3()));
+  }
+  for (const [rn, e] of robots) {
+    for (const [ee, linkName] of e.eeLink) {
+      const link = e.robot.links[linkName];
+      if (link) out.hands[`${rn}/${ee}`] = px(link.getWorldPosition(new THREE.Vector3()));
+    }
+  }
+  const text = JSON.stringify(out);
+  if (probeEl.textContent !== text) probeEl.textContent = text;
+}
+
+/** Job kinds whose result holds no motion, and what they answer instead. */
+const NOTHING_TO_DRAW = {
+  collision_sweep: 'collision counts of sampled configurations',
+  grasp_list: 'a grasp list (GET /v1/grasp-lists)',
+};
 
 async function listPlans() {
   const list = await api('/v1/plans');
   const ul = document.getElementById('plans');
   for (const j of (list.jobs || []).slice(0, 50)) {
     const li = document.createElement('li');
-    const a = document.createElement('a');
-    a.href = `?plan=${encodeURIComponent(j.id)}${token ? `&token=${encodeURIComponent(token)}` : ''}`;
-    a.textContent = `${j.id} — ${j.kind} (${j.state})`;
-    li.appendChild(a);
+    const label = `${j.id} — ${j.kind} (${j.state})`;
+    let why = null;
+    if (j.kind in NOTHING_TO_DRAW) why = `nothing to draw: answers ${NOTHING_TO_DRAW[j.kind]}`;
+    else if (j.state !== 'succeeded') why = j.state === 'queued' || j.state === 'running' ? 'no motion yet' : 'no motion';
+    if (why) {
+      li.textContent = `${label}: ${why}`;
+      li.className = 'nodraw';
+    } else {
+      const a = document.createElement('a');
+      a.href = `?plan=${encodeURIComponent(j.id)}${token ? `&token=${encodeURIComponent(token)}` : ''}`;
+      a.textContent = label;
+      li.appendChild(a);
+    }
     ul.appendChild(li);
   }
   document.getElementById('plan-list').hidden = false;
@@ -331,6 +418,19 @@ async function listPlans() {
 
 async function main() {
   const notes = [];
+  if (webglProblem) {
+    // Nothing can be drawn: say so (and still list the plans when none is given).
+    canvas.hidden = true;
+    setStatus(
+      `This browser cannot show the 3-D view: WebGL is not available (${webglProblem}). ` +
+        'Enable WebGL / hardware acceleration, or use another browser; the plans are also at /v1/plans.',
+      true,
+    );
+    if (!params.get('plan') && !params.get('scene')) await listPlans();
+    document.title = 'manyhands viewer: no WebGL';
+    state.ready = true;
+    return;
+  }
   const planId = params.get('plan');
   let job = null;
   let sceneName = params.get('scene');
@@ -348,11 +448,12 @@ async function main() {
     return;
   }
   const scene = await api(`/v1/scenes/${encodeURIComponent(sceneName)}`);
-  const built = buildScene(scene, world);
+  const built = buildScene(scene, world, sceneName, (path) => api(path, 'text'));
   objects = built.objects;
   obstacleGroups = built.obstacles;
-  notes.push(...built.notes);
   robots = await loadRobots(scene, notes);
+  await built.loaded;
+  notes.push(...built.notes);
   world.updateMatrixWorld(true);
   if (job) {
     timeline = timelineOfJob(job);
@@ -361,7 +462,10 @@ async function main() {
     slider.max = String(state.duration);
     computeSnapshots();
     placeMarks();
-    if (timeline.phase) phaseCanvas.hidden = false;
+    if (timeline.phase) {
+      setupPhasePick(timeline.phase);
+      phaseCanvas.hidden = false;
+    }
     document.getElementById('controls').hidden = false;
     const t0 = params.has('t') ? parseFloat(params.get('t')) : 0;
     setTime(Number.isFinite(t0) ? t0 : 0);

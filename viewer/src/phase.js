@@ -1,6 +1,7 @@
 // The phase-space path of a multi-robot schedule (paper 002 §V, Fig. 9): P = [0,1]^n, the
 // scheduler's path from (0,…,0) to (1,…,1) in green and the current phase as a red dot. Two
-// robots: one square; three or more: the projection on every pair of robots.
+// robots: one square; three or more: the projection on a pair of robots chosen in the page
+// (or on every pair).
 
 const PAD = 22;
 
@@ -40,10 +41,19 @@ function drawPanel(ctx, x0, y0, size, i, j, phase, current) {
   }
 }
 
-/** Draws the phase path of `phase` (`{robots, path}`) with `current` marked on `canvas`. */
-export function drawPhase(canvas, phase, current) {
+/** The robot pairs of an n-robot phase path, as `[i, j]` with i < j. */
+export function phasePairs(n) {
+  return pairs(n);
+}
+
+/**
+ * Draws the phase path of `phase` (`{robots, path}`) with `current` marked on `canvas`: one
+ * panel per pair of robots, or only the pairs in `shown` (indices into `phasePairs`).
+ */
+export function drawPhase(canvas, phase, current, shown = null) {
   const n = phase.robots.length;
-  const ps = pairs(n);
+  const all = pairs(n);
+  const ps = shown ? shown.map((k) => all[k]).filter(Boolean) : all;
   const size = 220;
   const w = size * ps.length;
   if (canvas.width !== w || canvas.height !== size) {

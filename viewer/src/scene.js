@@ -1,6 +1,9 @@
 // The scene's obstacles and objects as three.js meshes (z up, metres), from the scene JSON of
 // `GET /v1/scenes/{name}`: bodies with a pose and shapes (box, cylinder, sphere, capsule, mesh).
+// A mesh shape is fetched as the server loaded it (`GET /v1/scenes/{name}/meshes/{list}/{i}/{k}`,
+// OBJ text, scale applied) and read with three.js's OBJLoader.
 import * as THREE from 'three';
+import { OBJLoader } from 'three/examples/jsm/loaders/OBJLoader.js';
 
 /** A three.js matrix of a manyhands pose JSON (`position` + `rpy` (URDF fixed-axis X-Y-Z) or `quat_xyzw`). */
 export function poseMatrix(p) {
@@ -18,10 +21,32 @@ export function poseMatrix(p) {
   return m;
 }
 
+/** A group filled later with the mesh read from `url` (OBJ text), drawn in `material`. */
+function meshShape(url, material, ctx, where) {
+  const group = new THREE.Group();
+  ctx.pending.push(
+    ctx.fetchText(url).then(
+      (text) => {
+        const parsed = new OBJLoader().parse(text);
+        parsed.traverse((o) => {
+          if (!o.isMesh) return;
+          if (!o.geometry.getAttribute('normal')) o.geometry.computeVertexNormals();
+          o.material = material;
+        });
+        group.add(parsed);
+      },
+      (e) => ctx.notes.push(`${where}: mesh not drawn (${e.message || e})`),
+    ),
+  );
+  return group;
+}
+
 /** Mesh of one shape JSON, or null (with the reason pushed to `notes`) for what is not drawn. */
-function shapeMesh(g, material, notes, where) {
+function shapeMesh(g, material, ctx, where, url) {
+  const notes = ctx.notes;
   let geom;
   let alongZ = false;
+  let mesh;
   switch (g.type) {
     case 'box': {
       const h = g.half_extents;
@@ -39,11 +64,14 @@ function shapeMesh(g, material, notes, where) {
     case 'sphere':
       geom = new THREE.SphereGeometry(g.radius, 24, 16);
       break;
+    case 'mesh':
+      mesh = meshShape(url, material, ctx, where);
+      break;
     default:
       notes.push(`${where}: a ${g.type} shape is not drawn`);
       return null;
   }
-  const mesh = new THREE.Mesh(geom, material);
+  if (!mesh) mesh = new THREE.Mesh(geom, material);
   const local = poseMatrix(g.pose);
   if (alongZ) {
     // three.js cylinders and capsules run along y; manyhands' (like URDF's) along z.
@@ -54,38 +82,41 @@ function shapeMesh(g, material, notes, where) {
   return mesh;
 }
 
-function bodyGroup(body, material, notes, kind) {
+function bodyGroup(body, material, ctx, list, index) {
   const group = new THREE.Group();
   group.name = body.name;
   group.matrixAutoUpdate = false;
   group.matrix.copy(poseMatrix(body.pose));
   (body.shapes || []).forEach((g, i) => {
-    const m = shapeMesh(g, material, notes, `${kind} ${body.name} shape ${i}`);
+    const url = `/v1/scenes/${encodeURIComponent(ctx.sceneName)}/meshes/${list}/${index}/${i}`;
+    const m = shapeMesh(g, material, ctx, `${list} ${body.name} shape ${i}`, url);
     if (m) group.add(m);
   });
   return group;
 }
 
 /**
- * Adds the scene's bodies to `root`; returns `{objects: Map(name → group), obstacles: [group], notes}`. Objects
- * (graspable) are drawn in a warm colour, obstacles in grey.
+ * Adds the scene's bodies to `root`; returns `{objects: Map(name → group), obstacles: [group], notes,
+ * loaded}`. Objects (graspable) are drawn in a warm colour, obstacles in grey. Mesh shapes are
+ * fetched with `fetchText(url)`; `loaded` resolves when they are drawn (or noted as not drawn).
  */
-export function buildScene(scene, root) {
+export function buildScene(scene, root, sceneName, fetchText) {
   const notes = [];
+  const ctx = { notes, pending: [], sceneName, fetchText };
   const obstacleMat = new THREE.MeshStandardMaterial({ color: 0x9aa3ad, roughness: 0.9 });
   const objectMat = new THREE.MeshStandardMaterial({ color: 0xe0892b, roughness: 0.6 });
   const obstacles = [];
   for (const b of scene.obstacles || []) {
     // Own material per obstacle: the viewer fades the ones between the camera and the robots.
-    const g = bodyGroup(b, obstacleMat.clone(), notes, 'obstacle');
+    const g = bodyGroup(b, obstacleMat.clone(), ctx, 'obstacles', obstacles.length);
     root.add(g);
     obstacles.push(g);
   }
   const objects = new Map();
-  for (const b of scene.objects || []) {
-    const g = bodyGroup(b, objectMat, notes, 'object');
+  (scene.objects || []).forEach((b, i) => {
+    const g = bodyGroup(b, objectMat, ctx, 'objects', i);
     root.add(g);
     objects.set(b.name, g);
-  }
-  return { objects, obstacles, notes };
+  });
+  return { objects, obstacles, notes, loaded: Promise.all(ctx.pending) };
 }

@@ -145,12 +145,16 @@ export function timelineOfJob(job) {
     })
     .sort((a, b) => a.time - b.time || a.order - b.order);
 
+  // The phase path: under `result.schedule` (multi_robot plans) or at the top of the result
+  // (`schedule` jobs, whose `robots` are the names in phase order).
   let phase = null;
-  if (r.schedule && r.schedule.phase_path && (r.schedule.robots || []).length >= 2) {
+  const sched = r.schedule && r.schedule.phase_path ? r.schedule : r.phase_path ? r : null;
+  const phaseRobots = sched ? (sched.robots || []).map((x) => (typeof x === 'string' ? x : x.name)) : [];
+  if (sched && phaseRobots.length >= 2) {
     phase = {
-      robots: r.schedule.robots,
-      path: r.schedule.phase_path,
-      knots: (r.schedule.points || []).map((p) => ({ time: p.time_from_start, phase: p.phase })),
+      robots: phaseRobots,
+      path: sched.phase_path,
+      knots: (sched.points || []).map((p) => ({ time: p.time_from_start, phase: p.phase })),
     };
   }
   return { track, events: timedEvents, phase, timed, source };

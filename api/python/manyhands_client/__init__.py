@@ -95,6 +95,24 @@ class Client:
             raise ApiError(e.code, err.get("code", ""), err.get("message", ""), err.get("field"),
                            float(ra) if ra else None) from None
 
+    def _put_bytes(self, path: str, data: bytes) -> Any:
+        """PUT a raw body (``application/octet-stream``); the JSON answer."""
+        req = urllib.request.Request(self.base_url + path, data=data, method="PUT")
+        req.add_header("Content-Type", "application/octet-stream")
+        if self.token:
+            req.add_header("Authorization", f"Bearer {self.token}")
+        try:
+            with urllib.request.urlopen(req, timeout=self.timeout) as resp:
+                return json.loads(resp.read())
+        except urllib.error.HTTPError as e:
+            raw = e.read()
+            try:
+                err = json.loads(raw)["error"]
+            except (ValueError, KeyError, TypeError):
+                err = {"code": "http_error", "message": raw.decode(errors="replace"), "field": None}
+            raise ApiError(e.code, err.get("code", ""), err.get("message", ""), err.get("field"),
+                           None) from None
+
     def _get(self, path: str, **kw: Any) -> Any:
         return self._request("GET", path, **kw)[2]
 
@@ -138,6 +156,17 @@ class Client:
 
     def delete_scene(self, name: str) -> None:
         self._request("DELETE", f"/v1/scenes/{_segment(name)}")
+
+    def meshes(self) -> List[Json]:
+        return self._get("/v1/meshes")
+
+    def put_mesh(self, name: str, data: bytes) -> Json:
+        """PUT /v1/meshes/NAME: an STL, OBJ or COLLADA file (format by NAME's extension) that
+        uploaded scenes name as ``meshes/NAME``; answers its vertex and triangle counts."""
+        return self._put_bytes(f"/v1/meshes/{_segment(name)}", data)
+
+    def delete_mesh(self, name: str) -> None:
+        self._request("DELETE", f"/v1/meshes/{_segment(name)}")
 
     # -- queries ----------------------------------------------------------------------------
     def fk(self, robot: str, config: Optional[Dict[str, float]] = None, **kw: Any) -> Json:

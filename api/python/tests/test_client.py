@@ -211,6 +211,18 @@ class ClientTest(unittest.TestCase):
         scene["name"] = "kitchen_copy"
         self.assertEqual(self.c.put_scene("kitchen_copy", scene)["name"], "kitchen_copy")
         self.c.delete_scene("kitchen_copy")
+        # A mesh for uploaded scenes (a binary STL tetrahedron), listed, then deleted.
+        import struct
+        v = [(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)]
+        faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+        stl = b"\0" * 80 + struct.pack("<I", len(faces)) + b"".join(
+            struct.pack("<12f", 0, 0, 0, *v[a], *v[b], *v[c]) + b"\0\0" for a, b, c in faces)
+        self.assertEqual(self.c.put_mesh("tet.stl", stl)["triangles"], 4)
+        self.assertIn("tet.stl", [m["name"] for m in self.c.meshes()])
+        with self.assertRaises(ApiError) as e:
+            self.c.put_mesh("tet.txt", stl)
+        self.assertEqual((e.exception.status, e.exception.field), (422, "name"))
+        self.c.delete_mesh("tet.stl")
 
     def test_every_job_kind_is_accepted(self) -> None:
         self.assertEqual(sorted(r["kind"] for r in EVERY_KIND), sorted(JOB_KINDS))

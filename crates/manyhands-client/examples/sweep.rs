@@ -42,7 +42,9 @@ async fn main() -> Result<(), ClientError> {
         links: None,
     };
     match c.fk(&bad).await {
-        Err(e @ ClientError::Api { .. }) => println!("refused: {e} (field {:?})", e.field()),
+        Err(e @ ClientError::Api { .. }) => {
+            println!("refused: {e} (field {})", e.field().unwrap_or("none"))
+        }
         other => println!("unexpected: {other:?}"),
     }
     Ok(())
