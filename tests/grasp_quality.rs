@@ -457,7 +457,8 @@ fn object_centre_of_scene_shapes() {
     ];
     let (c, r) = object_centre(&shapes[..2]);
     assert!(c.norm() < 1e-12);
-    assert!((r - (1.0 + 0.75f64.sqrt())).abs() < 1e-12);
+    // The farthest surface point from the centre: a far corner (0.5, 0.5, 1.5).
+    assert!((r - 2.75f64.sqrt()).abs() < 1e-12, "{r}");
     let (c, _) = object_centre(&shapes[..1]);
     assert!((c - v(0.0, 0.0, 1.0)).norm() < 1e-12);
 }
@@ -533,7 +534,8 @@ fn scene_object_grasps_share_the_centre_and_lambda() {
     // A given centre moves the radius with it; a given λ is kept.
     let shifted =
         score_object_grasps(&obj, &obj.grasps[..1], Some(v(0.1, 0.0, 0.0)), &s).expect("scores");
-    assert!((shifted.radius - (0.1 + r)).abs() < 1e-12);
+    // The farthest corner from (0.1, 0, 0): (−0.5, ±0.5, ±0.5).
+    assert!((shifted.radius - 0.86f64.sqrt()).abs() < 1e-12, "{}", shifted.radius);
     assert_eq!(shifted.grasps.len(), 1);
     let fixed = WrenchSpaceSettings {
         lambda: Some(1.0),

@@ -86,6 +86,9 @@ pub fn openapi_json() -> String {
 /// Names of robots, scenes and grasp lists: 1–64 of `A-Z a-z 0-9 _ - .`, not starting with `.`
 /// (`catalog::check_name`).
 const NAME_PATTERN: &str = r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}$";
+/// [`NAME_PATTERN`] ending in `.stl`, `.obj` or `.dae` (any case).
+const MESH_NAME_PATTERN: &str =
+    r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,59}\.([Ss][Tt][Ll]|[Oo][Bb][Jj]|[Dd][Aa][Ee])$";
 
 /// Bounds of the query parameters the server enforces (`name`, minimum, maximum); a value
 /// outside is answered 400 or 422 naming the parameter.
@@ -147,6 +150,10 @@ fn document_common_answers(spec: &mut serde_json::Value) {
                     }
                     match (Some(place.as_str()), name.as_str()) {
                         // Names of robots, scenes and grasp lists (`catalog::check_name`).
+                        // Mesh uploads: a file name ending in its format (`catalog::check_mesh_name`).
+                        (Some("path"), "name") if path.starts_with("/v1/meshes/") => {
+                            schema["pattern"] = json!(MESH_NAME_PATTERN)
+                        }
                         (Some("path"), "name") => schema["pattern"] = json!(NAME_PATTERN),
                         (Some("path"), "id") if path.starts_with("/v1/grasp-lists") => {
                             schema["pattern"] = json!(NAME_PATTERN)
@@ -194,6 +201,12 @@ fn document_common_answers(spec: &mut serde_json::Value) {
             }
             if has_query {
                 add("400", "an unknown query parameter, or a malformed one");
+            }
+            if path.starts_with("/v1/meshes/") {
+                add(
+                    "422",
+                    "the mesh name is not 1-64 characters of A-Z a-z 0-9 _ - . ending in .stl, .obj or .dae",
+                );
             }
             if has_header {
                 add("400", "a malformed header parameter");
