@@ -535,7 +535,11 @@ fn scene_object_grasps_share_the_centre_and_lambda() {
     let shifted =
         score_object_grasps(&obj, &obj.grasps[..1], Some(v(0.1, 0.0, 0.0)), &s).expect("scores");
     // The farthest corner from (0.1, 0, 0): (−0.5, ±0.5, ±0.5).
-    assert!((shifted.radius - 0.86f64.sqrt()).abs() < 1e-12, "{}", shifted.radius);
+    assert!(
+        (shifted.radius - 0.86f64.sqrt()).abs() < 1e-12,
+        "{}",
+        shifted.radius
+    );
     assert_eq!(shifted.grasps.len(), 1);
     let fixed = WrenchSpaceSettings {
         lambda: Some(1.0),

@@ -181,6 +181,10 @@ impl LearnedGraph {
     }
 }
 
+/// A repaired stretch: the graph ids of its ends (`None`: the query's start or goal) and its
+/// configurations.
+type LearntStretch = ((Option<u32>, Option<u32>), Vec<Vec<f64>>);
+
 /// Lazy validity of a node or edge: unknown, valid or invalid in the query world.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Known {
@@ -209,7 +213,7 @@ pub fn query_super_graph(
 #[allow(clippy::too_many_arguments)]
 pub fn query_learning(
     sg: &SuperGraph,
-    mut learned: Option<&mut LearnedGraph>,
+    learned: Option<&mut LearnedGraph>,
     world: &CollisionWorld,
     start: &[f64],
     goal: &[f64],
@@ -404,7 +408,7 @@ pub fn query_learning(
                 )?;
                 let tr = Instant::now();
                 path.push(s.clone());
-                let mut learnt: Vec<((Option<u32>, Option<u32>), Vec<Vec<f64>>)> = Vec::new();
+                let mut learnt: Vec<LearntStretch> = Vec::new();
                 let graph_id = |i: u32| (i < n).then_some(i);
                 let mut i = 0;
                 while i + 1 < p.len() {
@@ -427,7 +431,7 @@ pub fn query_learning(
                     st.rrt_repairs += 1;
                     let r = rrt.plan(
                         &from,
-                        &[to.clone()],
+                        std::slice::from_ref(&to),
                         term,
                         seed.wrapping_add(st.rrt_repairs as u64),
                     )?;
@@ -447,7 +451,7 @@ pub fn query_learning(
                     learnt.push(((graph_id(p[i]), graph_id(p[j])), stretch));
                     i = j;
                 }
-                if let Some(l) = learned.as_deref_mut() {
+                if let Some(l) = learned {
                     // Ids of the usable graph only (a mismatched store starts over).
                     if l.nodes.len() != usable.nodes.len() {
                         *l = LearnedGraph::default();

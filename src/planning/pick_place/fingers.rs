@@ -40,8 +40,15 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use super::hands::{finger_preshape, fingers_of, with_fingers};
 use super::ArmHand;
 use crate::geometry::Pose;
-use crate::grasp::{GraspObject, SingleGrasp};
+use crate::grasp::{GraspList, GraspObject, SingleGrasp};
 use crate::kinematics::FkModel;
+
+/// A hand motion as hand-variable values, pre-shape first, grasp last.
+pub type FingerPath = Vec<Vec<f64>>;
+
+/// The grasps of a list a hand can close on ([`super::hands::closable`]): the list of them,
+/// their indices in the full list and each one's candidate closing motions.
+pub type Closable = (GraspList, Vec<usize>, Vec<Vec<FingerPath>>);
 
 /// Most distance evaluations of one certified finger motion.
 pub const MAX_EVALUATIONS: usize = 20_000;
@@ -309,7 +316,7 @@ pub fn approach(
             }
         }
         err = err.min((target - point(&out)).norm());
-        if !(err < back / 3.0) {
+        if err.is_nan() || err >= back / 3.0 {
             return None;
         }
     }

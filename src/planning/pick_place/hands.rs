@@ -88,7 +88,7 @@ pub(super) fn closable(
     rest: &[f64],
     fractions: &[f64],
     max: usize,
-) -> (GraspList, Vec<usize>, Vec<Vec<Vec<Vec<f64>>>>) {
+) -> super::fingers::Closable {
     use crate::collision::{CollisionChecker, CollisionWorld, ExactChecker};
     use rayon::prelude::*;
     let tol = list.params.contact_tolerance;

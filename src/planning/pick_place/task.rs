@@ -280,7 +280,7 @@ pub struct PickPlaceOffline {
 #[derive(Debug, Clone)]
 pub struct ClosingCache {
     pub fractions: Vec<f64>,
-    pub hands: [(GraspList, Vec<usize>, Vec<Vec<Vec<Vec<f64>>>>); 2],
+    pub hands: [super::fingers::Closable; 2],
 }
 
 /// Robot, obstacles and the object resting at its initial pose: the world of the task (its
