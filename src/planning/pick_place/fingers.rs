@@ -251,6 +251,14 @@ impl<'a> FingerCertificate<'a> {
         FingerVerdict::Certified
     }
 
+    /// The smallest exact distance of the hand's finger links from the object at `q`.
+    pub fn clearance(&self, q: &[f64]) -> f64 {
+        self.links
+            .iter()
+            .map(|lm| self.eval(lm, q).0)
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// True when every straight segment of `path` is certified.
     pub fn path_certified(&self, path: &[Vec<f64>]) -> bool {
         path.windows(2)
@@ -378,11 +386,11 @@ pub fn closing_motions(
             }
         }
     }
-    let mut out: Vec<Vec<Vec<f64>>> = Vec::new();
-    for j in (0..retreat.len()).rev() {
+    let mut out: Vec<(f64, Vec<Vec<f64>>)> = Vec::new();
+    'levels: for j in (0..retreat.len()).rev() {
         for p in &pres {
             if out.len() >= max {
-                return out;
+                break 'levels;
             }
             if cert.certify(p, &retreat[j]) != FingerVerdict::Certified {
                 continue;
@@ -390,10 +398,13 @@ pub fn closing_motions(
             let mut path = vec![fingers_of(ah, p)];
             path.extend(retreat[..=j].iter().rev().map(|r| fingers_of(ah, r)));
             path.dedup();
-            if !out.contains(&path) {
-                out.push(path);
+            if !out.iter().any(|(_, o)| o == &path) {
+                out.push((cert.clearance(p), path));
             }
         }
     }
-    out
+    // The pre-shape farthest from the object first: the arm's query ends there, and the
+    // planners' conservative model of the object needs room to prove it free.
+    out.sort_by(|a, b| b.0.total_cmp(&a.0));
+    out.into_iter().map(|(_, p)| p).collect()
 }
