@@ -12,11 +12,7 @@ use super::{ModelError, Robot, RobotLibrary, Scene};
 pub fn load_robot_dir(dir: &Path) -> Result<RobotLibrary, ModelError> {
     let mut lib = RobotLibrary::new();
     for p in sorted_files(dir, "urdf")? {
-        let stem = p
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("robot")
-            .to_string();
+        let stem = stem_of(&p, "robot");
         let srdf = p.with_extension("srdf");
         let robot = Robot::from_files(&p, srdf.is_file().then_some(srdf.as_path()))?;
         lib.insert(stem, Arc::new(robot));
@@ -24,21 +20,17 @@ pub fn load_robot_dir(dir: &Path) -> Result<RobotLibrary, ModelError> {
     Ok(lib)
 }
 
-/// Loads `dir/*.json` as scenes, keyed by file stem.
+/// Loads `dir/*.json` as scenes, keyed by file stem; the first file (in name order) that does
+/// not load is the error.
 pub fn load_scene_dir(
     dir: &Path,
     robots: &RobotLibrary,
 ) -> Result<BTreeMap<String, Scene>, ModelError> {
-    let mut out = BTreeMap::new();
-    for p in sorted_files(dir, "json")? {
-        let stem = p
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("scene")
-            .to_string();
-        out.insert(stem, Scene::from_file(&p, robots)?);
+    let (out, bad) = load_scene_dir_lenient(dir, robots)?;
+    match bad.into_iter().next() {
+        Some((_, e)) => Err(e),
+        None => Ok(out),
     }
-    Ok(out)
 }
 
 /// Loads `dir/*.json` as scenes, keyed by file stem, skipping the files that do not load: the
@@ -52,11 +44,7 @@ pub fn load_scene_dir_lenient(
     let mut out = BTreeMap::new();
     let mut bad = Vec::new();
     for p in sorted_files(dir, "json")? {
-        let stem = p
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("scene")
-            .to_string();
+        let stem = stem_of(&p, "scene");
         match Scene::from_file(&p, robots) {
             Ok(s) => {
                 out.insert(stem, s);
@@ -65,6 +53,14 @@ pub fn load_scene_dir_lenient(
         }
     }
     Ok((out, bad))
+}
+
+/// The file stem of `p` (the library key), `default` when it has none.
+fn stem_of(p: &Path, default: &str) -> String {
+    p.file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(default)
+        .to_string()
 }
 
 fn sorted_files(dir: &Path, ext: &str) -> Result<Vec<PathBuf>, ModelError> {

@@ -93,15 +93,21 @@ impl std::ops::Deref for TestDir {
 
 impl Drop for TestDir {
     fn drop(&mut self) {
-        if std::env::var("MANYHANDS_KEEP_TEST_DIRS").is_ok_and(|v| v == "1") {
-            return;
-        }
-        if std::thread::panicking() {
-            eprintln!("test files kept in {}", self.0.display());
-            return;
-        }
-        let _ = std::fs::remove_dir_all(&self.0);
+        remove_unless_kept(&self.0);
     }
+}
+
+/// Removes `dir`, unless `MANYHANDS_KEEP_TEST_DIRS=1` or the test is panicking (then it says
+/// where the files are).
+fn remove_unless_kept(dir: &Path) {
+    if std::env::var("MANYHANDS_KEEP_TEST_DIRS").is_ok_and(|v| v == "1") {
+        return;
+    }
+    if std::thread::panicking() {
+        eprintln!("test files kept in {}", dir.display());
+        return;
+    }
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// Removes a folder made elsewhere when dropped (as [`TestDir`] does its own).
@@ -116,13 +122,6 @@ impl Cleanup {
 
 impl Drop for Cleanup {
     fn drop(&mut self) {
-        if std::env::var("MANYHANDS_KEEP_TEST_DIRS").is_ok_and(|v| v == "1") {
-            return;
-        }
-        if std::thread::panicking() {
-            eprintln!("test files kept in {}", self.0.display());
-            return;
-        }
-        let _ = std::fs::remove_dir_all(&self.0);
+        remove_unless_kept(&self.0);
     }
 }
