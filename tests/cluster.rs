@@ -269,6 +269,59 @@ async fn two_replicas_share_one_queue_and_survive_a_kill() {
     assert_eq!(v["state"], "succeeded", "{v}");
     let (s, _) = c.get(b, "/v1/scenes/kitchen_copy").await;
     assert_eq!(s, StatusCode::OK);
+    // A mesh uploaded through one replica is usable at once by a scene uploaded through the
+    // other (a copy of the pick-and-place scene, whose statuette is that mesh).
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let mesh = std::fs::read(root.join("scenes/meshes/statuette.obj")).expect("statuette");
+    let r = c
+        .http
+        .put(format!("http://{}/v1/meshes/statuette_copy.obj", a.addr))
+        .header("content-type", "application/octet-stream")
+        .body(mesh)
+        .send()
+        .await
+        .expect("PUT mesh");
+    assert_eq!(r.status(), StatusCode::CREATED);
+    let mut pp: Value = serde_json::from_str(
+        &std::fs::read_to_string(root.join("scenes/pick_place.json")).expect("pick_place"),
+    )
+    .expect("json");
+    pp["name"] = json!("pick_place_copy");
+    for o in pp["objects"].as_array_mut().expect("objects") {
+        for g in o["shapes"].as_array_mut().expect("shapes") {
+            if g["path"] == "meshes/statuette.obj" {
+                g["path"] = json!("meshes/statuette_copy.obj");
+            }
+        }
+    }
+    let (s, v) = c
+        .call(
+            reqwest::Method::PUT,
+            b,
+            "/v1/scenes/pick_place_copy",
+            Some(&pp),
+        )
+        .await;
+    assert_eq!(s, StatusCode::CREATED, "{v}");
+    let (s, v) = c.get(b, "/v1/meshes").await;
+    assert_eq!(s, StatusCode::OK);
+    assert!(
+        v.as_array()
+            .is_some_and(|l| l.iter().any(|m| m["name"] == "statuette_copy.obj")),
+        "{v}"
+    );
+    let r = c
+        .http
+        .get(format!(
+            "http://{}/v1/scenes/pick_place_copy/meshes/objects/0/0",
+            b.addr
+        ))
+        .send()
+        .await
+        .expect("GET");
+    assert_eq!(r.status(), StatusCode::OK);
+    let obj = r.text().await.expect("obj");
+    assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 1312);
 
     const JOBS: usize = 500;
     const KILL_AT: usize = 200;

@@ -130,6 +130,64 @@ fn bad_limit_is_named() {
     assert!(e.to_string().contains("missing attribute velocity"), "{e}");
 }
 
+/// URDF `<visual>` elements are read into the links (origin, box/cylinder/sphere/mesh with
+/// scale, the mesh file located next to the URDF but not read), leniently: a visual that cannot
+/// be read, or whose mesh is missing, is kept with its reason and the robot loads. The collision
+/// model is the same as without the visuals.
+#[test]
+fn visual_elements_are_read_without_changing_collision() {
+    use manyhands::model::VisualGeometry;
+    let with = GOOD.replace(
+        "<link name=\"a\">",
+        "<link name=\"a\">\
+         <visual name=\"shell\"><origin xyz=\"0.1 0 0\" rpy=\"0 0 0.5\"/>\
+           <geometry><mesh filename=\"meshes/statuette.obj\" scale=\"2 2 2\"/></geometry></visual>\
+         <visual><geometry><cylinder radius=\"0.1\" length=\"0.4\"/></geometry></visual>\
+         <visual><geometry><mesh filename=\"package://nowhere/meshes/missing.dae\"/></geometry></visual>\
+         <visual><geometry><box size=\"1 x 1\"/></geometry></visual>\
+         <visual><geometry><teapot/></geometry></visual>",
+    );
+    let dir = root().join("scenes");
+    let plain = Robot::from_strings(GOOD, None, &dir).unwrap();
+    let r = Robot::from_strings(&with, None, &dir).unwrap();
+    assert_eq!(r.links[0].collision, plain.links[0].collision);
+    assert_eq!(r.disabled, plain.disabled);
+    assert!(plain.links.iter().all(|l| l.visual.is_empty()));
+    let v = &r.links[0].visual;
+    assert_eq!(v.len(), 5);
+    assert_eq!(v[0].name.as_deref(), Some("shell"));
+    assert!((v[0].origin.translation.vector.x - 0.1).abs() < 1e-12);
+    assert!((v[0].origin.rotation.angle() - 0.5).abs() < 1e-12);
+    match &v[0].geometry {
+        VisualGeometry::Mesh {
+            filename,
+            scale,
+            path,
+        } => {
+            assert_eq!(filename, "meshes/statuette.obj");
+            assert_eq!(*scale, [2.0; 3]);
+            assert_eq!(path.as_deref(), Some(dir.join("meshes/statuette.obj").as_path()));
+        }
+        g => panic!("{g:?}"),
+    }
+    assert_eq!(
+        v[1].geometry,
+        VisualGeometry::Cylinder {
+            radius: 0.1,
+            length: 0.4
+        }
+    );
+    assert!(matches!(&v[2].geometry, VisualGeometry::Mesh { path: None, .. }));
+    for (k, why) in [(3, "'x' is not a finite number"), (4, "unknown geometry 'teapot'")] {
+        match &v[k].geometry {
+            VisualGeometry::Invalid { reason } => {
+                assert!(reason.contains(why) && reason.contains("<visual>["), "{reason}")
+            }
+            g => panic!("visual {k}: {g:?}"),
+        }
+    }
+}
+
 #[test]
 fn unknown_mesh_is_named() {
     let e = urdf_err(&GOOD.replace(

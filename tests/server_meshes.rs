@@ -198,3 +198,105 @@ async fn hostile_mesh_uploads_are_refused() {
     assert_eq!(s, StatusCode::NOT_FOUND, "{e}");
     h.server.shutdown().await.expect("shutdown");
 }
+
+async fn get_text(h: &Harness, path: &str) -> (StatusCode, String) {
+    let r = h
+        .http
+        .get(format!("{}{path}", h.base))
+        .send()
+        .await
+        .expect("GET");
+    let s = r.status();
+    (s, r.text().await.unwrap_or_default())
+}
+
+/// An uploaded robot's visual geometry (URDF `<visual>`): listed by
+/// `GET /v1/robots/{name}/visuals` with a URL per mesh, its meshes served as OBJ text from the
+/// uploaded meshes it names as `meshes/NAME` and from nothing else; a visual that cannot be read
+/// or whose mesh the server lacks is listed with the reason and never stops the robot loading.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes() {
+    let h = start("visuals").await;
+    let (s, e) = put_bytes(&h, "/v1/meshes/tetra.stl", tetrahedron_stl()).await;
+    assert_eq!(s, StatusCode::CREATED, "{e}");
+    let urdf = r#"<robot name="vis">
+      <link name="base">
+        <visual><origin xyz="0 0 0.1" rpy="0 0 1.5707963267948966"/>
+          <geometry><box size="0.2 0.4 0.6"/></geometry></visual>
+        <visual><geometry><mesh filename="meshes/tetra.stl" scale="2 2 2"/></geometry></visual>
+        <visual><geometry><mesh filename="meshes/absent.stl"/></geometry></visual>
+        <visual><geometry><mesh filename="meshes/visual/link1.obj"/></geometry></visual>
+        <visual><geometry><sphere radius="-1"/></geometry></visual>
+        <collision><geometry><sphere radius="0.05"/></geometry></collision>
+      </link>
+      <link name="arm">
+        <visual><geometry><cylinder radius="0.03" length="0.5"/></geometry></visual>
+        <collision><geometry><cylinder radius="0.03" length="0.5"/></geometry></collision>
+      </link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+        <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+    </robot>"#;
+    let (s, e) = put_json(&h, "/v1/robots/vis", &json!({"urdf": urdf})).await;
+    assert_eq!(s, StatusCode::CREATED, "{e}");
+
+    let r = h
+        .http
+        .get(format!("{}/v1/robots/vis/visuals", h.base))
+        .send()
+        .await
+        .expect("GET");
+    assert_eq!(r.status(), StatusCode::OK);
+    let v: Value = r.json().await.expect("json");
+    let list = v["visuals"].as_array().expect("visuals");
+    assert_eq!(list.len(), 6, "{v}");
+    let item = |link: &str, i: u64| {
+        list.iter()
+            .find(|x| x["link"] == link && x["index"] == i)
+            .unwrap_or_else(|| panic!("no {link}/{i} in {v}"))
+    };
+    let b = item("base", 0);
+    assert_eq!(b["shape"]["type"], "box", "{b}");
+    assert_eq!(b["shape"]["half_extents"], json!([0.1, 0.2, 0.3]), "{b}");
+    assert_eq!(b["pose"]["position"], json!([0.0, 0.0, 0.1]), "{b}");
+    let q = b["pose"]["quat_xyzw"].as_array().expect("quat");
+    assert!((q[2].as_f64().unwrap_or(0.0) - 0.5f64.sqrt()).abs() < 1e-9, "{b}");
+    assert!(b.get("problem").is_none(), "{b}");
+    let m = item("base", 1);
+    assert_eq!(m["shape"]["type"], "mesh", "{m}");
+    assert!(m.get("problem").is_none(), "{m}");
+    let url = m["shape"]["url"].as_str().expect("url");
+    assert_eq!(url, "/v1/robots/vis/visuals/base/1");
+    for (i, why) in [(2, "absent.stl"), (3, "meshes/NAME"), (4, "radius must be > 0")] {
+        let x = item("base", i);
+        let p = x["problem"].as_str().unwrap_or("");
+        assert!(p.contains(why), "base/{i}: {x}");
+    }
+    assert_eq!(item("arm", 0)["shape"]["type"], "cylinder");
+
+    // The mesh as OBJ text: the tetrahedron's 4 corners (written once each), scale applied.
+    let (s, obj) = get_text(&h, url).await;
+    assert_eq!(s, StatusCode::OK, "{obj}");
+    let verts: Vec<&str> = obj.lines().filter(|l| l.starts_with("v ")).collect();
+    assert_eq!(verts.len(), 4, "{obj}");
+    assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 4);
+    assert!(verts.contains(&"v 0.2 0 0"), "{obj}");
+    // Nothing else is read: meshes the server lacks, non-mesh visuals, unknown links.
+    for (path, want) in [
+        ("/v1/robots/vis/visuals/base/2", StatusCode::NOT_FOUND),
+        ("/v1/robots/vis/visuals/base/3", StatusCode::NOT_FOUND),
+        ("/v1/robots/vis/visuals/base/0", StatusCode::NOT_FOUND),
+        ("/v1/robots/vis/visuals/base/9", StatusCode::NOT_FOUND),
+        ("/v1/robots/vis/visuals/base/x", StatusCode::NOT_FOUND),
+        ("/v1/robots/vis/visuals/nolink/0", StatusCode::NOT_FOUND),
+        ("/v1/robots/nobody/visuals", StatusCode::NOT_FOUND),
+    ] {
+        let (s, body) = get_text(&h, path).await;
+        assert_eq!(s, want, "{path}: {body}");
+        assert!(body.contains("\"field\""), "{path}: {body}");
+    }
+    // A visual path leaving the data folder is refused like a collision one.
+    let bad = urdf.replace("meshes/absent.stl", "../../etc/passwd.stl");
+    let (s, e) = put_json(&h, "/v1/robots/vis2", &json!({"urdf": bad})).await;
+    assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{e}");
+    h.server.shutdown().await.expect("shutdown");
+}

@@ -515,12 +515,36 @@ async fn without_webgl_the_page_says_so() {
     h.server.shutdown().await.expect("shutdown");
 }
 
-/// The four-Panda cell's `schedule` job: the page draws the four arms and the phase-space panel
-/// (one pair of robots chosen from the six), checked by the path's green in the panel's corner.
-/// Needs the MotionBenchMaker data (`manyhands data mbm`). Its Panda comes without its visual
-/// meshes, so the arms are drawn from their collision spheres.
+/// A robots folder holding the shipped robots and the benchmark Panda as `panda`, its URDF's
+/// visual meshes (`meshes/`) beside it, as links to the files.
+fn robots_with_panda(dir: &Path, data: &Path) -> PathBuf {
+    let robots = dir.join("robots");
+    std::fs::create_dir_all(&robots).expect("robots dir");
+    for e in std::fs::read_dir(common::root().join("robots")).expect("shipped robots") {
+        let e = e.expect("entry");
+        std::os::unix::fs::symlink(e.path(), robots.join(e.file_name())).expect("link");
+    }
+    let f = manyhands::planning::mbm_data::robot_files(data, "panda");
+    let from = f.urdf.parent().expect("panda folder");
+    for (src, dst) in [
+        (f.urdf.clone(), "panda.urdf"),
+        (f.srdf.clone(), "panda.srdf"),
+        (from.join("meshes"), "meshes"),
+    ] {
+        std::os::unix::fs::symlink(&src, robots.join(dst)).expect("link");
+    }
+    robots
+}
+
+/// The four-Panda cell's `schedule` job — READS THE MOTIONBENCHMAKER DATA (`manyhands data
+/// mbm`, or `../shared/benchmarks/mbm`; skipped without it, required by
+/// `MANYHANDS_REQUIRE_MBM`): the server loads the benchmark Panda as a built-in robot with its
+/// URDF's visual meshes beside it. The page draws the four arms with their visual meshes (every
+/// one loaded, in the arm's colour around each hand) and the phase-space panel (one pair of
+/// robots chosen from the six), checked by the path's green in the panel's corner; with
+/// `geometry=collision` it draws the arms' collision spheres instead (a different picture).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn panda_four_schedule_shows_its_phase_panel() {
+async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
     let Some(bin) = chromium() else {
         return skip("no chromium on PATH (MANYHANDS_CHROMIUM names one)");
     };
@@ -530,29 +554,48 @@ async fn panda_four_schedule_shows_its_phase_panel() {
     let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
         return;
     };
-    let h = common::server::start("viewer-panda").await;
-    let f = manyhands::planning::mbm_data::robot_files(&data, "panda");
-    let urdf = std::fs::read_to_string(&f.urdf).expect("urdf");
-    let srdf = std::fs::read_to_string(&f.srdf).expect("srdf");
-    for (path, body) in [
-        (
-            "/v1/robots/panda".to_string(),
-            json!({"urdf": urdf, "srdf": srdf}),
-        ),
-        (
-            "/v1/scenes/panda_four".to_string(),
-            serde_json::to_value(manyhands::model::panda_four("panda")).expect("json"),
-        ),
-    ] {
-        let r = h
-            .http
-            .put(format!("{}{path}", h.base))
-            .json(&body)
-            .send()
-            .await
-            .expect("PUT");
-        assert!(r.status().is_success(), "{path}: {}", r.status());
-    }
+    let dir = common::tmp::TestDir::new("viewer-panda");
+    let robots = robots_with_panda(&dir, &data);
+    let h = common::server::start_with_robots("viewer-panda", &robots).await;
+    let r = h
+        .http
+        .put(format!("{}/v1/scenes/panda_four", h.base))
+        .json(&serde_json::to_value(manyhands::model::panda_four("panda")).expect("json"))
+        .send()
+        .await
+        .expect("PUT");
+    assert!(r.status().is_success(), "{}", r.status());
+
+    // The Panda's visual geometry: eleven meshes, all on the server, served as OBJ text.
+    let visuals: serde_json::Value = h
+        .http
+        .get(format!("{}/v1/robots/panda/visuals", h.base))
+        .send()
+        .await
+        .expect("GET")
+        .json()
+        .await
+        .expect("json");
+    let list = visuals["visuals"].as_array().expect("visuals");
+    assert_eq!(list.len(), 11, "{visuals}");
+    assert!(
+        list.iter()
+            .all(|v| v["shape"]["type"] == "mesh" && v.get("problem").is_none()),
+        "{visuals}"
+    );
+    let r = h
+        .http
+        .get(format!("{}/v1/robots/panda/visuals/panda_link1/0", h.base))
+        .send()
+        .await
+        .expect("GET");
+    assert_eq!(r.status(), 200);
+    let obj = r.text().await.expect("text");
+    let faces = obj.lines().filter(|l| l.starts_with("f ")).count();
+    let verts = obj.lines().filter(|l| l.starts_with("v ")).count();
+    assert_eq!(faces, 12516, "the file's triangles");
+    assert!(verts < faces, "{verts} vertices for {faces} triangles");
+
     let scene = serde_json::to_value(manyhands::model::panda_four("panda")).expect("json");
     let mut trajectories = Vec::new();
     for r in scene["robots"].as_array().expect("robots") {
@@ -574,20 +617,40 @@ async fn panda_four_schedule_shows_its_phase_panel() {
     let id = job["id"].as_str().expect("id").to_string();
     let duration = job["result"]["duration"].as_f64().expect("duration");
 
-    let dir = common::tmp::TestDir::new("viewer-panda");
     let base = h.base.clone();
     let dir2 = dir.to_path_buf();
-    let (dom, (px, w)) = tokio::task::spawn_blocking(move || {
-        dom_and_shot(
+    let ((dom, (px, w)), (cpx, _)) = tokio::task::spawn_blocking(move || {
+        let url = format!("{base}/viewer?plan={id}&t={}", 0.5 * duration);
+        let visual = dom_and_shot(&bin, &dir2.join("visual"), &url, &[]);
+        let cdir = dir2.join("collision");
+        std::fs::create_dir_all(&cdir).expect("dir");
+        let file = cdir.join("shot.png");
+        browse(
             &bin,
-            &dir2,
-            &format!("{base}/viewer?plan={id}&t={}", 0.5 * duration),
-            &[],
-        )
+            &cdir.join("profile"),
+            &format!("{url}&geometry=collision"),
+            &[format!("--screenshot={}", file.display())],
+        );
+        (visual, read_png(&file))
     })
     .await
     .expect("browser task");
     assert_ready(&dom, "panda_four schedule");
+    let status = element_text(&dom, "status").unwrap_or("");
+    assert!(!status.contains("not drawn"), "{status}");
+    let p = probe(&dom);
+    eprintln!("probe: {p}");
+    assert_eq!(p["geometry"], "visual", "{p}");
+    assert_eq!(p["visuals"]["drawn"], 44, "four arms of eleven visual meshes: {p}");
+    assert_eq!(p["visuals"]["failed"], 0, "{p}");
+    let toggle = dom
+        .find("id=\"geometry-box\"")
+        .map(|i| &dom[i..i + dom[i..].find('>').unwrap_or(0)])
+        .unwrap_or("");
+    assert!(
+        !toggle.is_empty() && !toggle.contains(" hidden"),
+        "no geometry toggle for robots with visual geometry: {toggle:?}"
+    );
     assert!(
         !dom.contains("<canvas id=\"phase\" hidden"),
         "the phase-space panel is hidden for a schedule job"
@@ -598,7 +661,6 @@ async fn panda_four_schedule_shows_its_phase_panel() {
         ),
         "no robot-pair choice for four robots"
     );
-    let rows = px.len() / w;
     // The panel (220 px square under the pair choice) in the top right corner.
     let in_panel = |i: usize| i % w + 250 >= w && i / w < 280;
     let path_green = |p: &[u8; 3]| {
@@ -621,17 +683,45 @@ async fn panda_four_schedule_shows_its_phase_panel() {
         red > 10,
         "no current-phase marker in the panel ({red} pixels)"
     );
-    // The four arms: each scene robot in its own palette colour, away from the panel.
-    let canvas = w * (rows - 80);
-    let blue = |p: &[u8; 3]| p[2] as i32 > p[0] as i32 + 40 && p[2] as i32 > p[1] as i32 + 15;
-    let arms = px[..canvas]
+    // Each arm is drawn in its palette colour (blue, green, purple, red: the four scene
+    // robots) around its hand: the hand's visual mesh and the wrist's.
+    let h_canvas = canvas_rows(&px, w);
+    let palette: [fn(&[u8; 3]) -> bool; 4] = [
+        |p| p[2] as i32 > p[0] as i32 + 40 && p[2] as i32 > p[1] as i32 + 15,
+        |p| p[1] as i32 > p[0] as i32 + 30 && p[1] as i32 > p[2] as i32 + 20,
+        |p| p[0] as i32 > p[1] as i32 + 30 && p[2] as i32 > p[1] as i32 + 30,
+        |p| p[0] as i32 > p[1] as i32 + 50 && p[0] as i32 > p[2] as i32 + 50,
+    ];
+    let names: Vec<String> = scene["robots"]
+        .as_array()
+        .expect("robots")
         .iter()
+        .map(|r| r["name"].as_str().expect("name").to_string())
+        .collect();
+    for (k, name) in names.iter().enumerate() {
+        let at = on_shot(&p, point(&p["hands"][format!("{name}/hand")]), w, h_canvas);
+        let n = count_near(&px[..w * h_canvas], w, at, 40.0, palette[k]);
+        eprintln!("{name}: {n} pixels of its colour around its hand at {at:?}");
+        assert!(n > 100, "{name}: its hand is not drawn at {at:?} ({n} pixels)");
+    }
+    // The collision geometry instead: the same arms, drawn differently.
+    let canvas = w * h_canvas;
+    let arm = |q: &[u8; 3]| palette.iter().any(|f| f(q));
+    let (va, ca) = (
+        px[..canvas].iter().filter(|q| arm(q)).count(),
+        cpx[..canvas].iter().filter(|q| arm(q)).count(),
+    );
+    let changed = px[..canvas]
+        .iter()
+        .zip(&cpx[..canvas])
         .enumerate()
-        .filter(|(i, p)| !in_panel(*i) && blue(p))
+        .filter(|(i, (a, b))| !in_panel(*i) && a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 40))
         .count();
+    eprintln!("arm pixels: {va} visual, {ca} collision; {changed} pixels changed");
+    assert!(ca * 2 > va, "the collision view barely draws the arms ({ca} vs {va})");
     assert!(
-        arms * 400 > canvas,
-        "the first arm is barely drawn ({arms} pixels)"
+        changed * 10 > va,
+        "the collision geometry looks like the visual meshes ({changed} of {va} pixels changed)"
     );
     h.server.shutdown().await.expect("shutdown");
 }

@@ -22,7 +22,7 @@ pub use joint_limits::{parse_joint_limits, VarDynamics};
 pub use library::{data_root, load_robot_dir, load_scene_dir, load_scene_dir_lenient};
 pub use robot::{
     AlwaysColliding, EndEffector, Group, GroupMember, GroupState, Joint, JointKind, Limits, Link,
-    Mimic, Robot, RobotLibrary,
+    Mimic, Robot, RobotLibrary, Visual, VisualGeometry,
 };
 pub use scene::{
     Body, BodyJson, ContactPoint, GeometryJson, Grasp, GraspJson, GraspType, Object,

@@ -133,13 +133,49 @@ impl Joint {
     }
 }
 
-/// A link with its collision geometry (visual geometry is ignored).
+/// A link with its collision geometry and its visual geometry.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Link {
     pub name: String,
     /// Index of the joint whose child this link is (`None` for the root).
     pub parent_joint: Option<usize>,
     pub collision: Vec<Geometry>,
+    /// The URDF's `<visual>` elements, in file order: what a viewer draws. Never used for
+    /// collision checking, and never a reason for the robot not to load.
+    pub visual: Vec<Visual>,
+}
+
+/// One URDF `<visual>` element of a link (URDF spec: `link/visual`): its pose in the link
+/// frame and its geometry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Visual {
+    /// `<visual name>`, if given.
+    pub name: Option<String>,
+    /// Pose of the geometry in the link frame (`<origin>`).
+    pub origin: Pose,
+    pub geometry: VisualGeometry,
+}
+
+/// The geometry of a [`Visual`]. Mesh files are not read at load (a viewer fetches them when
+/// it draws them), so a missing or unreadable visual mesh never stops a robot from loading.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VisualGeometry {
+    /// Full edge lengths (URDF `size`).
+    Box { size: [f64; 3] },
+    /// Along the geometry's z axis, centred.
+    Cylinder { radius: f64, length: f64 },
+    Capsule { radius: f64, length: f64 },
+    Sphere { radius: f64 },
+    Mesh {
+        /// The `filename` attribute as written.
+        filename: String,
+        scale: [f64; 3],
+        /// The file it names, resolved against the URDF's folder at load (`None`: no such
+        /// file there).
+        path: Option<std::path::PathBuf>,
+    },
+    /// A `<visual>` that could not be read, and why (the robot loads without it).
+    Invalid { reason: String },
 }
 
 /// One element of an SRDF group definition, as written.

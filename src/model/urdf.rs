@@ -1,4 +1,8 @@
-//! URDF reader (links, joints, limits, mimic, collision geometry). Visual geometry is ignored.
+//! URDF reader (links, joints, limits, mimic, collision geometry, visual geometry). Visual
+//! elements are read leniently: one that cannot be read is kept as [`VisualGeometry::Invalid`]
+//! with its reason and never stops the robot from loading, and visual mesh files are only
+//! located here (a viewer reads them), so collision behaviour is that of the collision elements
+//! alone.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -7,7 +11,7 @@ use std::sync::Arc;
 use nalgebra::{Unit, Vector3};
 use roxmltree::{Document, Node};
 
-use super::robot::{Joint, JointKind, Limits, Link, Mimic, Robot};
+use super::robot::{Joint, JointKind, Limits, Link, Mimic, Robot, Visual, VisualGeometry};
 use super::ModelError;
 use crate::geometry::{iso_from_rpy, Geometry, Mesh, Pose, Shape};
 
@@ -289,10 +293,105 @@ fn parse_link(ctx: &Ctx, node: Node) -> Result<Link, ModelError> {
         let shape = parse_geometry(ctx, &format!("{cel}/<geometry>"), g)?;
         collision.push(Geometry { origin, shape });
     }
+    let visual = node
+        .children()
+        .filter(|c| c.is_element() && c.tag_name().name() == "visual")
+        .enumerate()
+        .map(|(i, v)| parse_visual(ctx, &format!("{el}/<visual>[{i}]"), v))
+        .collect();
     Ok(Link {
         name,
         parent_joint: None,
         collision,
+        visual,
+    })
+}
+
+/// A `<visual>` element (origin and geometry: box, cylinder, capsule, sphere or mesh with
+/// scale). What cannot be read becomes [`VisualGeometry::Invalid`] with the reason; a mesh file
+/// is located (as collision meshes are) but not read.
+fn parse_visual(ctx: &Ctx, el: &str, v: Node) -> Visual {
+    let name = v.attribute("name").map(str::to_string);
+    let origin = match parse_origin(ctx, el, v) {
+        Ok(o) => o,
+        Err(e) => {
+            return Visual {
+                name,
+                origin: Pose::identity(),
+                geometry: VisualGeometry::Invalid {
+                    reason: e.to_string(),
+                },
+            }
+        }
+    };
+    let geometry = parse_visual_geometry(ctx, el, v).unwrap_or_else(|e| VisualGeometry::Invalid {
+        reason: e.to_string(),
+    });
+    Visual {
+        name,
+        origin,
+        geometry,
+    }
+}
+
+fn parse_visual_geometry(ctx: &Ctx, el: &str, v: Node) -> Result<VisualGeometry, ModelError> {
+    let g = child(v, "geometry").ok_or_else(|| ctx.err(el, "missing <geometry>"))?;
+    let gel = format!("{el}/<geometry>");
+    let s = g
+        .children()
+        .find(|c| c.is_element())
+        .ok_or_else(|| ctx.err(&gel, "empty <geometry>"))?;
+    let sel = format!("{gel}/<{}>", s.tag_name().name());
+    let req = |name: &str| -> Result<f64, ModelError> {
+        let x = attr_f64(ctx, &sel, s, name)?
+            .ok_or_else(|| ctx.err(&sel, format!("missing attribute {name}")))?;
+        if x <= 0.0 {
+            return Err(ctx.err(&sel, format!("{name} must be > 0, got {x}")));
+        }
+        Ok(x)
+    };
+    Ok(match s.tag_name().name() {
+        "box" => {
+            let size = parse_vec3(ctx, &sel, s, "size")?
+                .ok_or_else(|| ctx.err(&sel, "missing attribute size"))?;
+            if size.iter().any(|&x| x <= 0.0) {
+                return Err(ctx.err(&sel, "size components must be > 0"));
+            }
+            VisualGeometry::Box { size }
+        }
+        "cylinder" => VisualGeometry::Cylinder {
+            radius: req("radius")?,
+            length: req("length")?,
+        },
+        "capsule" => VisualGeometry::Capsule {
+            radius: req("radius")?,
+            length: req("length")?,
+        },
+        "sphere" => VisualGeometry::Sphere {
+            radius: req("radius")?,
+        },
+        "mesh" => {
+            let filename = s
+                .attribute("filename")
+                .ok_or_else(|| ctx.err(&sel, "missing attribute filename"))?
+                .to_string();
+            let scale = parse_vec3(ctx, &sel, s, "scale")?.unwrap_or([1.0; 3]);
+            if scale.iter().any(|&x| x == 0.0) {
+                return Err(ctx.err(&sel, "scale components must not be 0"));
+            }
+            let path = resolve_mesh(ctx.base_dir, &filename);
+            VisualGeometry::Mesh {
+                filename,
+                scale,
+                path,
+            }
+        }
+        other => {
+            return Err(ctx.err(
+                &sel,
+                format!("unknown geometry '{other}' (box, cylinder, sphere, capsule, mesh)"),
+            ))
+        }
     })
 }
 

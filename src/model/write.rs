@@ -1,4 +1,5 @@
-//! Writing a `Robot` back as URDF and SRDF text (collision geometry only; visuals were never read).
+//! Writing a `Robot` back as URDF and SRDF text (collision geometry only; the visual elements
+//! are not written, their mesh paths being relative to the folder the URDF was read from).
 //! Reading the output gives the same model: see the round-trip tests.
 
 use std::fmt::Write;

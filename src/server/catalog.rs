@@ -665,7 +665,7 @@ pub struct MeshSummary {
 }
 
 /// The upload name of a scene shape path `meshes/NAME` (`./` parts ignored), else `None`.
-fn mesh_upload_name(path: &str) -> Option<String> {
+pub(super) fn mesh_upload_name(path: &str) -> Option<String> {
     let parts: Vec<&str> = Path::new(path)
         .components()
         .filter(|c| !matches!(c, std::path::Component::CurDir))

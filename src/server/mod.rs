@@ -475,6 +475,11 @@ pub fn router(state: Arc<AppState>) -> Router {
                 .delete(resources::delete_robot),
         )
         .route("/v1/robots/{name}/urdf", get(resources::get_robot_urdf))
+        .route("/v1/robots/{name}/visuals", get(meshes::robot_visuals))
+        .route(
+            "/v1/robots/{name}/visuals/{link}/{index}",
+            get(meshes::robot_visual_mesh),
+        )
         .route("/v1/scenes", get(resources::list_scenes))
         .route(
             "/v1/scenes/{name}/meshes/{list}/{index}/{shape}",

@@ -217,13 +217,31 @@ pub async fn put_scene(
     Path(name): Path<String>,
     ApiJson(body): ApiJson<SceneJson>,
 ) -> ApiResult<Response> {
-    let st2 = st.clone();
-    let n = name.clone();
     let stored = serde_json::to_vec(&body).map_err(|e| ApiError::internal(e.to_string()))?;
-    let created = st
-        .pool
-        .run_heavy(move || st2.catalog.put_scene(&n, body))
-        .await?;
+    let put = |st: Arc<AppState>, body: SceneJson| {
+        let n = name.clone();
+        async move {
+            let st2 = st.clone();
+            st.pool
+                .run_heavy(move || st2.catalog.put_scene(&n, body))
+                .await
+        }
+    };
+    // With a shared store, a robot or mesh uploaded through another replica whose notice has
+    // not arrived yet: load the shared uploads and try once more.
+    let again = (st.jobs.store().backend() != "embedded").then(|| body.clone());
+    let created = match (put(st.clone(), body).await, again) {
+        (Err(e), Some(body))
+            if matches!(
+                e.status,
+                StatusCode::NOT_FOUND | StatusCode::UNPROCESSABLE_ENTITY
+            ) =>
+        {
+            super::shared::sync_all(&st).await?;
+            put(st.clone(), body).await?
+        }
+        (r, _) => r?,
+    };
     super::shared::publish(&st, "scene", &name, stored).await?;
     let e = st.catalog.scene(&name, "name")?;
     tracing::info!(scene = %name, created, "scene uploaded");

@@ -1,9 +1,11 @@
 //! The 3-D plan viewer at `/viewer` (and `/viewer?plan=ID`): a page and its script, built from
 //! `viewer/` (three.js + urdf-loader) by `build.rs` and embedded in the binary. The page reads
 //! everything through the public API — `GET /v1/plans/{id}`, `GET /v1/scenes/{name}`,
-//! `GET /v1/robots/{name}` and `GET /v1/robots/{name}/urdf` — so it shows exactly what a client
-//! sees. Both routes are static and hold no data, so they are open on a server with `--token`
-//! (the page sends the token given as `?token=` to the API calls).
+//! `GET /v1/robots/{name}`, `GET /v1/robots/{name}/urdf` (the collision model),
+//! `GET /v1/robots/{name}/visuals` (the visual geometry, its meshes as OBJ text) and the scenes'
+//! mesh shapes — so it shows exactly what a client sees. Both routes are static and hold no
+//! data, so they are open on a server with `--token` (the page sends the token given as
+//! `?token=` to the API calls).
 
 use axum::http::{header, StatusCode};
 use axum::response::{Html, IntoResponse, Response};

@@ -18,9 +18,14 @@ pub struct Harness {
 
 /// Starts a server whose data folder is named after `name`.
 pub async fn start(name: &str) -> Harness {
+    start_with_robots(name, &super::root().join("robots")).await
+}
+
+/// [`start`] with the built-in robots of `robots_dir` instead of the shipped ones.
+pub async fn start_with_robots(name: &str, robots_dir: &std::path::Path) -> Harness {
     let dir = super::tmp::TestDir::new(&format!("test-{name}"));
     let mut cfg = Config::new("127.0.0.1:0".parse().expect("addr"), dir.to_path_buf());
-    cfg.robots_dir = super::root().join("robots");
+    cfg.robots_dir = robots_dir.to_path_buf();
     cfg.scenes_dir = super::root().join("scenes");
     cfg.workers = 2;
     cfg.query_threads = 2;

@@ -3,17 +3,27 @@
 // marks, held objects moving with the hand, and for multi-robot plans the phase-space path.
 //
 // URL parameters: `plan` (job id), `t` (start at this time, paused), `play=1` (start playing),
-// `token` (bearer token of a server started with --token), `scene` (show a scene without a plan).
+// `token` (bearer token of a server started with --token), `scene` (show a scene without a plan),
+// `geometry=collision` (draw the robots' collision geometry instead of their visual geometry).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import URDFLoader from 'urdf-loader';
 import { buildScene, poseMatrix } from './scene.js';
 import { timelineOfJob, phaseAt, UNTIMED_SPEED } from './timeline.js';
 import { drawPhase, phasePairs } from './phase.js';
+import { addVisuals, setGeometryMode } from './visuals.js';
 
 const params = new URLSearchParams(window.location.search);
 const token = params.get('token');
-const state = { ready: false, errors: [], time: 0, duration: 0, plan: params.get('plan') };
+const state = {
+  ready: false,
+  errors: [],
+  time: 0,
+  duration: 0,
+  plan: params.get('plan'),
+  geometry: 'visual',
+  visuals: { drawn: 0, failed: 0 },
+};
 window.__manyhandsViewer = state;
 
 // Console errors and uncaught exceptions are collected in `#errors` (tests read the page's DOM).
@@ -103,7 +113,12 @@ function resize() {
 
 const PALETTE = [0x3b6fb6, 0x3f9b5a, 0x8a4fb0, 0xb84a4a, 0x2a9aa0, 0x7a7a2a];
 
-/** Loads each robot of the scene from its URDF; returns Map(scene robot name → entry). */
+/**
+ * Loads each robot of the scene: its collision model from its URDF (urdf-loader) and its visual
+ * geometry (`GET /v1/robots/{name}/visuals`, see visuals.js); returns Map(scene robot name → entry).
+ * Links are drawn with their visual geometry when it exists and loaded, else with their
+ * collision geometry (and the page says which meshes could not be drawn).
+ */
 async function loadRobots(scene, notes) {
   const robots = new Map();
   const models = new Map();
@@ -111,15 +126,20 @@ async function loadRobots(scene, notes) {
   for (const sr of scene.robots || []) {
     const model = sr.model || sr.name;
     if (!models.has(model)) {
-      const [urdf, detail] = await Promise.all([
+      const [urdf, detail, visuals] = await Promise.all([
         api(`/v1/robots/${encodeURIComponent(model)}/urdf`, 'text'),
         api(`/v1/robots/${encodeURIComponent(model)}`),
+        api(`/v1/robots/${encodeURIComponent(model)}/visuals`).catch((e) => {
+          notes.push(`${model}: visual geometry not available (${e.message || e}); collision geometry drawn`);
+          return null;
+        }),
       ]);
-      models.set(model, { urdf, detail });
+      models.set(model, { urdf, detail, visuals, failedNoted: false });
     }
-    const { urdf, detail } = models.get(model);
+    const m = models.get(model);
+    const { urdf, detail, visuals } = m;
     const loader = new URDFLoader();
-    loader.parseVisual = true;
+    loader.parseVisual = false;
     loader.parseCollision = true;
     let skipped = 0;
     loader.loadMeshCb = (_path, _manager, _material, done) => {
@@ -127,12 +147,23 @@ async function loadRobots(scene, notes) {
       done(null);
     };
     const robot = loader.parse(urdf);
-    if (skipped) notes.push(`${sr.name}: ${skipped} mesh geometries not drawn`);
+    if (skipped) notes.push(`${sr.name}: ${skipped} collision mesh geometries not drawn`);
     const mat = new THREE.MeshStandardMaterial({ color: PALETTE[k % PALETTE.length], roughness: 0.55, metalness: 0.1 });
     k += 1;
     robot.traverse((o) => {
       if (o.isMesh) o.material = mat;
     });
+    const vis = await addVisuals(robot, visuals, mat, (path) => api(path, 'text'));
+    state.visuals.drawn += vis.drawn;
+    state.visuals.failed += vis.failed.length;
+    if (vis.failed.length && !m.failedNoted) {
+      // Once per model: every robot of the model fails alike.
+      m.failedNoted = true;
+      notes.push(
+        `${model}: ${vis.failed.length} visual geometries not drawn, their links drawn with their collision geometry ` +
+          `(${vis.failed.slice(0, 2).join('; ')}${vis.failed.length > 2 ? '; …' : ''})`,
+      );
+    }
     const base = new THREE.Group();
     base.matrixAutoUpdate = false;
     base.matrix.copy(poseMatrix(sr.base_pose));
@@ -145,10 +176,20 @@ async function loadRobots(scene, notes) {
       robot.setJointValue(j.name, v);
     }
     const eeLink = new Map(detail.end_effectors.map((e) => [e.name, e.parent_link]));
-    robots.set(sr.name, { robot, eeLink, base });
+    robots.set(sr.name, { robot, eeLink, base, visualLinks: vis.links });
   }
   return robots;
 }
+
+/** Visual or collision geometry for every robot (the `geometry` URL parameter, the checkbox). */
+const geometryBox = document.getElementById('geometry-box');
+const showCollision = document.getElementById('show-collision');
+function applyGeometryMode() {
+  state.geometry = showCollision.checked ? 'collision' : 'visual';
+  for (const e of robots.values()) setGeometryMode(e.robot, e.visualLinks, state.geometry);
+  world.updateMatrixWorld(true);
+}
+showCollision.addEventListener('change', applyGeometryMode);
 
 // ---- the plan on its time axis --------------------------------------------------------------
 let timeline = null;
@@ -372,7 +413,7 @@ function writeProbe() {
     const p = v.clone().project(camera);
     return [Math.round(((p.x + 1) / 2) * w), Math.round(((1 - p.y) / 2) * h)];
   };
-  const out = { canvas: [w, h], objects: {}, hands: {} };
+  const out = { canvas: [w, h], geometry: state.geometry, visuals: state.visuals, objects: {}, hands: {} };
   for (const [name, g] of objects) {
     const b = new THREE.Box3().setFromObject(g);
     if (!b.isEmpty()) out.objects[name] = px(b.getCenter(new THREE.Vector3()));
@@ -437,7 +478,24 @@ async function main() {
   if (planId) {
     job = await api(`/v1/plans/${encodeURIComponent(planId)}`);
     sceneName = job.request && job.request.scene;
-    if (!sceneName) throw new Error(`plan ${planId} (${job.kind}) names no scene`);
+    // A job with no motion: say why, and show its scene (if it names one) without a time axis.
+    let why = null;
+    if (job.kind in NOTHING_TO_DRAW) why = `it answers ${NOTHING_TO_DRAW[job.kind]}, not a motion`;
+    else if (job.state !== 'succeeded') why = `it is ${job.state}`;
+    if (why) {
+      notes.push(`plan ${job.id} (${job.kind}) has nothing to draw: ${why}`);
+      job = null;
+    }
+    if (!sceneName) {
+      if (why) {
+        setStatus(notes.join(' · '));
+        await listPlans();
+        state.ready = true;
+        document.title = 'manyhands viewer: ready';
+        return;
+      }
+      throw new Error(`plan ${planId} (${job.kind}) names no scene`);
+    }
   }
   if (!sceneName) {
     setStatus('No plan given: choose one below, or open /viewer?plan=ID.');
@@ -453,6 +511,9 @@ async function main() {
   obstacleGroups = built.obstacles;
   robots = await loadRobots(scene, notes);
   await built.loaded;
+  showCollision.checked = params.get('geometry') === 'collision';
+  geometryBox.hidden = ![...robots.values()].some((e) => e.visualLinks.size > 0);
+  applyGeometryMode();
   notes.push(...built.notes);
   world.updateMatrixWorld(true);
   if (job) {
@@ -477,6 +538,7 @@ async function main() {
   }
   frameCamera();
   const title = job ? `plan ${job.id}: ${job.kind} in ${sceneName}` : `scene ${sceneName}`;
+  // (A plan with nothing to draw is named in the notes.)
   setStatus([title, ...notes].join(' · '));
   requestAnimationFrame((now) => {
     render(now);
