@@ -166,7 +166,10 @@ fn visual_elements_are_read_without_changing_collision() {
         } => {
             assert_eq!(filename, "meshes/statuette.obj");
             assert_eq!(*scale, [2.0; 3]);
-            assert_eq!(path.as_deref(), Some(dir.join("meshes/statuette.obj").as_path()));
+            assert_eq!(
+                path.as_deref(),
+                Some(dir.join("meshes/statuette.obj").as_path())
+            );
         }
         g => panic!("{g:?}"),
     }
@@ -177,11 +180,20 @@ fn visual_elements_are_read_without_changing_collision() {
             length: 0.4
         }
     );
-    assert!(matches!(&v[2].geometry, VisualGeometry::Mesh { path: None, .. }));
-    for (k, why) in [(3, "'x' is not a finite number"), (4, "unknown geometry 'teapot'")] {
+    assert!(matches!(
+        &v[2].geometry,
+        VisualGeometry::Mesh { path: None, .. }
+    ));
+    for (k, why) in [
+        (3, "'x' is not a finite number"),
+        (4, "unknown geometry 'teapot'"),
+    ] {
         match &v[k].geometry {
             VisualGeometry::Invalid { reason } => {
-                assert!(reason.contains(why) && reason.contains("<visual>["), "{reason}")
+                assert!(
+                    reason.contains(why) && reason.contains("<visual>["),
+                    "{reason}"
+                )
             }
             g => panic!("visual {k}: {g:?}"),
         }

@@ -259,14 +259,21 @@ async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes() {
     assert_eq!(b["shape"]["half_extents"], json!([0.1, 0.2, 0.3]), "{b}");
     assert_eq!(b["pose"]["position"], json!([0.0, 0.0, 0.1]), "{b}");
     let q = b["pose"]["quat_xyzw"].as_array().expect("quat");
-    assert!((q[2].as_f64().unwrap_or(0.0) - 0.5f64.sqrt()).abs() < 1e-9, "{b}");
+    assert!(
+        (q[2].as_f64().unwrap_or(0.0) - 0.5f64.sqrt()).abs() < 1e-9,
+        "{b}"
+    );
     assert!(b.get("problem").is_none(), "{b}");
     let m = item("base", 1);
     assert_eq!(m["shape"]["type"], "mesh", "{m}");
     assert!(m.get("problem").is_none(), "{m}");
     let url = m["shape"]["url"].as_str().expect("url");
     assert_eq!(url, "/v1/robots/vis/visuals/base/1");
-    for (i, why) in [(2, "absent.stl"), (3, "meshes/NAME"), (4, "radius must be > 0")] {
+    for (i, why) in [
+        (2, "absent.stl"),
+        (3, "meshes/NAME"),
+        (4, "radius must be > 0"),
+    ] {
         let x = item("base", i);
         let p = x["problem"].as_str().unwrap_or("");
         assert!(p.contains(why), "base/{i}: {x}");

@@ -522,7 +522,8 @@ fn robots_with_panda(dir: &Path, data: &Path) -> PathBuf {
     std::fs::create_dir_all(&robots).expect("robots dir");
     for e in std::fs::read_dir(common::root().join("robots")).expect("shipped robots") {
         let e = e.expect("entry");
-        std::os::unix::fs::symlink(e.path(), robots.join(e.file_name())).expect("link");
+        let src = e.path().canonicalize().expect("shipped robot file");
+        std::os::unix::fs::symlink(src, robots.join(e.file_name())).expect("link");
     }
     let f = manyhands::planning::mbm_data::robot_files(data, "panda");
     let from = f.urdf.parent().expect("panda folder");
@@ -531,6 +532,7 @@ fn robots_with_panda(dir: &Path, data: &Path) -> PathBuf {
         (f.srdf.clone(), "panda.srdf"),
         (from.join("meshes"), "meshes"),
     ] {
+        let src = src.canonicalize().expect("benchmark Panda file");
         std::os::unix::fs::symlink(&src, robots.join(dst)).expect("link");
     }
     robots
@@ -641,7 +643,10 @@ async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
     let p = probe(&dom);
     eprintln!("probe: {p}");
     assert_eq!(p["geometry"], "visual", "{p}");
-    assert_eq!(p["visuals"]["drawn"], 44, "four arms of eleven visual meshes: {p}");
+    assert_eq!(
+        p["visuals"]["drawn"], 44,
+        "four arms of eleven visual meshes: {p}"
+    );
     assert_eq!(p["visuals"]["failed"], 0, "{p}");
     let toggle = dom
         .find("id=\"geometry-box\"")
@@ -702,7 +707,10 @@ async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
         let at = on_shot(&p, point(&p["hands"][format!("{name}/hand")]), w, h_canvas);
         let n = count_near(&px[..w * h_canvas], w, at, 40.0, palette[k]);
         eprintln!("{name}: {n} pixels of its colour around its hand at {at:?}");
-        assert!(n > 100, "{name}: its hand is not drawn at {at:?} ({n} pixels)");
+        assert!(
+            n > 100,
+            "{name}: its hand is not drawn at {at:?} ({n} pixels)"
+        );
     }
     // The collision geometry instead: the same arms, drawn differently.
     let canvas = w * h_canvas;
@@ -715,10 +723,15 @@ async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
         .iter()
         .zip(&cpx[..canvas])
         .enumerate()
-        .filter(|(i, (a, b))| !in_panel(*i) && a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 40))
+        .filter(|(i, (a, b))| {
+            !in_panel(*i) && a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 40)
+        })
         .count();
     eprintln!("arm pixels: {va} visual, {ca} collision; {changed} pixels changed");
-    assert!(ca * 2 > va, "the collision view barely draws the arms ({ca} vs {va})");
+    assert!(
+        ca * 2 > va,
+        "the collision view barely draws the arms ({ca} vs {va})"
+    );
     assert!(
         changed * 10 > va,
         "the collision geometry looks like the visual meshes ({changed} of {va} pixels changed)"

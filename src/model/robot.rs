@@ -161,11 +161,21 @@ pub struct Visual {
 #[derive(Debug, Clone, PartialEq)]
 pub enum VisualGeometry {
     /// Full edge lengths (URDF `size`).
-    Box { size: [f64; 3] },
+    Box {
+        size: [f64; 3],
+    },
     /// Along the geometry's z axis, centred.
-    Cylinder { radius: f64, length: f64 },
-    Capsule { radius: f64, length: f64 },
-    Sphere { radius: f64 },
+    Cylinder {
+        radius: f64,
+        length: f64,
+    },
+    Capsule {
+        radius: f64,
+        length: f64,
+    },
+    Sphere {
+        radius: f64,
+    },
     Mesh {
         /// The `filename` attribute as written.
         filename: String,
@@ -175,7 +185,9 @@ pub enum VisualGeometry {
         path: Option<std::path::PathBuf>,
     },
     /// A `<visual>` that could not be read, and why (the robot loads without it).
-    Invalid { reason: String },
+    Invalid {
+        reason: String,
+    },
 }
 
 /// One element of an SRDF group definition, as written.

@@ -309,14 +309,13 @@ pub async fn robot_visuals(
                     None,
                 ),
                 VisualGeometry::Mesh { filename, path, .. } => {
-                    let found = visual_source(e.source, filename, path.as_deref()).and_then(
-                        |s| match s {
+                    let found =
+                        visual_source(e.source, filename, path.as_deref()).and_then(|s| match s {
                             VisualSource::Upload(n) if !uploaded.contains(&n) => Err(format!(
                                 "mesh '{filename}': no uploaded mesh '{n}' (PUT /v1/meshes/{n})"
                             )),
                             s => Ok(s),
-                        },
-                    );
+                        });
                     let url = format!(
                         "/v1/robots/{}/visuals/{}/{index}",
                         enc(&name),
@@ -366,7 +365,9 @@ pub async fn robot_visual_mesh(
         .links
         .iter()
         .find(|l| l.name == link)
-        .ok_or_else(|| ApiError::not_found("link", format!("robot '{name}' has no link '{link}'")))?;
+        .ok_or_else(|| {
+            ApiError::not_found("link", format!("robot '{name}' has no link '{link}'"))
+        })?;
     let (filename, scale, path) = index
         .parse::<usize>()
         .ok()
@@ -400,12 +401,16 @@ pub async fn robot_visual_mesh(
                     let bytes = st2.catalog.mesh_bytes(n)?;
                     mesh_loader::Loader::default()
                         .merge_meshes(true)
-                        .load_from_slice_with_reader(&bytes, std::path::Path::new(n), |p: &std::path::Path| {
-                            Err::<Vec<u8>, _>(std::io::Error::new(
-                                std::io::ErrorKind::PermissionDenied,
-                                format!("'{}' is not read", p.display()),
-                            ))
-                        })
+                        .load_from_slice_with_reader(
+                            &bytes,
+                            std::path::Path::new(n),
+                            |p: &std::path::Path| {
+                                Err::<Vec<u8>, _>(std::io::Error::new(
+                                    std::io::ErrorKind::PermissionDenied,
+                                    format!("'{}' is not read", p.display()),
+                                ))
+                            },
+                        )
                         .map_err(|err| format!("mesh '{filename}': {err}"))
                 }
             };

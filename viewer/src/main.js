@@ -48,7 +48,13 @@ function setStatus(text, isError = false) {
 
 async function api(path, as = 'json') {
   const headers = token ? { Authorization: `Bearer ${token}` } : {};
-  const res = await fetch(path, { headers });
+  let res = await fetch(path, { headers });
+  // A busy server (503 with Retry-After, e.g. its heavy lane full of mesh reads): wait, retry.
+  for (let tries = 0; res.status === 503 && res.headers.has('retry-after') && tries < 8; tries++) {
+    const wait = Math.min(Math.max(parseFloat(res.headers.get('retry-after')) || 1, 0.2), 10);
+    await new Promise((r) => setTimeout(r, wait * 1000));
+    res = await fetch(path, { headers });
+  }
   if (!res.ok) {
     let why = res.statusText;
     try {

@@ -11,11 +11,28 @@ import { poseMatrix } from './scene.js';
 /** Parsed OBJ meshes by URL, shared by every robot of one model (cloned, geometry shared). */
 const meshCache = new Map();
 
+/** Mesh fetches in flight at most (the server reads mesh files on its bounded heavy lane). */
+const MAX_FETCHES = 2;
+let inFlight = 0;
+const waiting = [];
+async function throttled(f) {
+  // A finished fetch hands its slot to the next waiting one.
+  if (inFlight >= MAX_FETCHES) await new Promise((r) => waiting.push(r));
+  else inFlight += 1;
+  try {
+    return await f();
+  } finally {
+    const next = waiting.shift();
+    if (next) next();
+    else inFlight -= 1;
+  }
+}
+
 function loadObj(url, fetchText) {
   if (!meshCache.has(url)) {
     meshCache.set(
       url,
-      fetchText(url).then((text) => {
+      throttled(() => fetchText(url)).then((text) => {
         const parsed = new OBJLoader().parse(text);
         let triangles = 0;
         parsed.traverse((o) => {
