@@ -148,6 +148,8 @@ async fn a_scene_with_a_mesh_is_uploaded_after_its_mesh() {
     h.server.shutdown().await.expect("shutdown");
 }
 
+/// Hostile mesh uploads are refused; then an uploaded robot's visual meshes
+/// ([`an_uploaded_robots_visual_meshes_are_its_uploaded_meshes`]).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn hostile_mesh_uploads_are_refused() {
     let h = start("meshes-hostile").await;
@@ -196,6 +198,7 @@ async fn hostile_mesh_uploads_are_refused() {
     assert_eq!(field(&e), "obstacles[0].shapes[0].path", "{e}");
     let (s, e) = delete(&h, "/v1/meshes/nothing.obj").await;
     assert_eq!(s, StatusCode::NOT_FOUND, "{e}");
+    an_uploaded_robots_visual_meshes_are_its_uploaded_meshes(&h).await;
     h.server.shutdown().await.expect("shutdown");
 }
 
@@ -214,10 +217,9 @@ async fn get_text(h: &Harness, path: &str) -> (StatusCode, String) {
 /// `GET /v1/robots/{name}/visuals` with a URL per mesh, its meshes served as OBJ text from the
 /// uploaded meshes it names as `meshes/NAME` and from nothing else; a visual that cannot be read
 /// or whose mesh the server lacks is listed with the reason and never stops the robot loading.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes() {
-    let h = start("visuals").await;
-    let (s, e) = put_bytes(&h, "/v1/meshes/tetra.stl", tetrahedron_stl()).await;
+/// (Run by [`hostile_mesh_uploads_are_refused`] on its server: one server start less.)
+async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes(h: &Harness) {
+    let (s, e) = put_bytes(h, "/v1/meshes/tetra.stl", tetrahedron_stl()).await;
     assert_eq!(s, StatusCode::CREATED, "{e}");
     let urdf = r#"<robot name="vis">
       <link name="base">
@@ -236,7 +238,7 @@ async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes() {
       <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
         <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
     </robot>"#;
-    let (s, e) = put_json(&h, "/v1/robots/vis", &json!({"urdf": urdf})).await;
+    let (s, e) = put_json(h, "/v1/robots/vis", &json!({"urdf": urdf})).await;
     assert_eq!(s, StatusCode::CREATED, "{e}");
 
     let r = h
@@ -281,7 +283,7 @@ async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes() {
     assert_eq!(item("arm", 0)["shape"]["type"], "cylinder");
 
     // The mesh as OBJ text: the tetrahedron's 4 corners (written once each), scale applied.
-    let (s, obj) = get_text(&h, url).await;
+    let (s, obj) = get_text(h, url).await;
     assert_eq!(s, StatusCode::OK, "{obj}");
     let verts: Vec<&str> = obj.lines().filter(|l| l.starts_with("v ")).collect();
     assert_eq!(verts.len(), 4, "{obj}");
@@ -297,13 +299,12 @@ async fn an_uploaded_robots_visual_meshes_are_its_uploaded_meshes() {
         ("/v1/robots/vis/visuals/nolink/0", StatusCode::NOT_FOUND),
         ("/v1/robots/nobody/visuals", StatusCode::NOT_FOUND),
     ] {
-        let (s, body) = get_text(&h, path).await;
+        let (s, body) = get_text(h, path).await;
         assert_eq!(s, want, "{path}: {body}");
         assert!(body.contains("\"field\""), "{path}: {body}");
     }
     // A visual path leaving the data folder is refused like a collision one.
     let bad = urdf.replace("meshes/absent.stl", "../../etc/passwd.stl");
-    let (s, e) = put_json(&h, "/v1/robots/vis2", &json!({"urdf": bad})).await;
+    let (s, e) = put_json(h, "/v1/robots/vis2", &json!({"urdf": bad})).await;
     assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{e}");
-    h.server.shutdown().await.expect("shutdown");
 }

@@ -1,10 +1,15 @@
-//! The 3-D viewer (`/viewer`, issue 25 item 3) in a real browser: a kitchen-task plan opened
-//! headless in Chromium loads without console errors, its canvas shows the robot, and a picture
-//! later in the plan differs from the first.
+//! The 3-D viewer (`/viewer`) in a real browser: a kitchen-task plan opened headless in
+//! Chromium loads without console errors, its canvas shows the robot, and a picture later in the
+//! plan differs from the first; the pick-and-place statuette in the hand at mid-carry; the page
+//! without WebGL; and the four-Panda `schedule` job with the Panda's visual meshes, its phase
+//! panel and the collision-geometry view.
 //!
 //! Needs Chromium (`chromium`, or `MANYHANDS_CHROMIUM`) and a binary built with the viewer's
 //! bundle (npm at build time). Without them the test says SKIPPED, unless
 //! `MANYHANDS_REQUIRE_BROWSER=1` (set by `.ci/run`, which installs Chromium), where it fails.
+//! The four-Panda test also READS THE MOTIONBENCHMAKER DATA (the benchmark Panda, its visual
+//! meshes included: `manyhands data mbm`, or `../shared/benchmarks/mbm`); without it it says
+//! SKIPPED, unless `MANYHANDS_REQUIRE_MBM` is set.
 
 mod common;
 
@@ -556,6 +561,21 @@ async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
     let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
         return;
     };
+    let meshes = manyhands::planning::mbm_data::robot_files(&data, "panda")
+        .urdf
+        .with_file_name("meshes");
+    if !meshes.is_dir() {
+        let why = format!(
+            "the MotionBenchMaker data has no Panda visual meshes ({} is missing; \
+             `manyhands data mbm` leaves them out, ../shared/benchmarks/mbm has them)",
+            meshes.display()
+        );
+        assert!(
+            !manyhands::planning::mbm_data::data_required(),
+            "MANYHANDS_REQUIRE_MBM is set but {why}"
+        );
+        return manyhands::skips::report(&format!("viewer test: {why}"));
+    }
     let dir = common::tmp::TestDir::new("viewer-panda");
     let robots = robots_with_panda(&dir, &data);
     let h = common::server::start_with_robots("viewer-panda", &robots).await;

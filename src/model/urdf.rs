@@ -376,7 +376,7 @@ fn parse_visual_geometry(ctx: &Ctx, el: &str, v: Node) -> Result<VisualGeometry,
                 .ok_or_else(|| ctx.err(&sel, "missing attribute filename"))?
                 .to_string();
             let scale = parse_vec3(ctx, &sel, s, "scale")?.unwrap_or([1.0; 3]);
-            if scale.iter().any(|&x| x == 0.0) {
+            if scale.contains(&0.0) {
                 return Err(ctx.err(&sel, "scale components must not be 0"));
             }
             let path = resolve_mesh(ctx.base_dir, &filename);
