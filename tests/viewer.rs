@@ -252,6 +252,62 @@ async fn kitchen_plan_in_a_headless_browser() {
         !dom.contains("<canvas id=\"phase\" hidden"),
         "the phase-space panel is hidden for a multi-robot plan"
     );
+
+    // A robot whose visual mesh cannot be loaded (its uploaded mesh is missing): its other
+    // visual is drawn, that link is drawn with its collision geometry, and the page says so.
+    let urdf = std::fs::read_to_string(common::root().join("tests/robots/arm6.urdf"))
+        .expect("arm6")
+        .replacen(
+            "<link name=\"pedestal\">",
+            "<link name=\"pedestal\"><visual><origin xyz=\"0 0 -0.15\"/>\
+             <geometry><box size=\"0.2 0.2 0.3\"/></geometry></visual>",
+            1,
+        )
+        .replacen(
+            "<link name=\"base\">",
+            "<link name=\"base\"><visual><geometry><mesh filename=\"meshes/absent.stl\"/>\
+             </geometry></visual>",
+            1,
+        );
+    let scene = json!({"name": "visual_fallback", "robots": [{"name": "arm", "model": "arm6v"}],
+        "obstacles": [], "objects": []});
+    for (path, body) in [
+        ("/v1/robots/arm6v", json!({"urdf": urdf})),
+        ("/v1/scenes/visual_fallback", scene),
+    ] {
+        let r = h
+            .http
+            .put(format!("{}{path}", h.base))
+            .json(&body)
+            .send()
+            .await
+            .expect("PUT");
+        assert!(r.status().is_success(), "{path}: {}", r.status());
+    }
+    let bin = chromium().expect("chromium");
+    let base = h.base.clone();
+    let fb = common::tmp::TestDir::new("viewer-fallback");
+    let profile = fb.to_path_buf();
+    let dom = tokio::task::spawn_blocking(move || {
+        browse(
+            &bin,
+            &profile,
+            &format!("{base}/viewer?scene=visual_fallback"),
+            &["--dump-dom".into()],
+        )
+    })
+    .await
+    .expect("browser task");
+    assert_ready(&dom, "visual fallback");
+    let p = probe(&dom);
+    assert_eq!(p["visuals"], json!({"drawn": 1, "failed": 1}), "{p}");
+    let status = element_text(&dom, "status").unwrap_or("");
+    assert!(
+        status.contains(
+            "1 visual geometries not drawn, their links drawn with their collision geometry"
+        ) && status.contains("absent.stl"),
+        "{status}"
+    );
     h.server.shutdown().await.expect("shutdown");
 }
 
