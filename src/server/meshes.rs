@@ -237,7 +237,8 @@ fn visual_source(
 
 #[utoipa::path(get, path = "/v1/robots/{name}/visuals", tag = "resources", params(("name" = String, Path)),
     responses((status = 200, body = RobotVisuals, description = "the robot's visual geometry (URDF `<visual>` elements); a viewer draws it, planners never check it"),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, body = ErrorBody, description = "overloaded (the query pool is full); see `Retry-After`")))]
 pub async fn robot_visuals(
     State(st): State<Arc<AppState>>,
     Path(name): Path<String>,
@@ -354,7 +355,8 @@ pub async fn robot_visuals(
     params(("name" = String, Path), ("link" = String, Path), ("index" = usize, Path, description = "the visual's index in the link")),
     responses((status = 200, content_type = "model/obj", body = String, description = "Wavefront OBJ text"),
               (status = 404, body = ErrorBody, description = "no such robot, link or visual mesh, or the server does not have its file"),
-              (status = 422, body = ErrorBody, description = "the mesh file does not read as a mesh")))]
+              (status = 422, body = ErrorBody, description = "the mesh file does not read as a mesh"),
+              (status = 503, body = ErrorBody, description = "overloaded (the query pool's heavy lane is full); see `Retry-After`")))]
 pub async fn robot_visual_mesh(
     State(st): State<Arc<AppState>>,
     Path((name, link, index)): Path<(String, String, String)>,
