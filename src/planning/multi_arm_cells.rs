@@ -34,7 +34,7 @@
 //! fixed as straight lines, simultaneous execution fails).
 
 use std::collections::BTreeMap;
-use std::f64::consts::PI;
+use std::f64::consts::{FRAC_PI_2, PI};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Arc;
@@ -287,7 +287,7 @@ pub enum CellError {
     Model(#[from] ModelError),
     #[error("the model has no link '{0}' to hold the rod")]
     NoLink(String),
-    #[error("the start configuration of cell '{cell}' collides: {a} with {b}")]
+    #[error("no start configuration of cell '{cell}' is free (the first collides: {a} with {b})")]
     StartCollides { cell: String, a: String, b: String },
     #[error("no crossing task found in {draws} draws (seed {seed})")]
     NoTask { seed: u64, draws: usize },
@@ -300,9 +300,18 @@ pub const ROD_PARENT_LINK: &str = "panda_grasptarget";
 /// The rod's link in a rod-holding model.
 pub const ROD_LINK: &str = "held_rod";
 
-/// The Panda's SRDF `ready` configuration, every arm's `start` in the cells (the arms' joints
-/// `panda_joint1…7`).
+/// The Panda's SRDF `ready` configuration (joints `panda_joint1…7`).
 pub const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+/// The arms' `start` in a cell: the first of these configurations (every arm the same) that
+/// is collision-free there — `ready`; `ready` turned a quarter turn about the base (the arms
+/// reach sideways); nearly upright with the hand pointing forward (SRDF `extended` with the
+/// elbow bent 0.1 rad).
+pub const START_CANDIDATES: [[f64; 7]; 3] = [
+    READY,
+    [FRAC_PI_2, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+    [0.0, 0.0, 0.0, -0.1, 0.0, 1.571, 0.785],
+];
 
 /// The URDF and SRDF text of `panda` (the MotionBenchMaker files) holding `rod` (see
 /// [`RodSpec`]), as model `name`.
@@ -388,8 +397,9 @@ fn box_body(name: String, centre: [f64; 3], size: [f64; 3]) -> BodyJson {
 }
 
 /// Scene JSON of `spec` over arm model `model` (joints `panda_joint1…7`): obstacles `table_K`,
-/// `bin_K_{bottom,front,back,left,right}`, arms `arm_K` with `start` = [`READY`].
-pub fn cell_json(spec: &CellSpec, model: &str) -> SceneJson {
+/// `bin_K_{bottom,front,back,left,right}`, arms `arm_K` with configuration `start` (the scene's
+/// start) = `start` for every arm.
+pub fn cell_json(spec: &CellSpec, model: &str, start: &[f64; 7]) -> SceneJson {
     let mut obstacles: Vec<BodyJson> = spec
         .table
         .iter()
@@ -411,7 +421,7 @@ pub fn cell_json(spec: &CellSpec, model: &str) -> SceneJson {
             obstacles.push(box_body(format!("bin_{k}_{part}"), c, s));
         }
     }
-    let start: BTreeMap<String, f64> = READY
+    let start: BTreeMap<String, f64> = start
         .iter()
         .enumerate()
         .map(|(k, &v)| (format!("panda_joint{}", k + 1), v))
@@ -447,7 +457,8 @@ pub fn cell_json(spec: &CellSpec, model: &str) -> SceneJson {
 
 /// Builds `cell` over the MotionBenchMaker Panda of data folder `mbm_dir`
 /// ([`super::mbm_data::locate`]): the arm model is `panda`, or `panda_rod` holding the cell's
-/// rod. The start configuration (every arm at [`READY`]) is checked collision-free.
+/// rod. Every arm starts at the first of [`START_CANDIDATES`] that is collision-free in the
+/// cell (scene, self and between the arms).
 pub fn vamp_mr(cell: VampMrCell, mbm_dir: &Path) -> Result<MultiArmCell, CellError> {
     let f = super::mbm_data::robot_files(mbm_dir, "panda");
     let read = |p: &Path| {
@@ -470,21 +481,30 @@ pub fn vamp_mr(cell: VampMrCell, mbm_dir: &Path) -> Result<MultiArmCell, CellErr
     let robot = Robot::from_strings(&model.urdf, Some(&model.srdf), base)?;
     let mut lib = RobotLibrary::new();
     lib.insert(model.name.clone(), Arc::new(robot));
-    let json = cell_json(&spec, &model.name);
-    let scene = Scene::from_json(json.clone(), &spec.name, Path::new("."), &lib)?;
-    let world = CollisionWorld::from_scene(&scene);
-    let mut checker = AutoChecker::new(&world, 0.0);
-    if let Some(c) = checker.first_contact(&CollisionWorld::start_config(&scene)) {
-        return Err(CellError::StartCollides {
-            cell: spec.name,
-            a: c.a,
-            b: c.b,
-        });
+    let mut first_contact = None;
+    for start in &START_CANDIDATES {
+        let json = cell_json(&spec, &model.name, start);
+        let scene = Scene::from_json(json.clone(), &spec.name, Path::new("."), &lib)?;
+        let world = CollisionWorld::from_scene(&scene);
+        let mut checker = AutoChecker::new(&world, 0.0);
+        match checker.first_contact(&CollisionWorld::start_config(&scene)) {
+            None => {
+                return Ok(MultiArmCell {
+                    scene,
+                    json,
+                    models: vec![model],
+                })
+            }
+            Some(c) => {
+                first_contact.get_or_insert(c);
+            }
+        }
     }
-    Ok(MultiArmCell {
-        scene,
-        json,
-        models: vec![model],
+    let (a, b) = first_contact.map(|c| (c.a, c.b)).unwrap_or_default();
+    Err(CellError::StartCollides {
+        cell: spec.name,
+        a,
+        b,
     })
 }
 
@@ -750,7 +770,7 @@ mod tests {
     #[test]
     fn bins_cell_json_has_the_published_layout() {
         let spec = VampMrCell::PandaFourBins.spec();
-        let j = cell_json(&spec, "panda_rod");
+        let j = cell_json(&spec, "panda_rod", &READY);
         assert_eq!(j.obstacles.len(), 6 + 5 * 5);
         assert_eq!(j.robots.len(), 4);
         for r in &j.robots {
