@@ -207,6 +207,34 @@ fn vamp_mr_cells_and_crossing_tasks() {
         let q0 = CollisionWorld::start_config(scene);
         assert!(exact.first_contact(&q0).is_none(), "{}", cell.name());
 
+        // The sphere checker (several arms at once, the robot–robot tests) is conservative
+        // against the exact one on random configurations of every arm.
+        let mut spheres = AutoChecker::new(&world, 0.0);
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+        let (mut free, mut hits) = (0, 0);
+        for _ in 0..1500 {
+            let mut q = Vec::new();
+            for r in &world.robots {
+                let mut c = r.robot.zero_config();
+                let vars: Vec<usize> = (0..r.robot.dof()).collect();
+                r.robot.sample_vars(&vars, &mut c, &mut rng);
+                q.extend(c);
+            }
+            let sphere_free = spheres.is_free(&q);
+            if sphere_free {
+                free += 1;
+                if let Some(c) = exact.first_contact(&q) {
+                    panic!("{}: spheres free, exact {} with {}", cell.name(), c.a, c.b);
+                }
+            } else {
+                hits += 1;
+            }
+        }
+        assert!(
+            free > 20 && hits > 20,
+            "{}: {free} free, {hits} hit",
+            cell.name()
+        );
         let settings = CrossingSettings::default();
         let task = crossing_task(scene, 7, &settings).expect("task");
         assert_eq!(task, crossing_task(scene, 7, &settings).expect("task"));

@@ -73,7 +73,7 @@ pub(super) fn rows(samples: usize, seed: u64) -> Result<Vec<Row>> {
         let mut hits = 0usize;
         let (m, mean) = time_each(&configs, |q| hits += usize::from(!sc.is_free(q)));
         rows.push(Row {
-            what: format!("{name}: single state ({arms} arms, {} DoF)", world.dof()),
+            what: format!("{name}: single ({arms} arms, {} DoF)", world.dof()),
             median_ns: m,
             mean_ns: mean,
             n: configs.len(),
@@ -87,7 +87,7 @@ pub(super) fn rows(samples: usize, seed: u64) -> Result<Vec<Row>> {
         let mut hits = 0usize;
         let (m, mean) = time_each(&configs, |q| hits += usize::from(!rr.is_free(q)));
         rows.push(Row {
-            what: format!("{name}: single state, arm against arm only"),
+            what: format!("{name}: single, arm–arm only"),
             median_ns: m,
             mean_ns: mean,
             n: configs.len(),
@@ -103,7 +103,7 @@ pub(super) fn rows(samples: usize, seed: u64) -> Result<Vec<Row>> {
                 std::hint::black_box(sc.is_free(q));
             });
             rows.push(Row {
-                what: format!("{name}: single state, free ones only"),
+                what: format!("{name}: single, free ones"),
                 median_ns: m,
                 mean_ns: mean,
                 n: free.len(),
@@ -124,7 +124,7 @@ pub(super) fn rows(samples: usize, seed: u64) -> Result<Vec<Row>> {
             hits += usize::from(!sc.segment_free(a, b, n));
         });
         rows.push(Row {
-            what: format!("{name}: motion, states every 0.1 rad"),
+            what: format!("{name}: motion, every 0.1 rad"),
             median_ns: m,
             mean_ns: mean,
             n: pairs.len(),
@@ -139,7 +139,7 @@ pub(super) fn rows(samples: usize, seed: u64) -> Result<Vec<Row>> {
             hits += usize::from(!sc.segment_certified(a, b, CERTIFY));
         });
         rows.push(Row {
-            what: format!("{name}: motion, certified continuous"),
+            what: format!("{name}: motion, certified"),
             median_ns: m,
             mean_ns: mean,
             n: pairs.len(),
@@ -158,7 +158,7 @@ pub(super) fn rows(samples: usize, seed: u64) -> Result<Vec<Row>> {
                 hits += usize::from(!sc.segment_certified(a, b, CERTIFY));
             });
             rows.push(Row {
-                what: format!("{name}: motion certified, free ends"),
+                what: format!("{name}: certified, free ends"),
                 median_ns: m,
                 mean_ns: mean,
                 n: free_pairs.len(),
