@@ -379,3 +379,41 @@ fn data_mbm_checks_the_package_and_bench_mbm_names_the_fetch() {
     assert!(err.contains("manyhands data mbm"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `manyhands schedule BODY` takes the HTTP body of job kind `schedule` as documented, with
+/// its `"kind": "schedule"`, refuses another kind naming the field, and reports a schedule
+/// that does not exist with its own code and wording.
+#[test]
+fn schedule_takes_the_http_body_and_names_a_missing_schedule() {
+    let ok = serde_json::json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x"], "path": [[0.0], [0.5]]},
+        {"robot": "armar_b", "joints": ["base_x"], "path": [[0.0], [0.5]]}]});
+    let v = json(&["schedule", &ok.to_string(), "--json"]);
+    assert_eq!(v["method"], "simultaneous", "{v}");
+    assert!(v["duration"].as_f64().unwrap_or(0.0) > 0.0, "{v}");
+    // The same body without its kind is still accepted.
+    let mut bare = ok.clone();
+    bare.as_object_mut().expect("object").remove("kind");
+    let v = json(&["schedule", &bare.to_string(), "--json"]);
+    assert_eq!(v["method"], "simultaneous", "{v}");
+    let mut other = ok.clone();
+    other["kind"] = "joint_space".into();
+    let (code, _, err) = run(&["schedule", &other.to_string()]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("'kind'") && err.contains("joint_space"),
+        "{err}"
+    );
+    // Ends in the same spot: no schedule, said as such (not a goal error).
+    let blocked = serde_json::json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x", "base_y"],
+         "path": [[0.0, 0.0], [1.0, 0.0], [1.0, 0.7]]},
+        {"robot": "armar_b", "joints": ["base_x", "base_y"],
+         "path": [[0.0, 0.0], [1.0, 0.0], [1.0, -0.7]]}]});
+    let (code, _, err) = run(&["schedule", &blocked.to_string()]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("no_schedule: no collision-free schedule") && !err.contains("invalid_goal"),
+        "{err}"
+    );
+}

@@ -194,6 +194,9 @@ pub struct SphereChecker {
     focus_pool: Vec<u32>,
     /// Refinements test only what was tight at their ends (off only to compare in tests).
     focus: bool,
+    /// Scratch of [`Self::pair_spheres_avx`]: the second body's spheres that can touch the
+    /// first body at all (see there).
+    pair_keep: Vec<u32>,
 }
 
 /// Marks a self pair's index among the bodies' indices in `tight_log` and `focus_pool`.
@@ -759,6 +762,7 @@ impl SphereChecker {
     #[inline]
     fn pair_spheres_avx(&mut self, pi: usize, a: usize, b: usize) -> bool {
         use avx8::*;
+        let ca = load3(&self.bcw[a]);
         let cb = load3(&self.bcw[b]);
         let ex = self.pair_inflation(pi);
         self.ensure_spheres::<LANES, true>(a);
@@ -766,25 +770,56 @@ impl SphereChecker {
         let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
         let (sa0, sa1) = (ba.spheres.0 as usize, ba.spheres.1 as usize);
         let (sb0, sb1) = (bb.spheres.0 as usize, bb.spheres.1 as usize);
-        let rb = bb.br;
+        let (ra, rb) = (ba.br, bb.br);
+        // b's spheres that touch a's bounding sphere (grown by the pair's inflation): only
+        // they can touch one of a's spheres, which lie inside it (|c_j − c_a| ≤ |c_j − c_i| +
+        // |c_i − c_a| ≤ r_i + r_j + ex + r_a − r_i). The cull of a's spheres against b's
+        // bounding sphere below, from the other side, so that for pairs of bodies of many
+        // spheres (hands, held rods, links of other arms) most sphere pairs go untested; the
+        // same sphere pairs are tested in the same order otherwise, so verdicts and tight
+        // lanes are those of `pair_hits`. Measured (callgrind, `bench collision --multi-arm
+        // --samples 2000`): this function 1 205 → 1 000 M instructions, the 8-lane checks
+        // 3 993 → 3 790 M (−5 %). Not in the generic `pair_hits`, whose single-state use
+        // (one lane) got 1 % slower with it.
+        let mut keep = std::mem::take(&mut self.pair_keep);
+        keep.clear();
+        for (j, (sj, wj)) in self.spheres[sb0..sb1]
+            .iter()
+            .zip(&self.sw[sb0..sb1])
+            .enumerate()
+        {
+            if near(load3(wj), ca, sj[3] + ra + ex) != 0 {
+                keep.push((sb0 + j) as u32);
+            }
+        }
         let mut tp = 0u32;
-        for (si, wi) in self.spheres[sa0..sa1].iter().zip(&self.sw[sa0..sa1]) {
+        let mut hit = false;
+        'outer: for (si, wi) in self.spheres[sa0..sa1].iter().zip(&self.sw[sa0..sa1]) {
+            if keep.is_empty() {
+                break;
+            }
             let (pi_, ri) = (load3(wi), si[3]);
             // The sphere against b's bounding sphere first.
             if near(pi_, cb, ri + rb + ex) == 0 {
                 continue;
             }
-            for (sj, wj) in self.spheres[sb0..sb1].iter().zip(&self.sw[sb0..sb1]) {
-                let pj = load3(wj);
-                let rij = ri + sj[3];
+            for &j in &keep {
+                let j = j as usize;
+                let pj = load3(&self.sw[j]);
+                let rij = ri + self.spheres[j][3];
                 let m = near(pi_, pj, rij + ex);
                 if m != 0 {
                     if ex == 0.0 || near(pi_, pj, rij) != 0 {
-                        return true;
+                        hit = true;
+                        break 'outer;
                     }
                     tp |= m;
                 }
             }
+        }
+        self.pair_keep = keep;
+        if hit {
+            return true;
         }
         if tp != 0 {
             self.tight_log.push((SELF_PAIR | pi as u32, tp));

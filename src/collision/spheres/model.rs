@@ -535,6 +535,7 @@ impl SphereChecker {
             refine_needed: Vec::new(),
             focus_pool: Vec::new(),
             focus: true,
+            pair_keep: Vec::new(),
         };
         checker.init_roots();
         Some(checker)
