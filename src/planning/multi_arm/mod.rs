@@ -144,6 +144,8 @@ pub fn plan_multi_arm(
     let (mut schedule_method, mut order, mut composite_arms, mut conflicts) =
         (None, Vec::new(), Vec::new(), Vec::new());
     let mut alone: Option<Vec<Vec<Vec<f64>>>> = None;
+    // The failure of the last method tried (returned when none succeeds).
+    let mut last_error: Option<PlanError> = None;
 
     // (a) decoupled.
     if settings.methods.decoupled {
@@ -153,7 +155,9 @@ pub fn plan_multi_arm(
                 if let Some(s) = stopped(term) {
                     return Err(s);
                 }
-                format!("{e}")
+                let note = e.to_string();
+                last_error = Some(e.in_phase("decoupled"));
+                note
             }
             Ok(paths) => {
                 let all: Vec<usize> = (0..n).collect();
@@ -169,7 +173,9 @@ pub fn plan_multi_arm(
                         if let Some(s) = stopped(term) {
                             return Err(s);
                         }
-                        format!("no schedule: {e}")
+                        let note = format!("no schedule: {e}");
+                        last_error = Some(e.in_phase("decoupled"));
+                        note
                     }
                 }
             }
@@ -205,6 +211,21 @@ pub fn plan_multi_arm(
             order = o;
         } else if let Some(s) = stopped(term) {
             return Err(s);
+        } else {
+            last_error = Some(
+                PlanError::IterationLimit {
+                    stats: Box::new(PlanStats {
+                        time: ta.elapsed(),
+                        segments_checked: segments,
+                        ..PlanStats::default()
+                    }),
+                }
+                .in_phase(format!(
+                    "prioritized ({} priority orders, {} space-time iterations per arm)",
+                    tried.len(),
+                    settings.space_time.iterations
+                )),
+            );
         }
         attempts.push(Attempt {
             method: MultiArmMethod::Prioritized,
@@ -249,7 +270,9 @@ pub fn plan_multi_arm(
                 if let Some(s) = stopped(term) {
                     return Err(s);
                 }
-                e.to_string()
+                let note = e.to_string();
+                last_error = Some(e.in_phase("composite"));
+                note
             }
         };
         attempts.push(Attempt {
@@ -261,16 +284,10 @@ pub fn plan_multi_arm(
     }
 
     let Some((method, raw)) = found else {
-        let why: Vec<String> = attempts
-            .iter()
-            .map(|a| format!("{}: {}", a.method.name(), a.note))
-            .collect();
-        return Err(match stopped(term) {
-            Some(s) => s,
-            None => PlanError::InvalidInput(format!(
-                "no method found a joint motion ({})",
-                why.join("; ")
-            )),
+        return Err(match (stopped(term), last_error) {
+            (Some(s), _) => s,
+            (None, Some(e)) => e,
+            (None, None) => PlanError::InvalidInput("no method enabled".into()),
         });
     };
     // The raw plan, certified with all arms moving.

@@ -98,8 +98,7 @@ impl MultiArmProblem {
             }
             for (&v, &x) in a.vars.iter().zip(&a.goal) {
                 let l = p.robot.var_limits(v);
-                if !x.is_finite()
-                    || !(l.lower.is_finite() && l.upper.is_finite())
+                if !(x.is_finite() && l.lower.is_finite() && l.upper.is_finite())
                     || x < l.lower - 1e-9
                     || x > l.upper + 1e-9
                 {
