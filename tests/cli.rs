@@ -379,3 +379,63 @@ fn data_mbm_checks_the_package_and_bench_mbm_names_the_fetch() {
     assert!(err.contains("manyhands data mbm"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `manyhands schedule BODY` takes the HTTP body of job kind `schedule` as documented, with
+/// its `"kind": "schedule"`, refuses another kind naming the field, and reports a schedule
+/// that does not exist with its own code and wording.
+#[test]
+fn schedule_takes_the_http_body_and_names_a_missing_schedule() {
+    let ok = serde_json::json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x"], "path": [[0.0], [0.5]]},
+        {"robot": "armar_b", "joints": ["base_x"], "path": [[0.0], [0.5]]}]});
+    let v = json(&["schedule", &ok.to_string(), "--json"]);
+    assert_eq!(v["method"], "simultaneous", "{v}");
+    assert!(v["duration"].as_f64().unwrap_or(0.0) > 0.0, "{v}");
+    // The same body without its kind is still accepted.
+    let mut bare = ok.clone();
+    bare.as_object_mut().expect("object").remove("kind");
+    let v = json(&["schedule", &bare.to_string(), "--json"]);
+    assert_eq!(v["method"], "simultaneous", "{v}");
+    let mut other = ok.clone();
+    other["kind"] = "joint_space".into();
+    let (code, _, err) = run(&["schedule", &other.to_string()]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("'kind'") && err.contains("joint_space"),
+        "{err}"
+    );
+    // Ends in the same spot: no schedule, said as such (not a goal error).
+    let blocked = serde_json::json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x", "base_y"],
+         "path": [[0.0, 0.0], [1.0, 0.0], [1.0, 0.7]]},
+        {"robot": "armar_b", "joints": ["base_x", "base_y"],
+         "path": [[0.0, 0.0], [1.0, 0.0], [1.0, -0.7]]}]});
+    let (code, _, err) = run(&["schedule", &blocked.to_string()]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("no_schedule: no collision-free schedule") && !err.contains("invalid_goal"),
+        "{err}"
+    );
+}
+
+/// `manyhands plan multi-arm BODY` takes the HTTP body of job kind `multi_arm` (with or without
+/// its kind): the `arms_crossing` task is solved by a method other than decoupled, and a bad
+/// field is refused naming it.
+#[test]
+fn plan_multi_arm_takes_the_http_body() {
+    let text =
+        std::fs::read_to_string(common::root().join("scenes/arms_crossing.json")).expect("scene");
+    let scene: Value = serde_json::from_str(&text).expect("json");
+    let goal = |k: usize| scene["robots"][k]["configs"]["goal"].clone();
+    let body = serde_json::json!({"kind": "multi_arm", "scene": "arms_crossing",
+        "robots": [{"name": "armar_a", "group": "right_arm", "goal": goal(0)},
+                   {"name": "armar_b", "group": "left_arm", "goal": goal(1)}]});
+    let v = json(&["plan", "multi-arm", &body.to_string(), "--json"]);
+    assert_ne!(v["method"], "decoupled", "{v}");
+    assert!(v["makespan"].as_f64().unwrap_or(0.0) > 0.0, "{v}");
+    let mut bad = body.clone();
+    bad["robots"][1]["group"] = "tentacle".into();
+    let (code, _, err) = run(&["plan", "multi-arm", &bad.to_string()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("robots[1].group"), "{err}");
+}

@@ -175,3 +175,68 @@ async fn panda_four_over_http_joint_space_plans_then_a_schedule() {
         }
     }
 }
+
+/// VAMP-MR's three public cells over the MotionBenchMaker Panda (NEEDS THE DATA, skipped
+/// without it): each builds with its arms on the sphere model (rods included), its start free
+/// under the exact checker; a seeded crossing task has free starts and goals (exact checker,
+/// all arms at once) and straight motions that collide when run together; the same seed gives
+/// the same task.
+#[test]
+fn vamp_mr_cells_and_crossing_tasks() {
+    use manyhands::collision::AutoChecker;
+    use manyhands::planning::multi_arm_cells::{
+        crossing_task, vamp_mr, CrossingSettings, VampMrCell, ROD_LINK,
+    };
+    let Some(dir) = manyhands::planning::mbm_data::data_for_test() else {
+        return;
+    };
+    for cell in VampMrCell::ALL {
+        let c = vamp_mr(cell, &dir).expect("cell");
+        let scene = &c.scene;
+        let arms = if cell == VampMrCell::PandaTwoRod {
+            2
+        } else {
+            4
+        };
+        assert_eq!(scene.robots.len(), arms, "{}", cell.name());
+        let rod = scene.robots[0].robot.link(ROD_LINK).is_some();
+        assert_eq!(rod, cell != VampMrCell::PandaFour, "{}", cell.name());
+        let world = CollisionWorld::from_scene(scene);
+        assert_eq!(AutoChecker::new(&world, 0.0).kind(), "spheres");
+        let mut exact = ExactChecker::new(&world);
+        let q0 = CollisionWorld::start_config(scene);
+        assert!(exact.first_contact(&q0).is_none(), "{}", cell.name());
+
+        let settings = CrossingSettings::default();
+        let task = crossing_task(scene, 7, &settings).expect("task");
+        assert_eq!(task, crossing_task(scene, 7, &settings).expect("task"));
+        assert!(!task.conflicts.is_empty());
+        let (qs, qg) = (task.start_config(), task.goal_config());
+        if let Some(c) = exact
+            .first_contact(&qs)
+            .or_else(|| exact.first_contact(&qg))
+        {
+            panic!(
+                "{}: start or goal collides: {} with {}",
+                cell.name(),
+                c.a,
+                c.b
+            );
+        }
+        // The straight motions, all arms together, meet (exact checker, between arms).
+        let mut between = ExactChecker::new(&world.between_robots());
+        let mut q = qs.clone();
+        let crossing = (1..400).any(|k| {
+            let t = k as f64 / 400.0;
+            for (x, (&s, &g)) in q.iter_mut().zip(qs.iter().zip(&qg)) {
+                *x = s + (g - s) * t;
+            }
+            !between.is_free(&q)
+        });
+        assert!(
+            crossing,
+            "{}: the straight motions do not meet",
+            cell.name()
+        );
+    }
+}

@@ -169,6 +169,18 @@ async fn multi_robot_job_runs_end_to_end_with_events() {
     let (s, v) = h.post("/v1/plans", &bad).await;
     assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
     assert_eq!(field(&v), "trajectories[0].joints[0]", "{v}");
+    // Trajectories each free alone that end in the same spot: no schedule exists. The job
+    // fails with its own code and wording (no goal is involved).
+    let (s, v) = h.post("/v1/plans?wait=30", &same_end_schedule()).await;
+    assert!(s.is_success(), "{s}: {v}");
+    assert_eq!(v["state"], "failed", "{v}");
+    assert_eq!(v["error"]["code"], "no_schedule", "{v}");
+    let msg = v["error"]["message"].as_str().unwrap_or("");
+    assert!(
+        msg.starts_with("no collision-free schedule") && msg.contains("final configurations"),
+        "{v}"
+    );
+    assert!(!msg.contains("goal"), "{v}");
     let bad = json!({"kind": "multi_robot", "scene": "kitchen_two", "object": "table", "robots": ["armar_a", "ghost"]});
     let (s, v) = h.post("/v1/plans", &bad).await;
     assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
@@ -273,4 +285,14 @@ async fn multi_arm_job_solves_the_crossing_and_names_bad_fields() {
     }
     // Dropped rather than shut down: a graceful shutdown waits out the 5 s drain.
     drop(h);
+}
+
+/// A `schedule` body for kitchen_two whose two platforms (side by side, 1.4 m apart) each
+/// drive forward 1 m and then sideways into the lane between them, ending in the same spot.
+fn same_end_schedule() -> Value {
+    json!({"kind": "schedule", "scene": "kitchen_two", "trajectories": [
+        {"robot": "armar_a", "joints": ["base_x", "base_y"],
+         "path": [[0.0, 0.0], [1.0, 0.0], [1.0, 0.7]]},
+        {"robot": "armar_b", "joints": ["base_x", "base_y"],
+         "path": [[0.0, 0.0], [1.0, 0.0], [1.0, -0.7]]}]})
 }

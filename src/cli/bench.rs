@@ -29,6 +29,11 @@ pub enum BenchCmd {
         samples: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Instead: single-state and motion checks of several arms at once in the VAMP-MR
+        /// cells (two Pandas with rods, four Pandas, four Pandas with bins; needs the
+        /// MotionBenchMaker data, `manyhands data mbm`), beside VAMP-MR's published figures.
+        #[arg(long)]
+        multi_arm: bool,
     },
     /// FK and IK (analytic S-R-S, numeric DLS) only.
     Kinematics {
@@ -48,6 +53,10 @@ pub enum BenchCmd {
     /// Multi-Robot-RRT (002 Tables I and II): two robots in `kitchen_two`, three robots in
     /// `boxes_three` with 30 random boxes per seed; N seeded runs each, the paper's row beside.
     MultiRobot(super::multi_robot::BenchArgs),
+    /// The multi-arm planner on seeded crossing tasks in VAMP-MR's cells (needs the
+    /// MotionBenchMaker data): success, median time, method, makespan before/after shortcutting,
+    /// beside decoupled-only and composite-only.
+    MultiArm(super::bench_multi_arm::MultiArmBenchArgs),
     /// Trajectory timing (TOPP-RA on the polyline): the kitchen task's path and 100-waypoint
     /// Panda-like paths, median µs per parameterisation.
     Timing(super::bench_timing::TimingBenchArgs),
@@ -70,7 +79,19 @@ pub enum BenchCmd {
 
 pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
     match cmd {
-        BenchCmd::Collision { samples, seed } => {
+        BenchCmd::Collision {
+            samples,
+            seed,
+            multi_arm: true,
+        } => {
+            let rows = super::bench_collision_multi::rows(*samples, *seed)?;
+            print_rows(ctx, &rows);
+        }
+        BenchCmd::Collision {
+            samples,
+            seed,
+            multi_arm: false,
+        } => {
             let mut rows = collision_rows(ctx, *samples, *seed)?;
             rows.extend(kinematics_rows(ctx, *samples, *seed)?);
             print_rows(ctx, &rows);
@@ -81,6 +102,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         }
         BenchCmd::Mbm(a) => super::mbm::run(ctx, a)?,
         BenchCmd::MultiRobot(a) => super::multi_robot::bench(ctx, a)?,
+        BenchCmd::MultiArm(a) => super::bench_multi_arm::run(ctx, a)?,
         BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
         BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
         BenchCmd::Timing(a) => super::bench_timing::run(ctx, a)?,
@@ -92,13 +114,13 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
     Ok(())
 }
 
-struct Row {
-    what: String,
-    median_ns: f64,
-    mean_ns: f64,
-    n: usize,
-    note: String,
-    target: &'static str,
+pub(super) struct Row {
+    pub(super) what: String,
+    pub(super) median_ns: f64,
+    pub(super) mean_ns: f64,
+    pub(super) n: usize,
+    pub(super) note: String,
+    pub(super) target: &'static str,
 }
 
 fn print_rows(ctx: &Ctx, rows: &[Row]) {
@@ -134,7 +156,7 @@ fn fmt_ns(ns: f64) -> String {
 
 /// Times `f` once per input and returns (median, mean) in ns, with the clock's own cost (the
 /// median of timing an empty call) subtracted.
-fn time_each<T>(inputs: &[T], mut f: impl FnMut(&T)) -> (f64, f64) {
+pub(super) fn time_each<T>(inputs: &[T], mut f: impl FnMut(&T)) -> (f64, f64) {
     // Warm-up.
     for x in inputs.iter().take(100) {
         f(x);

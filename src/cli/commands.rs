@@ -758,6 +758,46 @@ pub fn panda_four(a: &PandaFourArgs) -> Result<()> {
     Ok(())
 }
 
+#[derive(Args, Debug)]
+pub struct VampMrArgs {
+    /// The cell: `panda_two_rod`, `panda_four` or `panda_four_bins`.
+    pub cell: String,
+    /// Folder to write `robots/` (the cell's arm model) and `scenes/vamp_mr_CELL.json` into
+    /// (default: print the scene JSON).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn vamp_mr(a: &VampMrArgs) -> Result<()> {
+    let data = manyhands::planning::mbm_data::locate().map_err(|e| anyhow::anyhow!(e))?;
+    let cell = manyhands::planning::multi_arm_cells::vamp_mr_by_name(&a.cell, &data)?;
+    let text = serde_json::to_string_pretty(&cell.json)?;
+    let Some(out) = &a.out else {
+        println!("{text}");
+        return Ok(());
+    };
+    let (robots, scenes) = (out.join("robots"), out.join("scenes"));
+    for d in [&robots, &scenes] {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    for m in &cell.models {
+        for (ext, body) in [("urdf", &m.urdf), ("srdf", &m.srdf)] {
+            let f = robots.join(format!("{}.{ext}", m.name));
+            std::fs::write(&f, body).with_context(|| format!("writing {}", f.display()))?;
+        }
+    }
+    let file = scenes.join(format!("{}.json", cell.json.name));
+    std::fs::write(&file, text).with_context(|| format!("writing {}", file.display()))?;
+    println!(
+        "wrote {} and {}; use them with --robots {} --scenes {}",
+        robots.display(),
+        file.display(),
+        robots.display(),
+        scenes.display()
+    );
+    Ok(())
+}
+
 pub fn random_boxes(ctx: &Ctx, a: &RandomBoxesArgs) -> Result<()> {
     let lib = ctx.library()?;
     let base = ctx.scene(&a.base)?;

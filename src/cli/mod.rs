@@ -1,8 +1,10 @@
 //! Command-line front end (clap). Thin: parses arguments, calls the library, prints text or JSON.
 
 mod bench;
+mod bench_collision_multi;
 mod bench_grasp_list;
 mod bench_ik;
+mod bench_multi_arm;
 mod bench_planners;
 mod bench_timing;
 mod commands;
@@ -154,6 +156,10 @@ pub enum SceneCmd {
     /// scene, or with `--out DIR` writes DIR/robots/panda.{urdf,srdf} (from the fetched data,
     /// `manyhands data mbm`) and DIR/scenes/panda_four.json, ready for `--robots`/`--scenes`.
     PandaFour(commands::PandaFourArgs),
+    /// A public VAMP-MR multi-arm cell (`panda_two_rod`, `panda_four`, `panda_four_bins`) over
+    /// the fetched MotionBenchMaker Panda (`manyhands data mbm`): prints the scene, or with
+    /// `--out DIR` writes DIR/robots/MODEL.{urdf,srdf} and DIR/scenes/vamp_mr_NAME.json.
+    VampMr(commands::VampMrArgs),
 }
 
 pub fn run() -> Result<()> {
@@ -184,6 +190,9 @@ pub fn run() -> Result<()> {
         Command::Scene {
             cmd: SceneCmd::PandaFour(a),
         } => commands::panda_four(a),
+        Command::Scene {
+            cmd: SceneCmd::VampMr(a),
+        } => commands::vamp_mr(a),
         Command::Grasp { cmd } => grasp::run(&ctx, cmd),
         Command::Reach { cmd } => reach::run(&ctx, cmd),
         Command::Roadmap {

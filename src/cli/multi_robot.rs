@@ -143,7 +143,8 @@ pub struct ScheduleArgs {
 
 pub fn schedule(ctx: &Ctx, a: &ScheduleArgs) -> Result<()> {
     let text = super::query::body_text(&a.body)?;
-    let req: manyhands::server::multi_robot::ScheduleRequest = super::query::parse(&text)?;
+    let req: manyhands::server::multi_robot::ScheduleRequest =
+        super::query::parse(&without_kind(&text, "schedule")?)?;
     let scene = std::sync::Arc::new(ctx.scene(&req.scene)?);
     let v = manyhands::server::multi_robot::schedule_locally(&req, scene, a.max_seconds)
         .map_err(|e| anyhow!("{e}"))?;
@@ -156,6 +157,26 @@ pub fn schedule(ctx: &Ctx, a: &ScheduleArgs) -> Result<()> {
         )
     });
     Ok(())
+}
+
+/// The body of `POST /v1/plans` for job kind `kind` as the request of that kind alone: its
+/// `"kind"` member, when present, must be `kind` and is dropped (the HTTP body is accepted as
+/// is); other text is returned unchanged for the request's own parse to report.
+fn without_kind(text: &str, kind: &str) -> Result<String> {
+    let Ok(serde_json::Value::Object(mut m)) = serde_json::from_str::<serde_json::Value>(text)
+    else {
+        return Ok(text.to_string());
+    };
+    match m.remove("kind") {
+        None => Ok(text.to_string()),
+        Some(serde_json::Value::String(k)) if k == kind => {
+            Ok(serde_json::Value::Object(m).to_string())
+        }
+        Some(other) => Err(anyhow!(
+            "request body, field 'kind': {other} is not \"{kind}\" (this command runs job kind \
+             {kind} only)"
+        )),
+    }
 }
 
 #[derive(Args, Debug)]

@@ -443,10 +443,9 @@ impl PhaseSpace {
             });
         }
         if !self.is_valid(&one) {
-            return Err(PlanError::InvalidGoal {
-                count: 1,
+            return Err(PlanError::NoSchedule {
                 reason: format!(
-                    "the robots' final configurations collide with each other ({})",
+                    "the trajectories' final configurations collide with each other ({})",
                     self.contact_at(&one)
                 ),
             });
@@ -480,10 +479,9 @@ impl PhaseSpace {
                         };
                         return Err(match term.reason() {
                             Some(r) if r != StopReason::IterationLimit => PlanError::stopped(r, ps),
-                            _ => PlanError::InvalidGoal {
-                                count: 1,
-                                reason: "no collision-free schedule found in phase space, and \
-                                         sequential execution collides (the trajectories fail \
+                            _ => PlanError::NoSchedule {
+                                reason: "none found in phase space, and executing the \
+                                         trajectories one after the other collides (they fail \
                                          the deadlock check, 002 eq. 2)"
                                     .into(),
                             },

@@ -110,6 +110,12 @@ pub enum PlanError {
     /// No goal state is within the bounds and collision-free.
     #[error("no valid goal configuration ({count} given): {reason}")]
     InvalidGoal { count: usize, reason: String },
+    /// Fixed trajectories admit no coordination that was found (phase-space scheduling, 002
+    /// §V): their final configurations collide with each other, or no monotone collision-free
+    /// phase path was found and one robot after the other collides too. Not a goal problem:
+    /// the trajectories' ends are given, only their timing is searched.
+    #[error("no collision-free schedule: {reason}")]
+    NoSchedule { reason: String },
     /// The time limit ran out before a path was found.
     #[error("time limit reached ({:.3} ms and {} iterations in this step)", .stats.time.as_secs_f64() * 1e3, .stats.iterations)]
     Timeout { stats: Box<PlanStats> },

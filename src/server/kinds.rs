@@ -317,6 +317,7 @@ pub(super) fn plan_failure(e: PlanError) -> JobFailure {
         PlanError::InvalidInput(_) => "invalid_input",
         PlanError::InvalidStart { .. } => "invalid_start",
         PlanError::InvalidGoal { .. } => "invalid_goal",
+        PlanError::NoSchedule { .. } => "no_schedule",
         PlanError::Timeout { .. } => "timeout",
         PlanError::IterationLimit { .. } => "iteration_limit",
         PlanError::Stopped { .. } => "cancelled",

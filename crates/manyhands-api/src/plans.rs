@@ -614,6 +614,9 @@ pub struct ScheduleTrajectory {
 /// all-goal whose every segment is proven collision-free between the robots, timed on one
 /// clock within the joints' velocity (and given acceleration) limits. Each trajectory must be
 /// free in the scene on its own (refused with 422 naming the robot and waypoint otherwise).
+/// When no schedule exists or none is found (the trajectories' final configurations collide
+/// with each other, or no phase path was found and one robot after the other collides) the job
+/// fails with error code `no_schedule`, message "no collision-free schedule: …" and the reason.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
@@ -855,6 +858,10 @@ pub struct Job {
     /// `trajectory`, a `JointTrajectory`; `multi_robot` and `schedule`: `trajectories` by robot).
     #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
     pub result: Option<Value>,
+    /// Why a failed job failed: `code` is `invalid_input`, `invalid_start`, `invalid_goal`
+    /// (no valid goal configuration), `no_schedule` (fixed trajectories that cannot be
+    /// coordinated), `timeout`, `iteration_limit`, `cancelled`, `interrupted`, `path_invalid`
+    /// or another kind-specific code, with a message saying why.
     pub error: Option<ErrorDetail>,
     /// What the server changed in the request, e.g. a `time_limit` capped to its maximum.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
