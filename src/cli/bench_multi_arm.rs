@@ -136,8 +136,21 @@ pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
         let c = vamp_mr(cell, &dir)?;
         let world = CollisionWorld::from_scene(&c.scene);
         let mut problems = Vec::new();
-        for k in 0..a.tasks {
-            let task = crossing_task(&c.scene, a.seed + k, &CrossingSettings::default())?;
+        let mut seeds = Vec::new();
+        let mut skipped = 0;
+        let mut k = 0;
+        // Seeds for which the generator finds no crossing task are skipped (at most as many
+        // seeds again as tasks are tried).
+        while (problems.len() as u64) < a.tasks && k < 2 * a.tasks {
+            let seed = a.seed + k;
+            k += 1;
+            let task = match crossing_task(&c.scene, seed, &CrossingSettings::default()) {
+                Ok(t) => t,
+                Err(_) => {
+                    skipped += 1;
+                    continue;
+                }
+            };
             let arms = (0..world.robots.len())
                 .map(|r| Arm {
                     robot: r,
@@ -150,6 +163,13 @@ pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
                 task.start_config(),
                 arms,
             )?);
+            seeds.push(seed);
+        }
+        if skipped > 0 {
+            println!(
+                "\n{}: {skipped} seeds without a crossing task skipped",
+                cell.name()
+            );
         }
         println!("\n{} ({} arms)", cell.name(), world.robots.len());
         println!(
@@ -175,7 +195,7 @@ pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
                 let mut term =
                     Termination::new().with_time_limit(Duration::from_secs_f64(a.time_limit));
                 let t0 = Instant::now();
-                let r = plan_multi_arm(p, &s, &mut term, a.seed + k as u64);
+                let r = plan_multi_arm(p, &s, &mut term, seeds[k]);
                 let ms = t0.elapsed().as_secs_f64() * 1e3;
                 if let Ok(plan) = r {
                     if ms <= a.time_limit * 1e3 {

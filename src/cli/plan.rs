@@ -282,9 +282,7 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
         PlanCmd::MultiRobot(_)
         | PlanCmd::Exchange(_)
         | PlanCmd::PickPlace(_)
-        | PlanCmd::MultiArm(_) => {
-            TimingOptions::default()
-        }
+        | PlanCmd::MultiArm(_) => TimingOptions::default(),
         PlanCmd::Reach { common, .. }
         | PlanCmd::Regrasp { common, .. }
         | PlanCmd::Kitchen { common, .. }
