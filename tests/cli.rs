@@ -417,3 +417,25 @@ fn schedule_takes_the_http_body_and_names_a_missing_schedule() {
         "{err}"
     );
 }
+
+/// `manyhands plan multi-arm BODY` takes the HTTP body of job kind `multi_arm` (with or without
+/// its kind): the `arms_crossing` task is solved by a method other than decoupled, and a bad
+/// field is refused naming it.
+#[test]
+fn plan_multi_arm_takes_the_http_body() {
+    let text =
+        std::fs::read_to_string(common::root().join("scenes/arms_crossing.json")).expect("scene");
+    let scene: Value = serde_json::from_str(&text).expect("json");
+    let goal = |k: usize| scene["robots"][k]["configs"]["goal"].clone();
+    let body = serde_json::json!({"kind": "multi_arm", "scene": "arms_crossing",
+        "robots": [{"name": "armar_a", "group": "right_arm", "goal": goal(0)},
+                   {"name": "armar_b", "group": "left_arm", "goal": goal(1)}]});
+    let v = json(&["plan", "multi-arm", &body.to_string(), "--json"]);
+    assert_ne!(v["method"], "decoupled", "{v}");
+    assert!(v["makespan"].as_f64().unwrap_or(0.0) > 0.0, "{v}");
+    let mut bad = body.clone();
+    bad["robots"][1]["group"] = "tentacle".into();
+    let (code, _, err) = run(&["plan", "multi-arm", &bad.to_string()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("robots[1].group"), "{err}");
+}

@@ -1,4 +1,4 @@
-//! Job kinds `multi_robot` and `schedule` over HTTP: the real server on an ephemeral loopback
+//! Job kinds `multi_robot`, `schedule` and `multi_arm` over HTTP: the real server on an ephemeral loopback
 //! port, SSE events of a Multi-Robot-RRT job, and bad schedules refused with the field named.
 
 mod common;
@@ -186,6 +186,105 @@ async fn multi_robot_job_runs_end_to_end_with_events() {
     assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
     assert!(field(&v).starts_with("robots[1]"), "{v}");
     h.server.shutdown().await.expect("shutdown");
+}
+
+/// The `arms_crossing` task as a `multi_arm` request: armar_a's right arm and armar_b's left arm
+/// to the scene's `goal` configurations.
+fn multi_arm_body() -> Value {
+    let text =
+        std::fs::read_to_string(common::root().join("scenes/arms_crossing.json")).expect("scene");
+    let scene: Value = serde_json::from_str(&text).expect("json");
+    let goal = |k: usize| scene["robots"][k]["configs"]["goal"].clone();
+    json!({"kind": "multi_arm", "scene": "arms_crossing", "seed": 1, "time_limit": 30,
+        "robots": [{"name": "armar_a", "group": "right_arm", "goal": goal(0)},
+                   {"name": "armar_b", "group": "left_arm", "goal": goal(1)}]})
+}
+
+/// Kind `multi_arm` over HTTP: the crossing that decoupled scheduling cannot solve is solved
+/// (the method and the failed decoupled attempt reported), with one trajectory on one clock,
+/// the schedule and the makespans; the same request gives the same plan; bad fields are
+/// refused with 422 naming them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn multi_arm_job_solves_the_crossing_and_names_bad_fields() {
+    let h = start("multi-arm").await;
+    let body = multi_arm_body();
+    let (s, v) = h.post("/v1/plans?wait=60", &body).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["state"], "succeeded", "{v}");
+    let r = &v["result"];
+    let method = r["method"].as_str().unwrap_or("");
+    assert!(method == "prioritized" || method == "composite", "{r}");
+    assert_eq!(r["stats"]["attempts"][0]["method"], "decoupled", "{r}");
+    assert_eq!(r["stats"]["attempts"][0]["solved"], false, "{r}");
+    assert_eq!(r["certified"], true);
+    let (before, after) = (
+        r["makespan_before_shortcut"].as_f64().expect("before"),
+        r["makespan"].as_f64().expect("makespan"),
+    );
+    assert!(after > 0.0 && after <= before + 1e-9, "{after} {before}");
+    assert_eq!(r["trajectory"]["duration"].as_f64(), Some(after));
+    assert_eq!(
+        r["trajectory"]["joint_names"].as_array().map(|j| j.len()),
+        Some(14)
+    );
+    let pts = r["schedule"]["points"].as_array().expect("schedule");
+    assert_eq!(pts[0]["time_from_start"], 0.0);
+    assert_eq!(pts[0]["positions"].as_array().map(|p| p.len()), Some(2));
+    let (s, v2) = h.post("/v1/plans?wait=60", &body).await;
+    assert_eq!(s, StatusCode::OK, "{v2}");
+    assert_eq!(v2["result"]["path"], r["path"], "same request, same plan");
+
+    let bad = |f: &dyn Fn(&mut Value)| {
+        let mut b = multi_arm_body();
+        f(&mut b);
+        b
+    };
+    let cases: Vec<(Value, &str)> = vec![
+        (
+            bad(&|b| b["robots"][1]["goal"]["bogus"] = json!(0.1)),
+            "robots[1].goal.bogus",
+        ),
+        (
+            bad(&|b| b["robots"][0]["goal"]["left_elbow"] = json!(-1.0)),
+            "robots[0].goal.left_elbow",
+        ),
+        (
+            bad(&|b| b["robots"][0]["goal_pose"] = json!({"position": [0.4, -0.3, 1.0]})),
+            "robots[0].goal_pose",
+        ),
+        (
+            bad(&|b| {
+                b["robots"][0]["goal"] = Value::Null;
+                b["robots"][0]["goal_pose"] = json!({"position": [5.0, 5.0, 5.0]});
+            }),
+            "robots[0].goal_pose",
+        ),
+        (
+            bad(&|b| b["robots"][1]["goal"] = Value::Null),
+            "robots[1].goal",
+        ),
+        (
+            bad(&|b| b["robots"][1]["name"] = json!("armar_a")),
+            "robots[1].name",
+        ),
+        (
+            bad(&|b| b["robots"][1]["group"] = json!("tentacle")),
+            "robots[1].group",
+        ),
+        (bad(&|b| b["method"] = json!("fastest")), "method"),
+        (
+            bad(&|b| b["shortcut_iterations"] = json!(20000)),
+            "shortcut_iterations",
+        ),
+        (bad(&|b| b["robots"] = json!([])), "robots"),
+    ];
+    for (body, want) in cases {
+        let (s, v) = h.post("/v1/plans", &body).await;
+        assert_eq!(s, StatusCode::UNPROCESSABLE_ENTITY, "{want}: {v}");
+        assert_eq!(field(&v), want, "{v}");
+    }
+    // Dropped rather than shut down: a graceful shutdown waits out the 5 s drain.
+    drop(h);
 }
 
 /// A `schedule` body for kitchen_two whose two platforms (side by side, 1.4 m apart) each

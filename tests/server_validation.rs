@@ -34,6 +34,8 @@ fn base_bodies() -> Vec<Value> {
             "params": {"positions": 1}}),
         json!({"kind": "pick_place", "scene": "pick_place", "robot": "justin",
             "object": "statuette", "pick_hand": "right_hand", "place_hand": "left_hand"}),
+        json!({"kind": "multi_arm", "scene": "arms_crossing",
+            "robots": [{"name": "armar_a", "group": "right_arm", "goal": {"right_elbow": -1.0}}]}),
     ]
 }
 

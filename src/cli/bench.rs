@@ -53,6 +53,10 @@ pub enum BenchCmd {
     /// Multi-Robot-RRT (002 Tables I and II): two robots in `kitchen_two`, three robots in
     /// `boxes_three` with 30 random boxes per seed; N seeded runs each, the paper's row beside.
     MultiRobot(super::multi_robot::BenchArgs),
+    /// The multi-arm planner on seeded crossing tasks in VAMP-MR's cells (needs the
+    /// MotionBenchMaker data): success, median time, method, makespan before/after shortcutting,
+    /// beside decoupled-only and composite-only.
+    MultiArm(super::bench_multi_arm::MultiArmBenchArgs),
     /// Trajectory timing (TOPP-RA on the polyline): the kitchen task's path and 100-waypoint
     /// Panda-like paths, median µs per parameterisation.
     Timing(super::bench_timing::TimingBenchArgs),
@@ -98,6 +102,7 @@ pub fn run(ctx: &Ctx, cmd: &BenchCmd) -> Result<()> {
         }
         BenchCmd::Mbm(a) => super::mbm::run(ctx, a)?,
         BenchCmd::MultiRobot(a) => super::multi_robot::bench(ctx, a)?,
+        BenchCmd::MultiArm(a) => super::bench_multi_arm::run(ctx, a)?,
         BenchCmd::Ik(a) => super::bench_ik::run(ctx, a)?,
         BenchCmd::Planners(a) => super::bench_planners::run(ctx, a)?,
         BenchCmd::Timing(a) => super::bench_timing::run(ctx, a)?,

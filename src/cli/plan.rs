@@ -162,6 +162,10 @@ pub enum PlanCmd {
     /// super-graph queries with lazy revalidation, one certified plan with grasp and release
     /// events.
     PickPlace(Box<super::pick_place::PickPlaceArgs>),
+    /// N independent arms of a scene in one timed plan (job kind `multi_arm`): decoupled
+    /// scheduling, prioritized planning in space-time or composite RRT-Connect, chosen
+    /// automatically, then makespan-aware shortcutting.
+    MultiArm(super::multi_arm::MultiArmArgs),
     Bimanual {
         #[arg(long, default_value = "kitchen")]
         scene: String,
@@ -275,9 +279,10 @@ pub(super) fn termination(c: &Common) -> Result<Termination> {
 
 pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
     let opts = match cmd {
-        PlanCmd::MultiRobot(_) | PlanCmd::Exchange(_) | PlanCmd::PickPlace(_) => {
-            TimingOptions::default()
-        }
+        PlanCmd::MultiRobot(_)
+        | PlanCmd::Exchange(_)
+        | PlanCmd::PickPlace(_)
+        | PlanCmd::MultiArm(_) => TimingOptions::default(),
         PlanCmd::Reach { common, .. }
         | PlanCmd::Regrasp { common, .. }
         | PlanCmd::Kitchen { common, .. }
@@ -287,6 +292,7 @@ pub fn run(ctx: &Ctx, cmd: &PlanCmd) -> Result<()> {
         PlanCmd::MultiRobot(a) => return super::multi_robot::plan(ctx, a),
         PlanCmd::Exchange(a) => return super::exchange::plan(ctx, a),
         PlanCmd::PickPlace(a) => return super::pick_place::plan(ctx, a),
+        PlanCmd::MultiArm(a) => return super::multi_arm::plan(ctx, a),
         PlanCmd::Reach {
             scene,
             robot,

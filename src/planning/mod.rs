@@ -24,6 +24,7 @@ pub mod j_plus_rrt;
 pub mod mbm;
 pub mod mbm_data;
 pub mod mbm_gen;
+pub mod multi_arm;
 pub mod multi_arm_cells;
 pub mod multi_robot_rrt;
 pub mod phase_space;

@@ -174,6 +174,7 @@ pub fn prepare(req: &PlanRequest, catalog: &Catalog, max_seconds: f64) -> ApiRes
             super::grasp_lists::prepare_grasp_list(r, catalog, max_seconds)
         }
         PlanRequest::PickPlace(r) => super::pick_place::prepare_pick_place(r, catalog, max_seconds),
+        PlanRequest::MultiArm(r) => super::multi_arm::prepare_multi_arm(r, catalog, max_seconds),
     }
 }
 

@@ -24,6 +24,7 @@ pub mod jobs;
 pub mod kinds;
 pub mod meshes;
 pub mod metrics;
+pub mod multi_arm;
 pub mod multi_robot;
 pub mod openapi;
 pub mod pick_place;

@@ -48,7 +48,7 @@ impl Modify for BearerAuth {
         ErrorBody, ErrorDetail, PoseBody, PoseOut, Source, RobotSummary, RobotDetail, JointInfo, GroupInfo,
         EndEffectorInfo, RobotUpload, SceneSummary, SceneRobotInfo, FkRequest, FkResponse, LinkPose,
         IkRequest, IkResponse, IkFrame, IkSolver, IkOrder, CheckRequest, CheckResponse, CheckFast,
-        SceneRobotConfig, PlanRequest, JointSpacePlan, super::api::SamplerName, PlanRobot, CollisionSweep, ReachPlan, GraspPlannerName, HandRef, RegraspPlan, KitchenTaskPlan, BimanualPlan, super::api::GraspListPlan, super::api::GraspListParamsBody, super::api::PickPlaceTaskPlan, crate::server::multi_robot::MultiRobotRequest, crate::server::multi_robot::ScheduleRequest, crate::server::multi_robot::ScheduleTrajectory, Job, JobState, JobList,
+        SceneRobotConfig, PlanRequest, JointSpacePlan, super::api::SamplerName, PlanRobot, CollisionSweep, ReachPlan, GraspPlannerName, HandRef, RegraspPlan, KitchenTaskPlan, BimanualPlan, super::api::GraspListPlan, super::api::GraspListParamsBody, super::api::PickPlaceTaskPlan, crate::server::multi_robot::MultiRobotRequest, crate::server::multi_robot::ScheduleRequest, crate::server::multi_robot::ScheduleTrajectory, crate::server::multi_arm::MultiArmRequest, crate::server::multi_arm::MultiArmRobot, Job, JobState, JobList,
         JobSummary, Health, super::catalog::MeshSummary, super::meshes::RobotVisuals, super::meshes::VisualItem, super::meshes::VisualShape,
         GraspIkRequest, GraspIkResponse, DualArmIkRequest, BasePlacementRequest, RegionJson, TwoHandIkResponse,
         GraspContact, GraspQualityRequest, GraspQualityResponse, GraspQualityScore,

@@ -139,6 +139,7 @@ pub fn parse_plan_request(v: Value) -> ApiResult<PlanRequest> {
         "schedule" => Ok(PlanRequest::Schedule(de_kind(v)?)),
         "grasp_list" => Ok(PlanRequest::GraspList(de_kind(v)?)),
         "pick_place" => Ok(PlanRequest::PickPlace(de_kind(v)?)),
+        "multi_arm" => Ok(PlanRequest::MultiArm(de_kind(v)?)),
         k => Err(ApiError::invalid(
             "kind",
             format!("unknown kind '{k}'; one of {:?}", PlanRequest::KINDS),

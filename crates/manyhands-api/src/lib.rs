@@ -9,12 +9,13 @@
 //! errors can name `robots[1].start.right_elbow`. Every 4xx/5xx answer is an [`ErrorBody`].
 //!
 //! Modules: [`resources`] robots, scenes and health; [`queries`] FK, IK and checks; [`grasp`]
-//! the grasp queries; [`plans`] the job kinds and jobs; [`trajectory`] timed trajectories;
+//! the grasp queries; [`plans`] the job kinds ([`multi_arm`] the `multi_arm` kind's request) and jobs; [`trajectory`] timed trajectories;
 //! [`error`] the error body. Everything is
 //! also re-exported at the crate root.
 
 pub mod error;
 pub mod grasp;
+pub mod multi_arm;
 pub mod plans;
 pub mod queries;
 pub mod resources;
@@ -26,6 +27,7 @@ pub use grasp::{
     GraspQualityRequest, GraspQualityResponse, GraspQualityScore, GraspType, RegionJson,
     TwoHandIkResponse,
 };
+pub use multi_arm::{MultiArmRequest, MultiArmRobot};
 pub use plans::{
     BimanualPlan, CollisionSweep, GraspListParamsBody, GraspListPlan, GraspPlannerName, HandRef,
     Job, JobList, JobState, JobSummary, JointSpacePlan, KitchenTaskPlan, MultiRobotRequest,

@@ -738,11 +738,12 @@ pub enum PlanRequest {
     Schedule(ScheduleRequest),
     GraspList(GraspListPlan),
     PickPlace(PickPlaceTaskPlan),
+    MultiArm(crate::multi_arm::MultiArmRequest),
 }
 
 impl PlanRequest {
     /// Every `kind` tag, in the order of the variants.
-    pub const KINDS: [&'static str; 10] = [
+    pub const KINDS: [&'static str; 11] = [
         "joint_space",
         "collision_sweep",
         "reach",
@@ -753,6 +754,7 @@ impl PlanRequest {
         "schedule",
         "grasp_list",
         "pick_place",
+        "multi_arm",
     ];
 
     /// The request's queue settings: `priority` and `max_attempts` (unset ones `None`).
@@ -768,6 +770,7 @@ impl PlanRequest {
             PlanRequest::Schedule(r) => (r.priority, r.max_attempts),
             PlanRequest::GraspList(r) => (r.priority, r.max_attempts),
             PlanRequest::PickPlace(r) => (r.priority, r.max_attempts),
+            PlanRequest::MultiArm(r) => (r.priority, r.max_attempts),
         }
     }
 
@@ -784,6 +787,7 @@ impl PlanRequest {
             PlanRequest::Schedule(_) => "schedule",
             PlanRequest::GraspList(_) => "grasp_list",
             PlanRequest::PickPlace(_) => "pick_place",
+            PlanRequest::MultiArm(_) => "multi_arm",
         }
     }
 }
