@@ -635,12 +635,15 @@ fn link_displacement(link: usize, a: &[f64], b: &[f64]) -> f64 {
 /// the solid it is, with no link allowed to touch it: only the grasp's contact fingertips may,
 /// and only while the fingertip's point at the contact is within 1 mm of the contact. (A closing motion that swept
 /// the fingertips 13–16 mm through the statuette's body and legs was certified before, in a
-/// world where every hand link might touch the object.)
+/// world where every hand link might touch the object.) The arm's approach to the statuette
+/// and its departure from it (the pre-shaped hand moved along its approach axis) are checked
+/// the same way with no link allowed to touch it at all (but the hand that holds it).
 #[test]
 fn grasp_and_release_touch_the_statuette_only_at_the_contacts() {
     let p = problem();
     let off = offline();
     let robot = &p.robot;
+    let mut approaches = 0;
     for seed in 1..=5u64 {
         let r = task(seed).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         let plan = &r.plan;
@@ -685,6 +688,63 @@ fn grasp_and_release_touch_the_statuette_only_at_the_contacts() {
         );
         let mut checked = 0;
         for ph in &plan.phases {
+            // The arm bringing a pre-shaped hand to the object or taking it away: no link may
+            // touch the statuette at all (only the hand that holds it, when one does).
+            if ph.name.ends_with("_approach") || ph.name.ends_with("_depart") {
+                approaches += 1;
+                let q0 = &plan.waypoints[ph.first];
+                let held = ph.world.attached.iter().find(|a| a.name == p.object_name);
+                let pose = match held {
+                    Some(a) => link_pose(robot, q0, a.link) * a.rel,
+                    None => {
+                        ph.world
+                            .statics
+                            .iter()
+                            .find(|s| s.name == p.object_name)
+                            .expect("object")
+                            .pose
+                    }
+                };
+                let mut strict = CollisionWorld::single(robot.clone(), p.base);
+                strict.statics.push(manyhands::collision::StaticBody {
+                    name: p.object_name.clone(),
+                    kind: manyhands::collision::StaticKind::Object,
+                    pose,
+                    shapes: p.object.clone(),
+                });
+                if let Some(a) = held {
+                    for &l in a.touch.iter().chain([&a.link]) {
+                        strict.allow(
+                            manyhands::collision::BodyId::Link { robot: 0, link: l },
+                            manyhands::collision::BodyId::Static(0),
+                        );
+                    }
+                }
+                let mut x = ExactChecker::new(&strict);
+                let links: Vec<usize> =
+                    p.pick.links.iter().chain(&p.place.links).copied().collect();
+                for s in plan.waypoints[ph.first..=ph.last].windows(2) {
+                    let travel = links
+                        .iter()
+                        .map(|&l| link_displacement(l, &s[0], &s[1]))
+                        .fold(0.0, f64::max);
+                    let n = ((travel / 0.0005).ceil() as usize * 2).max(1);
+                    for k in 0..=n {
+                        let t = k as f64 / n as f64;
+                        let q: Vec<f64> = s[0]
+                            .iter()
+                            .zip(&s[1])
+                            .map(|(a, b)| a + t * (b - a))
+                            .collect();
+                        assert!(
+                            x.is_free(&q),
+                            "seed {seed} {}: the robot touches the statuette at t = {t:.4}",
+                            ph.name
+                        );
+                    }
+                }
+                continue;
+            }
             let closing = ph.name.ends_with("_close");
             if !(closing || ph.name.ends_with("_open")) {
                 continue;
@@ -801,4 +861,8 @@ fn grasp_and_release_touch_the_statuette_only_at_the_contacts() {
         }
         assert_eq!(checked, 4, "seed {seed}: four finger phases on the object");
     }
+    assert!(
+        approaches > 0,
+        "no plan approached the statuette along a certified approach"
+    );
 }

@@ -187,6 +187,38 @@ pub struct KeyConfigurations {
     pub stats: ConfigStats,
 }
 
+/// The hand motions on the object a key configuration must leave room for, asked by the search
+/// of each configuration it would accept (after its collision test): a grasp whose hand cannot
+/// close on the object there (some finger of every pre-shape hits the scene, the other hand or
+/// the object) is not a usable key configuration. Grasps are indices into the lists the search
+/// was given. The task answers with the very test its motion chain applies
+/// ([`super::task`]); [`AnyHand`] admits everything (the configurations of 003 §V-C alone).
+pub trait HandRoom {
+    /// q_r^g: the pick hand can close on pick grasp `g`, the object resting at q_o^i.
+    fn grasp(&mut self, g: usize, q: &[f64]) -> bool;
+    /// q_r^e: held by pick grasp `a`, the place hand can close on place grasp `b`, and held by
+    /// `b`, the pick hand can open from `a`.
+    fn exchange(&mut self, a: usize, b: usize, q: &[f64]) -> bool;
+    /// q_r^p: the place hand can open from place grasp `b`, the object resting at q_o^f.
+    fn place(&mut self, b: usize, q: &[f64]) -> bool;
+}
+
+/// Admits every configuration ([`HandRoom`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AnyHand;
+
+impl HandRoom for AnyHand {
+    fn grasp(&mut self, _: usize, _: &[f64]) -> bool {
+        true
+    }
+    fn exchange(&mut self, _: usize, _: usize, _: &[f64]) -> bool {
+        true
+    }
+    fn place(&mut self, _: usize, _: &[f64]) -> bool {
+        true
+    }
+}
+
 /// Which hand holds the object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Holder {
@@ -353,6 +385,33 @@ pub fn single_configuration(
     params: &ConfigParams,
     stats: &mut ConfigStats,
 ) -> Result<SingleConfiguration, PickPlaceError> {
+    single_configuration_with(
+        p,
+        holder,
+        list,
+        grasps,
+        pose,
+        pose_name,
+        params,
+        stats,
+        &mut AnyHand,
+    )
+}
+
+/// [`single_configuration`] whose configurations must also leave `room` for the hand's motion
+/// on the object ([`HandRoom::grasp`] for the pick hand, [`HandRoom::place`] for the place hand).
+#[allow(clippy::too_many_arguments)]
+pub fn single_configuration_with(
+    p: &PickPlaceProblem,
+    holder: Holder,
+    list: &GraspList,
+    grasps: &[usize],
+    pose: &Pose,
+    pose_name: &str,
+    params: &ConfigParams,
+    stats: &mut ConfigStats,
+    room: &mut dyn HandRoom,
+) -> Result<SingleConfiguration, PickPlaceError> {
     params.validate()?;
     let (ah, _) = p.arm_hand(holder);
     let torsos = p.torso_samples(params, params.seed);
@@ -383,7 +442,11 @@ pub fn single_configuration(
                 let c =
                     checker.get_or_insert_with(|| ExactChecker::new(&p.held_world(ah, g, None)));
                 stats.collision_checks += 1;
-                if c.is_free(&q) {
+                let roomy = |room: &mut dyn HandRoom, q: &[f64]| match holder {
+                    Holder::Pick => room.grasp(gi, q),
+                    Holder::Place => room.place(gi, q),
+                };
+                if c.is_free(&q) && roomy(room, &q) {
                     let score = p.configuration_score(holder, g, pose, &q);
                     return Ok(SingleConfiguration {
                         grasp: gi,
@@ -428,6 +491,23 @@ pub fn exchange_configuration(
     seed: u64,
     stats: &mut ConfigStats,
 ) -> Option<(Vec<f64>, Pose)> {
+    exchange_configuration_with(p, grid, (a, 0), (b, 0), params, seed, stats, &mut AnyHand)
+}
+
+/// [`exchange_configuration`] whose configurations must also leave `room` for the hands'
+/// motions on the object ([`HandRoom::exchange`]); `a` and `b` with their indices in the lists
+/// `room` knows.
+#[allow(clippy::too_many_arguments)]
+pub fn exchange_configuration_with(
+    p: &PickPlaceProblem,
+    grid: &ExchangeGrid,
+    (a, ia): (&SingleGrasp, usize),
+    (b, ib): (&SingleGrasp, usize),
+    params: &ConfigParams,
+    seed: u64,
+    stats: &mut ConfigStats,
+    room: &mut dyn HandRoom,
+) -> Option<(Vec<f64>, Pose)> {
     let poses = exchange_poses(
         p,
         grid,
@@ -462,7 +542,7 @@ pub fn exchange_configuration(
                         ExactChecker::new(&p.held_world(&p.pick, a, Some(&p.place)))
                     });
                     stats.collision_checks += 1;
-                    if c.is_free(&q) {
+                    if c.is_free(&q) && room.exchange(ia, ib, &q) {
                         return Some((q, *pose));
                     }
                 }
@@ -485,13 +565,24 @@ pub fn single_configurations(
     pose_name: &str,
     params: &ConfigParams,
     stats: &mut ConfigStats,
+    room: &mut dyn HandRoom,
 ) -> Result<Vec<SingleConfiguration>, PickPlaceError> {
     let mut out = Vec::new();
     let mut last = None;
     let tried = list.grasps.len().min(params.max_single);
     let before = *stats;
     for gi in 0..tried {
-        match single_configuration(p, holder, list, &[gi], pose, pose_name, params, stats) {
+        match single_configuration_with(
+            p,
+            holder,
+            list,
+            &[gi],
+            pose,
+            pose_name,
+            params,
+            stats,
+            &mut *room,
+        ) {
             Ok(c) => {
                 out.push(c);
                 if out.len() >= params.single_keep {
@@ -544,6 +635,19 @@ pub fn key_configurations(
     grid: &ExchangeGrid,
     params: &ConfigParams,
 ) -> Result<KeyConfigurations, PickPlaceError> {
+    key_configurations_with(p, pick_list, place_list, grid, params, &mut AnyHand)
+}
+
+/// [`key_configurations`] whose every configuration also leaves `room` for the hands' motions
+/// on the object ([`HandRoom`]).
+pub fn key_configurations_with(
+    p: &PickPlaceProblem,
+    pick_list: &GraspList,
+    place_list: &GraspList,
+    grid: &ExchangeGrid,
+    params: &ConfigParams,
+    room: &mut dyn HandRoom,
+) -> Result<KeyConfigurations, PickPlaceError> {
     params.validate()?;
     let mut stats = ConfigStats::default();
     let t_single = std::time::Instant::now();
@@ -555,6 +659,7 @@ pub fn key_configurations(
         "initial",
         params,
         &mut stats,
+        &mut *room,
     )?;
     let places = single_configurations(
         p,
@@ -564,6 +669,7 @@ pub fn key_configurations(
         "final",
         params,
         &mut stats,
+        &mut *room,
     )?;
     stats.single_ms = t_single.elapsed().as_secs_f64() * 1e3;
     let t_double = std::time::Instant::now();
@@ -587,14 +693,15 @@ pub fn key_configurations(
     for (k, d) in doubles.grasps.iter().enumerate() {
         stats.double_grasps_tried += 1;
         let seed = params.seed ^ 0x9E37_79B9_7F4A_7C15u64.wrapping_mul(k as u64 + 1);
-        if let Some((qe, pose)) = exchange_configuration(
+        if let Some((qe, pose)) = exchange_configuration_with(
             p,
             grid,
-            &pl.grasps[d.pick],
-            &ll.grasps[d.place],
+            (&pl.grasps[d.pick], picks[d.pick].grasp),
+            (&ll.grasps[d.place], places[d.place].grasp),
             params,
             seed,
             &mut stats,
+            &mut *room,
         ) {
             complete.push((*d, qe, pose));
             if complete.len() >= params.accept {

@@ -20,10 +20,12 @@
 //!
 //! Planning core: no server, no tokio.
 
+pub mod approach;
 pub mod configurations;
 pub mod exchange;
 pub mod fingers;
 mod hands;
+mod room;
 pub mod task;
 
 use std::sync::Arc;
@@ -38,8 +40,9 @@ use crate::kinematics::{link_pose, SrsArm};
 use crate::model::{Robot, Scene};
 
 pub use configurations::{
-    exchange_configuration, key_configurations, single_configuration, within_limits, ConfigParams,
-    ConfigStats, Holder, KeyConfigurations, SingleConfiguration,
+    exchange_configuration, exchange_configuration_with, key_configurations,
+    key_configurations_with, single_configuration, single_configuration_with, within_limits,
+    AnyHand, ConfigParams, ConfigStats, HandRoom, Holder, KeyConfigurations, SingleConfiguration,
 };
 pub use exchange::{exchange_grid, exchange_poses, ExchangeGrid, ExchangeParams};
 pub use task::{

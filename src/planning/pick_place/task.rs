@@ -47,16 +47,23 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use thiserror::Error;
 
+use super::approach::{
+    approach_configuration, approach_directions, ApproachCertificate, ObjectCertificate,
+    APPROACH_DISTANCES,
+};
 use super::configurations::{within_limits, ConfigParams, KeyConfigurations};
-use super::fingers::{FingerCertificate, FingerVerdict};
+use super::fingers::FingerVerdict;
 pub use super::hands::finger_preshape;
 use super::hands::{closable, fingers_of, with_fingers};
-use super::{exchange_grid, key_configurations, ArmHand, PickPlaceError, PickPlaceProblem};
+use super::room::{first_free, SceneRoom, Test};
+use super::{exchange_grid, key_configurations_with, ArmHand, PickPlaceError, PickPlaceProblem};
 use crate::cache_tier::CacheTier;
 use crate::collision::{
-    CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
+    BodyId, CollisionChecker, CollisionWorld, ExactChecker, FastChecker, StaticBody, StaticKind,
 };
+use crate::geometry::Pose;
 use crate::grasp::{GraspList, GraspListCache, GraspListParams, GraspObject, SingleGrasp};
+use crate::kinematics::link_pose;
 use crate::planning::roadmap_cache::{load_or_build, RoadmapSource};
 use crate::planning::roadmap_query::{
     attach_at_link, query_learning, LearnedGraph, RoadmapQuerySettings,
@@ -483,7 +490,7 @@ struct Chain<'a> {
     /// The world of each phase of `plan` (an index into `worlds`).
     phase_world: Vec<usize>,
     /// The object certificate of each phase that closes or opens a hand on the object.
-    phase_fingers: Vec<Option<FingerCertificate<'a>>>,
+    phase_fingers: Vec<Option<ObjectCertificate<'a>>>,
     queries: Vec<QueryRecord>,
     /// What the roadmap learnt so far (module docs of [`crate::planning::roadmap_query`]).
     learned: LearnedGraph,
@@ -510,6 +517,12 @@ const W_PICK_HAND: usize = 1;
 const W_BOTH_HANDS: usize = 2;
 const W_PLACE_HAND: usize = 3;
 const W_FINAL: usize = 4;
+/// The object resting at q_o^i, the pick hand's links not checked against it (the pick
+/// approach, proven against the object by its [`ApproachCertificate`]).
+const W_PICK_APPROACH: usize = 5;
+/// The object held by the place hand at q_o^e, the pick hand's links not checked against it
+/// (the pick hand's departure after it opened, proven by its [`ApproachCertificate`]).
+const W_PICK_DEPART: usize = 6;
 
 impl<'a> Chain<'a> {
     /// The fast checker of world `w` (built on first use: one per world and attempt, so a hand
@@ -517,12 +530,6 @@ impl<'a> Chain<'a> {
     fn fast(&mut self, w: usize) -> &mut FastChecker {
         let world = &self.worlds[w];
         self.fast[w].get_or_insert_with(|| FastChecker::new(world))
-    }
-
-    /// The exact checker of world `w` (built on first use).
-    fn exact(&mut self, w: usize) -> &mut ExactChecker {
-        let world = &self.worlds[w];
-        self.exact[w].get_or_insert_with(|| ExactChecker::new(world))
     }
 
     fn append(&mut self, name: &str, planner: &str, path: Vec<Vec<f64>>, w: usize) {
@@ -585,7 +592,7 @@ impl<'a> Chain<'a> {
         name: &str,
         path: Vec<Vec<f64>>,
         w: usize,
-        cert: FingerCertificate<'a>,
+        cert: ObjectCertificate<'a>,
     ) -> Result<(), PickPlaceTaskError> {
         if path.first() != Some(&self.last()) {
             return Err(PickPlaceTaskError::Hand(format!(
@@ -618,7 +625,7 @@ impl<'a> Chain<'a> {
     /// arm at `q` (the grasp state): world configurations `[pre-shape, (approach,) q]` of the
     /// first candidate whose pre-shape is free in world `state` (exact and fast checker) and
     /// whose segments are certified in world `motion` (the object is proven by the phase's
-    /// [`FingerCertificate`]).
+    /// [`super::fingers::FingerCertificate`]).
     #[allow(clippy::too_many_arguments)]
     fn closing(
         &mut self,
@@ -629,17 +636,26 @@ impl<'a> Chain<'a> {
         (state, motion): (usize, usize),
         what: &str,
     ) -> Result<Vec<Vec<f64>>, PickPlaceTaskError> {
-        'candidates: for m in motions {
-            let path: Vec<Vec<f64>> = m.iter().map(|v| with_fingers(ah, q, v)).collect();
-            let pre = &path[0];
-            if !(self.exact(state).is_free(pre) && self.fast(state).is_free(pre)) {
-                continue;
+        let (worlds, fast, exact) = (&self.worlds, &mut self.fast, &mut self.exact);
+        let found = first_free(ah, q, motions, &mut |t| match t {
+            Test::Free(x) => {
+                // Fast (conservative, cheap) first, as `super::room` does.
+                let w = &worlds[state];
+                fast[state]
+                    .get_or_insert_with(|| FastChecker::new(w))
+                    .is_free(x)
+                    && exact[state]
+                        .get_or_insert_with(|| ExactChecker::new(w))
+                        .is_free(x)
             }
-            for s in path.windows(2) {
-                if !self.fast(motion).motion_certified(&s[0], &s[1]) {
-                    continue 'candidates;
-                }
+            Test::Motion(a, b) => {
+                let w = &worlds[motion];
+                fast[motion]
+                    .get_or_insert_with(|| FastChecker::new(w))
+                    .motion_certified(a, b)
             }
+        });
+        if let Some(path) = found {
             return Ok(path);
         }
         self.refused = Some((side, grasp));
@@ -657,9 +673,47 @@ impl<'a> Chain<'a> {
         list: &GraspList,
         g: &SingleGrasp,
         q: &[f64],
-    ) -> FingerCertificate<'a> {
+    ) -> ObjectCertificate<'a> {
         let off: &'a PickPlaceOffline = self.off;
-        FingerCertificate::new(ah, &off.object, g, q, list.params.contact_tolerance)
+        ObjectCertificate::Fingers(super::fingers::FingerCertificate::new(
+            ah,
+            &off.object,
+            g,
+            q,
+            list.params.contact_tolerance,
+        ))
+    }
+
+    /// The approach of `ah`'s pre-shaped hand to `pre` ([`super::approach`]): the first
+    /// approach configuration (directions best first, distances farthest first) free in world
+    /// `state`, whose straight motion to `pre` is certified in world `motion` (the hand–object
+    /// pairs left out) and against the object at `object` (world pose) by its certificate.
+    fn approach(
+        &mut self,
+        ah: &'a ArmHand,
+        pre: &[f64],
+        object: &Pose,
+        (state, motion): (usize, usize),
+    ) -> Option<(Vec<f64>, ObjectCertificate<'a>)> {
+        let off: &'a PickPlaceOffline = self.off;
+        let p = self.p;
+        let in_root = p.base.inverse() * object;
+        let cert = ApproachCertificate::new(ah, &off.object, &in_root);
+        let centre = in_root * nalgebra::Point3::from(p.object_centre);
+        for dir in approach_directions(p, ah, pre, &centre.coords) {
+            for &s in &APPROACH_DISTANCES {
+                let Some(far) = approach_configuration(p, ah, pre, &dir, s) else {
+                    continue;
+                };
+                if self.fast(state).is_free(&far)
+                    && cert.certify(&far, pre) == FingerVerdict::Certified
+                    && self.fast(motion).motion_certified(&far, pre)
+                {
+                    return Some((far, ObjectCertificate::Approach(cert)));
+                }
+            }
+        }
+        None
     }
 
     /// Query `name` from the last waypoint to `goal` in world `w`, appended.
@@ -816,9 +870,21 @@ fn chain<'a>(
     if let Some(s) = w_f.statics.iter_mut().find(|s| s.name == p.object_name) {
         s.pose = p.final_pose;
     }
-    c.worlds = vec![w_i.clone(), h_a, h_ab, h_b, w_f];
-    c.fast = vec![None, None, None, None, None];
-    c.exact = vec![None, None, None, None, None];
+    let mut w_ia = w_i.clone();
+    if let Some(si) = w_ia.statics.iter().position(|s| s.name == p.object_name) {
+        for &l in &pick.links {
+            w_ia.allow(BodyId::Link { robot: 0, link: l }, BodyId::Static(si));
+        }
+    }
+    let mut h_bd = h_b.clone();
+    if let Some(ai) = h_bd.attached.iter().position(|a| a.name == p.object_name) {
+        for &l in &pick.links {
+            h_bd.allow(BodyId::Link { robot: 0, link: l }, BodyId::Attached(ai));
+        }
+    }
+    c.worlds = vec![w_i.clone(), h_a, h_ab, h_b, w_f, w_ia, h_bd];
+    c.fast = (0..7).map(|_| None).collect();
+    c.exact = (0..7).map(|_| None).collect();
     let (w_i, h_a, h_ab, h_b, w_f) = (W_INITIAL, W_PICK_HAND, W_BOTH_HANDS, W_PLACE_HAND, W_FINAL);
 
     let (motions_a, motions_b) = (
@@ -846,7 +912,16 @@ fn chain<'a>(
         with_fingers(pick, &p.rest, &fingers_of(pick, &close_a[0])),
         w_i,
     )?;
-    c.query("grasp", close_a[0].clone(), w_i, term, progress)?;
+    // The query ends at the approach configuration when one is certified (`super::approach`).
+    let approach = c.approach(pick, &close_a[0], &p.initial, (w_i, W_PICK_APPROACH));
+    match approach {
+        Some((far, cert)) => {
+            c.query("grasp", far.clone(), w_i, term, progress)?;
+            let path = vec![far, close_a[0].clone()];
+            c.on_object("pick_approach", path, W_PICK_APPROACH, cert)?;
+        }
+        None => c.query("grasp", close_a[0].clone(), w_i, term, progress)?,
+    }
     let cert = c.certificate(pick, list_a, a, &qg);
     c.on_object("pick_close", close_a, h_a, cert)?;
     c.event(EventKind::Grasp, pick, name_a.clone());
@@ -866,6 +941,13 @@ fn chain<'a>(
     // Place: open the pick hand (its closing motion reversed), bring the object to q_o^f.
     let cert = c.certificate(pick, list_a, a, &qe);
     c.on_object("pick_open", open_a, h_ab, cert)?;
+    // The pick hand backs off from the object the place hand now holds (the reverse of an
+    // approach, `super::approach`), so the place query starts clear of it.
+    let opened = c.last();
+    let held = link_pose(&p.robot, &opened, place.hand.palm) * b.palm_pose().inverse();
+    if let Some((far, cert)) = c.approach(pick, &opened, &(p.base * held), (h_b, W_PICK_DEPART)) {
+        c.on_object("pick_depart", vec![opened, far], W_PICK_DEPART, cert)?;
+    }
     c.query("place", qp.clone(), h_b, term, progress)?;
     c.event(EventKind::Release, place, name_b);
 
@@ -892,7 +974,7 @@ fn certify(
     plan: &TaskPlan,
     worlds: &[CollisionWorld],
     phase_world: &[usize],
-    fingers: &[Option<FingerCertificate>],
+    fingers: &[Option<ObjectCertificate>],
     checkers: &mut [Option<FastChecker>],
 ) -> Result<usize, PickPlaceTaskError> {
     if let Some(k) = plan.waypoints.iter().position(|q| !within_limits(p, q)) {
@@ -1064,7 +1146,15 @@ pub fn plan_pick_place(
             seed: aseed,
             ..settings.config
         };
-        let keys = key_configurations(p, &pick_list, &place_list, &grid, &params);
+        // Only key configurations where the hands have room to close and open (`super::room`).
+        let mut room = SceneRoom::new(
+            p,
+            &off.world,
+            [&pick_list, &place_list],
+            [&pick_motions, &place_motions],
+        );
+        let keys = key_configurations_with(p, &pick_list, &place_list, &grid, &params, &mut room);
+        drop(room);
         timings.configurations_ms += ms(t);
         let keys = match keys {
             Ok(k) => k,
