@@ -12,6 +12,7 @@ mod grasp;
 mod load_http;
 mod loadtest;
 mod mbm;
+mod mbm_suite;
 mod multi_robot;
 mod pick_place;
 mod plan;

@@ -194,6 +194,11 @@ pub struct SphereChecker {
     focus_pool: Vec<u32>,
     /// Refinements test only what was tight at their ends (off only to compare in tests).
     focus: bool,
+    /// Counts of the certified checks (see [`SphereChecker::certify_counts`]).
+    certify_counts: certified::CertifyCounts,
+    /// Benchmark-only: certified checks run without inflation (see
+    /// [`SphereChecker::set_uncertified_for_benchmark`]).
+    uncertified: bool,
 }
 
 /// Marks a self pair's index among the bodies' indices in `tight_log` and `focus_pool`.
@@ -889,7 +894,7 @@ impl CollisionChecker for AutoChecker {
 }
 
 mod certified;
-pub use certified::SegmentScreen;
+pub use certified::{CertifyCounts, SegmentScreen};
 mod kinematics;
 use kinematics::{origin_terms, Axis, OriginRot, Step, StepKind};
 mod model;

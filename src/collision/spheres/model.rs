@@ -535,6 +535,8 @@ impl SphereChecker {
             refine_needed: Vec::new(),
             focus_pool: Vec::new(),
             focus: true,
+            certify_counts: Default::default(),
+            uncertified: false,
         };
         checker.init_roots();
         Some(checker)
