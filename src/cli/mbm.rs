@@ -50,7 +50,7 @@ pub struct MbmArgs {
     /// is found, and every robot folder of benchmarks/generality/ with its problems.json),
     /// each planned certified and, with the same settings and seeds, without the certificate
     /// (as --uncertified); one line per robot (see the README, "Generality suite").
-    #[arg(long, value_enum, conflicts_with_all = ["problems", "uncertified", "out", "ompl_log"])]
+    #[arg(long, value_enum, conflicts_with_all = ["robot", "problems", "uncertified", "out", "ompl_log"])]
     pub suite: Option<super::mbm_suite::Suite>,
     /// The folder of the generality suite's robots (default: benchmarks/generality from the
     /// working directory).
