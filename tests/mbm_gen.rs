@@ -94,10 +94,15 @@ fn generated_problems_are_well_posed_deterministic_and_solvable() {
                     _ => f64::NAN,
                 })
                 .fold(f64::NEG_INFINITY, f64::max);
-            let half_diagonal = walls
+            // Two walls at half the bin's length from its centre, two at half its width.
+            let d: Vec<f64> = walls
                 .iter()
                 .map(|o| (o.pose.translation.vector - centre).xy().norm())
-                .fold(0.0, f64::max);
+                .collect();
+            let (near, far) = d
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+            let half_diagonal = near.hypot(far);
             let mut poses = vec![Pose::identity(); robot.links.len()];
             forward(&robot, &Pose::identity(), &space.to_world(goal), &mut poses);
             let tip = poses[tip].translation.vector;
