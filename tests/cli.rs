@@ -265,6 +265,68 @@ fn bench_mbm_writes_an_ompl_benchmark_log() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `bench mbm --suite generality`: every robot of benchmarks/generality/ (and the Panda with the
+/// MotionBenchMaker data) planned certified and without the certificate on the same problems:
+/// all solved, the certified paths all exactly valid, the work counts reported.
+#[test]
+fn bench_mbm_suite_plans_every_robot_certified_and_uncertified() {
+    let v = json(&[
+        "bench",
+        "mbm",
+        "--suite",
+        "generality",
+        "--limit",
+        "1",
+        "--json",
+    ]);
+    let robots = v["robots"].as_array().expect("robots");
+    let names: Vec<&str> = robots.iter().filter_map(|r| r["robot"].as_str()).collect();
+    for want in ["armar_arms", "fetchlike", "ur5like", "xarm7like"] {
+        assert!(names.contains(&want), "{want} missing: {names:?}");
+    }
+    for r in robots {
+        let n = r["problems"].as_u64().expect("problems");
+        assert!(
+            n >= 4,
+            "{r}: one problem per set of box, cage, shelf, table at least"
+        );
+        assert_eq!(r["solved"].as_u64(), Some(n), "{r}");
+        assert_eq!(r["invalid"].as_u64(), Some(0), "{r}");
+        assert_eq!(
+            r["uncertified_solved"]
+                .as_u64()
+                .map(|u| u + r["uncertified_invalid"].as_u64().unwrap_or(0)),
+            Some(n),
+            "{r}"
+        );
+        let per_iteration = r["checks_per_iteration"]
+            .as_f64()
+            .expect("checks/iteration");
+        assert!(per_iteration > 0.0 && per_iteration.is_finite(), "{r}");
+        assert!(
+            r["refinements_per_check"]
+                .as_f64()
+                .is_some_and(|x| x >= 0.0),
+            "{r}"
+        );
+        assert!(r["median_us"].as_f64().is_some_and(|t| t > 0.0), "{r}");
+    }
+    // The switch is the benchmark's alone: a robot not made of spheres is refused.
+    let (code, _, err) = run(&[
+        "bench",
+        "mbm",
+        "--robot",
+        "tests/robots/arm6.urdf",
+        "--problems",
+        "benchmarks/generality/ur5like/problems.json",
+        "--uncertified",
+        "--certify",
+        "0",
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--uncertified"), "{err}");
+}
+
 #[test]
 fn query_runs_the_grasp_ik_endpoints_locally() {
     let dir = common::tmp::run_root().join(format!("manyhands-cli-query-{}", std::process::id()));

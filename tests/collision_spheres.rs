@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use manyhands::collision::{
-    AutoChecker, CollisionChecker, CollisionWorld, ExactChecker, SphereChecker,
+    AutoChecker, CertifyCounts, CollisionChecker, CollisionWorld, ExactChecker, SegmentScreen,
+    SphereChecker,
 };
 use manyhands::geometry::{iso_from_rpy, Pose, Shape};
 use manyhands::planning::mbm::{MbmFile, MbmObstacle, MbmProblem, MbmSet};
@@ -571,6 +572,73 @@ fn focused_refinement_misses_no_contact() {
         let world = set.problems[0].world(r.clone());
         focused_refinement_misses_nothing(&world, &r, &vars, 23 + i as u64);
     }
+}
+
+/// The benchmark-only switch that drops the certificate (`bench mbm --uncertified`): the
+/// certified checks' first pass visits the same states with plain spheres, so it finds the same
+/// collisions and never refines; on grazing segments it accepts motions that pass through a
+/// contact between its states, which the certified check never does. The work counts count
+/// every certified check and its refinement calls.
+#[test]
+fn uncertified_switch_checks_the_same_states_and_never_refines() {
+    let (r, file) = twin_problems();
+    let vars = file.joint_vars(&r).expect("vars");
+    let world = file.sets[2].problems[0].world(r.clone());
+    let mut sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut unc = sc.clone();
+    unc.set_uncertified_for_benchmark(true);
+    let mut fine = sc.clone();
+    let mut rng = ChaCha8Rng::seed_from_u64(43);
+    let mut states: [Vec<Vec<f64>>; 2] = [Vec::new(), Vec::new()];
+    while states[0].len() < 100 || states[1].len() < 100 {
+        let q = random_config(&r, &vars, &mut rng);
+        let f = fine.is_free(&q);
+        states[usize::from(f)].push(q);
+    }
+    let segments = grazing_segments(&mut fine, &states[1], &states[0], &vars, &mut rng, 600);
+    let (mut calls, mut tight, mut through_contact) = (0u64, 0, 0);
+    for (k, (a, b)) in segments.iter().enumerate() {
+        if !fine.is_free(a) {
+            continue;
+        }
+        let (c0, u0) = (sc.checks(), unc.checks());
+        let screen = sc.segment_screened(a, b, 0.2);
+        let plain = unc.segment_screened(a, b, 0.2);
+        assert_eq!(
+            sc.checks() - c0,
+            unc.checks() - u0,
+            "segment {k}: other states"
+        );
+        assert_eq!(
+            screen == SegmentScreen::Collides,
+            plain == SegmentScreen::Collides,
+            "segment {k}"
+        );
+        assert_ne!(plain, SegmentScreen::Tight, "segment {k}");
+        let cert = sc.segment_certified(a, b, 0.2);
+        assert!(unc.segment_certified(a, b, 0.2) || !cert, "segment {k}");
+        calls += 2;
+        tight += usize::from(screen == SegmentScreen::Tight);
+        if plain == SegmentScreen::Certified && !fine.segment_free(a, b, 2000) {
+            assert!(!cert, "segment {k}: certified through a contact");
+            through_contact += 1;
+        }
+    }
+    let (counts, plain_counts) = (sc.certify_counts(), unc.certify_counts());
+    assert_eq!(counts.segments, calls);
+    assert_eq!(plain_counts.segments, calls);
+    assert_eq!(plain_counts.refinements, 0);
+    assert!(
+        counts.refinements >= tight as u64,
+        "{counts:?}, {tight} tight"
+    );
+    // Seeded: 173 tight, 1 accepted through a contact (measured).
+    assert!(
+        tight > 20 && through_contact >= 1,
+        "{tight} tight, {through_contact} accepted through a contact"
+    );
+    sc.reset_certify_counts();
+    assert_eq!(sc.certify_counts(), CertifyCounts::default());
 }
 
 /// The same for self pairs: twin_arms alone (arms and torso, no obstacles).

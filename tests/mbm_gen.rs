@@ -10,10 +10,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use manyhands::collision::{AutoChecker, ExactChecker};
+use manyhands::geometry::{Pose, Shape};
+use manyhands::kinematics::forward;
 use manyhands::planning::mbm::MbmFile;
 use manyhands::planning::mbm_gen::{generate, solve_settings, GenSettings, SETS};
 use manyhands::planning::{RrtConnect, SpaceValidator, Termination};
 use manyhands::Robot;
+use nalgebra::Vector3;
 
 fn arm6() -> Arc<Robot> {
     let dir = common::root().join("tests/robots");
@@ -52,6 +55,13 @@ fn generated_problems_are_well_posed_deterministic_and_solvable() {
     let vars = file.joint_vars(&robot).expect("joints");
     let names: Vec<&str> = file.sets.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, SETS);
+    assert!(SETS.contains(&"box"), "the bin scenes are a set");
+    let tip_name = value["generator"]["tip_link"].as_str().expect("tip link");
+    let tip = robot
+        .links
+        .iter()
+        .position(|l| l.name == tip_name)
+        .expect("tip link of the robot");
     let mut solved = 0;
     for p in file.sets.iter().flat_map(|s| &s.problems) {
         assert!(!p.obstacles.is_empty());
@@ -65,6 +75,44 @@ fn generated_problems_are_well_posed_deterministic_and_solvable() {
             0.005,
         );
         let goal = &p.goals[0];
+        if p.set == "box" {
+            // The goal's tip reaches down into the open bin: below its walls' top, within them.
+            let walls: Vec<_> = p
+                .obstacles
+                .iter()
+                .filter(|o| o.name.starts_with("bin_"))
+                .collect();
+            assert_eq!(walls.len(), 4, "box[{}]: four bin walls", p.index);
+            let centre = walls
+                .iter()
+                .fold(Vector3::zeros(), |c, o| c + o.pose.translation.vector)
+                / 4.0;
+            let top = walls
+                .iter()
+                .map(|o| match o.shape {
+                    Shape::Box { half_extents } => o.pose.translation.z + half_extents.z,
+                    _ => f64::NAN,
+                })
+                .fold(f64::NEG_INFINITY, f64::max);
+            // Two walls at half the bin's length from its centre, two at half its width.
+            let d: Vec<f64> = walls
+                .iter()
+                .map(|o| (o.pose.translation.vector - centre).xy().norm())
+                .collect();
+            let (near, far) = d
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+            let half_diagonal = near.hypot(far);
+            let mut poses = vec![Pose::identity(); robot.links.len()];
+            forward(&robot, &Pose::identity(), &space.to_world(goal), &mut poses);
+            let tip = poses[tip].translation.vector;
+            assert!(tip.z < top, "box[{}]: goal tip above the bin", p.index);
+            assert!(
+                (tip - centre).xy().norm() < half_diagonal,
+                "box[{}]: goal tip outside the bin",
+                p.index
+            );
+        }
         assert!(
             exact.is_state_valid(&p.start),
             "{}[{}] start",

@@ -20,7 +20,7 @@ pub enum DataCmd {
     /// to problems.json. Into $MANYHANDS_CACHE_DIR/mbm, else $XDG_CACHE_HOME/manyhands/mbm, else
     /// ~/.cache/manyhands/mbm.
     Mbm(MbmDataArgs),
-    /// MotionBenchMaker-like problems for any robot (`planning::mbm_gen`): table, shelf and cage
+    /// MotionBenchMaker-like problems for any robot (`planning::mbm_gen`): box, cage, shelf and table
     /// scenes scaled to its reach, start and goal with the end effector inside them, written as
     /// problems.json for `manyhands bench mbm --robot URDF --problems FILE`.
     Problems(ProblemsArgs),
@@ -36,7 +36,7 @@ pub struct ProblemsArgs {
     /// Joints to plan (comma-separated; default all the robot's variables).
     #[arg(long, value_delimiter = ',')]
     pub joints: Vec<String>,
-    /// Problems per set (table, shelf, cage), 1–1000.
+    /// Problems per set (box, cage, shelf, table), 1–1000.
     #[arg(long, default_value_t = 20)]
     pub per_set: usize,
     #[arg(long, default_value_t = 1)]

@@ -39,13 +39,30 @@ impl From<SamplerArg> for Sampler {
     }
 }
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct MbmArgs {
     /// `panda` or `baxter` (the benchmark's robot and problems from the MotionBenchMaker data
     /// folder: $MANYHANDS_MBM_DIR, ../shared/benchmarks/mbm or the cache of `manyhands data
     /// mbm`), or the path of a robot's URDF (then --problems is needed).
+    #[arg(long, required_unless_present = "suite")]
+    pub robot: Option<PathBuf>,
+    /// A suite of robots instead of one: `generality` (the MotionBenchMaker Panda when its data
+    /// is found, and every robot folder of benchmarks/generality/ with its problems.json),
+    /// each planned certified and, with the same settings and seeds, without the certificate
+    /// (as --uncertified); one line per robot (see the README, "Generality suite").
+    #[arg(long, value_enum, conflicts_with_all = ["robot", "problems", "uncertified", "out", "ompl_log"])]
+    pub suite: Option<super::mbm_suite::Suite>,
+    /// The folder of the generality suite's robots (default: benchmarks/generality from the
+    /// working directory).
     #[arg(long)]
-    pub robot: PathBuf,
+    pub suite_dir: Option<PathBuf>,
+    /// **Benchmark only**: the same search without the certificate — the certified checks'
+    /// states with plain (uninflated) spheres, so nothing is refined. Its paths may pass
+    /// through collisions between checked states; the exact re-check counts them as invalid.
+    /// Only with the sphere checker (a robot made of spheres). No planner setting or request
+    /// can do this.
+    #[arg(long, conflicts_with = "fast_checker")]
+    pub uncertified: bool,
     /// Its SRDF (default: the .srdf beside the URDF, when present).
     #[arg(long)]
     pub srdf: Option<PathBuf>,
@@ -133,29 +150,32 @@ pub struct MbmArgs {
 }
 
 #[derive(Debug, Clone, Serialize)]
-struct Run {
-    set: String,
-    index: usize,
-    trial: usize,
-    seed: u64,
-    solved: bool,
+pub(super) struct Run {
+    pub(super) set: String,
+    pub(super) index: usize,
+    pub(super) trial: usize,
+    pub(super) seed: u64,
+    pub(super) solved: bool,
     /// Solved by the planner but rejected by the exact re-check.
-    invalid: bool,
-    error: Option<String>,
-    setup_us: f64,
-    plan_us: f64,
-    simplify_us: f64,
-    iterations: u64,
-    collision_checks: u64,
-    start_tree: usize,
-    goal_tree: usize,
-    length_raw: f64,
-    length_simplified: f64,
-    vertices: usize,
+    pub(super) invalid: bool,
+    pub(super) error: Option<String>,
+    pub(super) setup_us: f64,
+    pub(super) plan_us: f64,
+    pub(super) simplify_us: f64,
+    pub(super) iterations: u64,
+    pub(super) collision_checks: u64,
+    pub(super) start_tree: usize,
+    pub(super) goal_tree: usize,
+    pub(super) length_raw: f64,
+    pub(super) length_simplified: f64,
+    pub(super) vertices: usize,
     /// The returned path (states of the problem's joint space, start first), empty when none.
-    path: Vec<Vec<f64>>,
+    pub(super) path: Vec<Vec<f64>>,
     /// The fast checker's certified motion checks of the search (when it planned with it).
-    certification: Option<manyhands::collision::CertifyStats>,
+    pub(super) certification: Option<manyhands::collision::CertifyStats>,
+    /// The sphere checker's certified checks and refinement calls of the search and the
+    /// start/goal checks (when it planned with it).
+    pub(super) certify_counts: Option<manyhands::collision::CertifyCounts>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -282,6 +302,16 @@ fn run_problem(
     } else {
         AutoChecker::new(&world, a.padding)
     };
+    let mut checker = checker;
+    if a.uncertified {
+        match &mut checker {
+            AutoChecker::Spheres(s) => s.set_uncertified_for_benchmark(true),
+            AutoChecker::Fast(_) => bail!(
+                "--uncertified needs the sphere checker: robot {} is not made of spheres",
+                robot.name
+            ),
+        }
+    }
     let mut planner = RrtConnect::with_checker(space.clone(), &world, checker, *settings)?;
     let setup_us = t_setup.elapsed().as_secs_f64() * 1e6;
     let mut run = Run {
@@ -304,9 +334,14 @@ fn run_problem(
         vertices: 0,
         path: Vec::new(),
         certification: None,
+        certify_counts: None,
     };
     let mut term = Termination::new().with_time_limit(Duration::from_secs_f64(a.time_limit));
-    match planner.plan(&p.start, &p.goals, &mut term, seed) {
+    let planned = planner.plan(&p.start, &p.goals, &mut term, seed);
+    if let AutoChecker::Spheres(s) = planner.validator().checker() {
+        run.certify_counts = Some(s.certify_counts());
+    }
+    match planned {
         Ok(r) => {
             let s = &r.stats;
             run.plan_us = s.time.as_secs_f64() * 1e6;
@@ -380,8 +415,9 @@ fn fmt_us(us: f64) -> String {
 /// The URDF and problem file of `--robot` / `--problems`: a benchmark robot's name resolves in
 /// the MotionBenchMaker data folder ([`mbm_data::locate`]).
 fn resolve_files(a: &MbmArgs) -> Result<(PathBuf, PathBuf)> {
-    let name = a.robot.to_str().unwrap_or_default();
-    if !a.robot.exists() && mbm_data::ROBOTS.contains(&name) {
+    let robot = a.robot.clone().context("--robot is needed (or --suite)")?;
+    let name = robot.to_str().unwrap_or_default();
+    if !robot.exists() && mbm_data::ROBOTS.contains(&name) {
         let dir = mbm_data::locate().map_err(|why| {
             anyhow!("--robot {name}: no MotionBenchMaker data: {why}; or give the URDF's path")
         })?;
@@ -391,14 +427,34 @@ fn resolve_files(a: &MbmArgs) -> Result<(PathBuf, PathBuf)> {
     let problems = a.problems.clone().with_context(|| {
         format!(
             "--problems FILE is needed with --robot {} (or --robot {})",
-            a.robot.display(),
+            robot.display(),
             mbm_data::ROBOTS.join("|")
         )
     })?;
-    Ok((a.robot.clone(), problems))
+    Ok((robot, problems))
 }
 
 pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
+    if let Some(suite) = a.suite {
+        return super::mbm_suite::run(ctx, a, suite);
+    }
+    run_one(ctx, a, false).map(|_| ())
+}
+
+/// What [`run_one`] planned: the robot's size, its derived range and every run.
+pub(super) struct Outcome {
+    /// Planned joints.
+    pub dof: usize,
+    /// Robot spheres of the sphere checker (`None`: the robot is not made of spheres).
+    pub spheres: Option<usize>,
+    pub range: f64,
+    pub runs: Vec<Run>,
+}
+
+/// Plans every valid problem of one robot's file; prints the per-set table (and writes --out,
+/// --ompl-log) unless `quiet` (the suite prints its own lines).
+pub(super) fn run_one(ctx: &Ctx, a: &MbmArgs, inner: bool) -> Result<Outcome> {
+    let quiet = inner || ctx.json;
     if !(a.time_limit.is_finite() && a.time_limit > 0.0) {
         bail!("--time-limit must be > 0");
     }
@@ -416,6 +472,9 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     if a.trials == 0 {
         bail!("--trials must be ≥ 1");
     }
+    if a.uncertified && a.certify == 0.0 {
+        bail!("--uncertified drops the certificate of certified checks: it needs --certify > 0");
+    }
     let (urdf, problems) = resolve_files(a)?;
     let file = MbmFile::load(&problems)?;
     // Default SRDF: NAME.srdf beside the URDF, else ROBOT.srdf (the problem file's robot name).
@@ -427,7 +486,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         .into_iter()
         .find(|s| s.is_file())
     });
-    if srdf.is_none() && !ctx.json {
+    if srdf.is_none() && !quiet {
         println!("warning: no SRDF found (give --srdf): no self-collision pair is disabled");
     }
     let robot = Arc::new(
@@ -480,7 +539,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
     let t_all = Instant::now();
     let mut runs: Vec<Run> = Vec::new();
     let mut summaries: Vec<Summary> = Vec::new();
-    if !ctx.json {
+    if !quiet {
         println!(
             "{} ({} DoF planned of {}), {} trial(s), seed {}, time limit {} s, motion checks: {}, range {:.4}{}, dynamic domain {}, {} trees, {} samples, padding {} m, exact re-check at {}°, {}",
             file.robot,
@@ -489,7 +548,10 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
             a.trials,
             a.seed,
             a.time_limit,
-            if a.certify > 0.0 {
+            if a.uncertified {
+                "UNCERTIFIED (benchmark only: the certified checks' states with plain spheres)"
+                    .to_string()
+            } else if a.certify > 0.0 {
                 format!("certified continuous (inflation ≤ {} m)", a.certify)
             } else {
                 format!("states every {}°", a.resolution)
@@ -562,7 +624,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         let vamp = vamp_median(&file.robot, &set.name).filter(|_| !file.generated);
         let refs: Vec<&Run> = runs[first..].iter().collect();
         let s = summarize(&set.name, &refs, vamp);
-        print_summary(ctx, &s);
+        print_summary(quiet, &s);
         summaries.push(s);
     }
     let all: Vec<&Run> = runs.iter().collect();
@@ -571,8 +633,8 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
         &all,
         vamp_median(&file.robot, "overall").filter(|_| !file.generated),
     );
-    print_summary(ctx, &overall);
-    if !ctx.json {
+    print_summary(quiet, &overall);
+    if !quiet {
         match file.robot.as_str() {
             _ if file.generated => println!("problems made by `manyhands data problems` (MotionBenchMaker-like, planning::mbm_gen): no published reference figures apply."),
             "panda" => println!("VAMP 0.6.4 (../shared/benchmarks/mbm/README.md, 699 problems, one core, alternated with manyhands 7f3f3ea): median 72.9 µs, all solved. OMPL RRTConnect: median 5.2 ms."),
@@ -603,6 +665,31 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
             );
         }
     }
+    let outcome = Outcome {
+        dof: vars.len(),
+        spheres: {
+            let empty = MbmProblem {
+                obstacles: Vec::new(),
+                ..file
+                    .sets
+                    .iter()
+                    .flat_map(|s| s.problems.iter())
+                    .next()
+                    .context("the problem file has no problem")?
+                    .clone()
+            };
+            match AutoChecker::new(&empty.world(robot.clone()), a.padding) {
+                AutoChecker::Spheres(s) => Some(s.sphere_count()),
+                AutoChecker::Fast(_) => None,
+            }
+        },
+        range: settings.range.unwrap_or(derived.range),
+        runs,
+    };
+    if inner {
+        return Ok(outcome);
+    }
+    let runs = &outcome.runs;
     let report = json!({
         "robot": file.robot,
         "settings": settings,
@@ -633,13 +720,13 @@ pub fn run(ctx: &Ctx, a: &MbmArgs) -> Result<()> {
             &problems,
             a,
             &settings,
-            &runs,
+            runs,
             started,
             t_all.elapsed().as_secs_f64(),
         );
         std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
     }
-    Ok(())
+    Ok(outcome)
 }
 
 /// The runs as an OMPL benchmark log (grammar: OMPL's `doc/markdown/benchmark.md`, "The
@@ -775,8 +862,8 @@ fn ompl_log(
     o
 }
 
-fn print_summary(ctx: &Ctx, s: &Summary) {
-    if ctx.json {
+fn print_summary(quiet: bool, s: &Summary) {
+    if quiet {
         return;
     }
     println!(

@@ -14,6 +14,7 @@ mod grasp;
 mod load_http;
 mod loadtest;
 mod mbm;
+mod mbm_suite;
 mod multi_arm;
 mod multi_robot;
 mod pick_place;

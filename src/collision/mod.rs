@@ -23,7 +23,7 @@ pub(crate) use exact::{parry_shape, to_parry};
 pub use fast::{Certification, CertifyStats, FastChecker, FastModelSettings};
 pub use generate::{random_boxes, random_config_near, RandomBoxes};
 pub use motion::MotionValidator;
-pub use spheres::{AutoChecker, SegmentScreen, SphereChecker, LANES};
+pub use spheres::{AutoChecker, CertifyCounts, SegmentScreen, SphereChecker, LANES};
 pub use world::{AttachedBody, BodyId, CollisionWorld, PlacedRobot, StaticBody, StaticKind};
 
 /// Two bodies found in collision.

@@ -197,6 +197,11 @@ pub struct SphereChecker {
     /// Scratch of [`Self::pair_spheres_avx`]: the second body's spheres that can touch the
     /// first body at all (see there).
     pair_keep: Vec<u32>,
+    /// Counts of the certified checks (see [`SphereChecker::certify_counts`]).
+    certify_counts: certified::CertifyCounts,
+    /// Benchmark-only: certified checks run without inflation (see
+    /// [`SphereChecker::set_uncertified_for_benchmark`]).
+    uncertified: bool,
 }
 
 /// Marks a self pair's index among the bodies' indices in `tight_log` and `focus_pool`.
@@ -924,7 +929,7 @@ impl CollisionChecker for AutoChecker {
 }
 
 mod certified;
-pub use certified::SegmentScreen;
+pub use certified::{CertifyCounts, SegmentScreen};
 mod kinematics;
 use kinematics::{origin_terms, Axis, OriginRot, Step, StepKind};
 mod model;

@@ -16,7 +16,11 @@
 //!   boards (three compartments), sides and a back; start and goal tips in two different
 //!   compartments;
 //! - `cage`: an open-fronted box of 0.5 R at 0.55 R; the start anywhere free, the goal's tip
-//!   inside.
+//!   inside;
+//! - `box`: an open-topped bin (0.4 R × 0.5 R, walls 0.2 R high) on a table top of 0.6 R × 0.9 R
+//!   at 0.55 R, the top 0.2–0.45 R below the anchor: the start's tip above the table beside the
+//!   bin, the goal's tip inside the bin (MotionBenchMaker's `box`: reaching down into a
+//!   container).
 //!
 //! Start and goal are drawn by rejection (seeded), must be collision-free under the exact
 //! checker, their tips at least 0.25 R apart and the straight motion between them in collision
@@ -47,7 +51,18 @@ use crate::Robot;
 
 /// The scene families, in the order they are written (alphabetical: the file's sets are a JSON
 /// object, written in key order).
-pub const SETS: [&str; 3] = ["cage", "shelf", "table"];
+pub const SETS: [&str; 4] = ["box", "cage", "shelf", "table"];
+
+/// The random stream of a set: the order the sets were introduced in (`cage`, `shelf`,
+/// `table`, then `box`), so adding a set leaves the problems of the others unchanged.
+fn set_stream(set: &str) -> u64 {
+    match set {
+        "cage" => 1,
+        "shelf" => 2,
+        "table" => 3,
+        _ => 4,
+    }
+}
 
 /// What to generate.
 #[derive(Debug, Clone)]
@@ -221,6 +236,59 @@ fn shelf(s: &RobotScale, rng: &mut ChaCha8Rng) -> SceneDraft {
     }
 }
 
+fn bin(s: &RobotScale, rng: &mut ChaCha8Rng) -> SceneDraft {
+    let r = s.reach;
+    let theta = rng.random_range(-0.785..0.785);
+    let z = s.anchor.z - rng.random_range(0.2..0.45) * r;
+    let frame = facing(s, 0.55 * r, theta, z);
+    let (hx, hy, t) = (0.3 * r, 0.45 * r, 0.015 * r);
+    // The bin on one side of the table (across it, in the table's frame), the rest free.
+    let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    let (bx, by, bh) = (0.2 * r, 0.25 * r, 0.2 * r);
+    let cy = side * (hy - by);
+    let bin = local(&frame, 0.0, cy, 0.0);
+    let w = 0.008 * r;
+    let obstacles = vec![
+        boxed("table_top".into(), local(&frame, 0.0, 0.0, -t), [hx, hy, t]),
+        boxed(
+            "bin_front".into(),
+            local(&bin, -bx, 0.0, 0.5 * bh),
+            [w, by, 0.5 * bh],
+        ),
+        boxed(
+            "bin_back".into(),
+            local(&bin, bx, 0.0, 0.5 * bh),
+            [w, by, 0.5 * bh],
+        ),
+        boxed(
+            "bin_left".into(),
+            local(&bin, 0.0, by, 0.5 * bh),
+            [bx, w, 0.5 * bh],
+        ),
+        boxed(
+            "bin_right".into(),
+            local(&bin, 0.0, -by, 0.5 * bh),
+            [bx, w, 0.5 * bh],
+        ),
+    ];
+    let inside = Region {
+        pose: bin,
+        lo: Vector3::new(-bx + 0.03 * r, -by + 0.03 * r, 0.03 * r),
+        hi: Vector3::new(bx - 0.03 * r, by - 0.03 * r, 0.8 * bh),
+    };
+    let beside = Region {
+        pose: frame,
+        lo: Vector3::new(-hx, if side > 0.0 { -hy } else { hy - 2.0 * by }, 0.05 * r),
+        hi: Vector3::new(hx, if side > 0.0 { -hy + 2.0 * by } else { hy }, 0.35 * r),
+    };
+    SceneDraft {
+        obstacles,
+        start_regions: vec![beside],
+        goal_regions: vec![inside],
+        distinct: false,
+    }
+}
+
 fn cage(s: &RobotScale, rng: &mut ChaCha8Rng) -> SceneDraft {
     let r = s.reach;
     let theta = rng.random_range(-0.785..0.785);
@@ -378,11 +446,10 @@ pub fn generate(
     let mut stats = GenStats::default();
     let mut sets = serde_json::Map::new();
     let mut tip_poses = vec![Pose::identity(); robot.links.len()];
-    for (set_k, set) in SETS.iter().enumerate() {
+    for set in SETS.iter() {
         let mut out = Vec::new();
-        let mut rng = ChaCha8Rng::seed_from_u64(
-            s.seed ^ (set_k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        );
+        let mut rng =
+            ChaCha8Rng::seed_from_u64(s.seed ^ set_stream(set).wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let mut attempts = 0;
         while out.len() < s.per_set {
             attempts += 1;
@@ -396,6 +463,7 @@ pub fn generate(
             let draft = match *set {
                 "table" => table(&scale, &mut rng),
                 "shelf" => shelf(&scale, &mut rng),
+                "box" => bin(&scale, &mut rng),
                 _ => cage(&scale, &mut rng),
             };
             let mut p = MbmProblem {

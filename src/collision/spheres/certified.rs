@@ -18,6 +18,16 @@ pub enum SegmentScreen {
     Tight,
 }
 
+/// Work counts of a sphere checker's certified motion checks since its last
+/// [`SphereChecker::reset_certify_counts`]: what a benchmark reports per search.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CertifyCounts {
+    /// Certified motion checks begun (first passes, and refinements of screened segments).
+    pub segments: u64,
+    /// 8-lane refinement calls (each splits a tight sub-interval in 7).
+    pub refinements: u64,
+}
+
 /// [`SphereChecker::load_lanes`] with AVX: per variable, the 8 states as two 4-lane f64
 /// products and sums (the same IEEE operations as the scalar code, no fused multiply-add, so
 /// the same values), rounded to f32 together.
@@ -155,6 +165,27 @@ impl SphereChecker {
     /// Most refinement checks per segment before it is declared uncertifiable.
     pub const CERTIFY_MAX_REFINEMENTS: usize = 4096;
 
+    /// The work counts of the certified checks since the last [`Self::reset_certify_counts`].
+    pub fn certify_counts(&self) -> CertifyCounts {
+        self.certify_counts
+    }
+
+    /// Starts [`Self::certify_counts`] again.
+    pub fn reset_certify_counts(&mut self) {
+        self.certify_counts = CertifyCounts::default();
+    }
+
+    /// **Benchmark only, unsound when on.** The certified checks run their first pass over the
+    /// same states without inflating any sphere, so nothing is tight and nothing is refined:
+    /// the same search at the cost of a plain resolution check of those states, which may pass
+    /// through a collision between them. `manyhands bench mbm --uncertified` uses it to
+    /// measure what the certificate costs and what it buys (the exact re-check's invalid
+    /// count); no planner setting and no request reaches it.
+    #[doc(hidden)]
+    pub fn set_uncertified_for_benchmark(&mut self, on: bool) {
+        self.uncertified = on;
+    }
+
     /// Whether [`Self::segment_certified`] applies (every prismatic joint's travel is bounded).
     pub fn certifiable(&self) -> bool {
         self.certifiable
@@ -181,6 +212,7 @@ impl SphereChecker {
     /// distance its spheres can travel along such a sub-interval.
     #[inline]
     pub(super) fn set_inflation(&mut self, h: f64) {
+        let h = if self.uncertified { 0.0 } else { h };
         for (i, l) in self.infl.iter_mut().zip(&self.seg_len) {
             *i = (0.5 * l * h) as f32;
         }
@@ -290,6 +322,7 @@ impl SphereChecker {
     /// the first pass (see [`Self::segment_certified`]).
     fn begin_segment(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> usize {
         debug_assert!(self.certifiable && max_inflation > 0.0);
+        self.certify_counts.segments += 1;
         for ((d, &x), &y) in self.seg_dq.iter_mut().zip(a).zip(b) {
             *d = (y - x).abs();
         }
@@ -435,6 +468,7 @@ impl SphereChecker {
                 return false;
             }
             budget -= 1;
+            self.certify_counts.refinements += 1;
             // One call: the 8 states splitting [t0, t1] into 7 sub-intervals.
             let parts = (LANES - 1) as f64;
             let hs = (t1 - t0) / parts;

@@ -536,6 +536,8 @@ impl SphereChecker {
             focus_pool: Vec::new(),
             focus: true,
             pair_keep: Vec::new(),
+            certify_counts: Default::default(),
+            uncertified: false,
         };
         checker.init_roots();
         Some(checker)
