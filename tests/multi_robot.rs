@@ -514,6 +514,31 @@ fn multi_arm_solves_a_crossing_that_decoupled_scheduling_cannot() {
     assert_eq!(again.method, plan.method);
 }
 
+/// With `composite_first`, the failed schedule of the two arms names them as the pair in
+/// conflict and the composite search over them comes straight after it: two attempts, no
+/// prioritized planning, and the plan as free as before.
+#[test]
+fn composite_first_follows_the_failed_schedule_with_the_conflicting_arms() {
+    let p = crossing(["goal", "goal"]);
+    let s = MultiArmSettings {
+        composite_first: true,
+        ..MultiArmSettings::default()
+    };
+    let plan = plan_arms(&p, &s, 1).expect("multi-arm plan");
+    let methods: Vec<_> = plan.stats.attempts.iter().map(|a| a.method).collect();
+    assert_eq!(
+        methods,
+        [MultiArmMethod::Decoupled, MultiArmMethod::Composite],
+        "{:?}",
+        plan.stats.attempts
+    );
+    assert!(!plan.stats.attempts[0].solved && plan.stats.attempts[1].solved);
+    assert_eq!(plan.method, MultiArmMethod::Composite);
+    assert_eq!(plan.conflicts, [(0, 1)]);
+    assert_eq!(plan.composite_arms, [0, 1]);
+    assert_multi_arm_free(&p, &plan);
+}
+
 /// Prioritized planning in space-time (one arm retracts while the other rises to where it was)
 /// and makespan-aware shortcutting: the raw plan's waits and detours are shortcut to a
 /// strictly shorter makespan, still free when re-checked densely with both arms moving.

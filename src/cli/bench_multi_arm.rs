@@ -34,6 +34,13 @@ pub struct MultiArmBenchArgs {
     /// Cells (default: all three): panda_two_rod, panda_four, panda_four_bins.
     #[arg(long = "cell", value_delimiter = ',')]
     pub cells: Vec<String>,
+    /// After the decoupled method failed, try the composite search over the arms in conflict
+    /// before prioritized planning (the planner's `composite_first` setting).
+    #[arg(long)]
+    pub composite_first: bool,
+    /// Iteration budget of the phase-space scheduler (default: the planner's).
+    #[arg(long)]
+    pub phase_iterations: Option<u64>,
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -84,6 +91,8 @@ struct Row {
     methods: std::collections::BTreeMap<&'static str, usize>,
     checked: usize,
     penetrating: usize,
+    /// Per method, the time of each attempt (ms), solved or not.
+    attempts: std::collections::BTreeMap<&'static str, Vec<f64>>,
 }
 
 pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
@@ -186,12 +195,17 @@ pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
                 methods: Default::default(),
                 checked: 0,
                 penetrating: 0,
+                attempts: Default::default(),
             };
             for (k, p) in problems.iter().enumerate() {
-                let s = MultiArmSettings {
+                let mut s = MultiArmSettings {
                     methods,
+                    composite_first: a.composite_first,
                     ..MultiArmSettings::default()
                 };
+                if let Some(n) = a.phase_iterations {
+                    s.phase.max_iterations = n;
+                }
                 let mut term =
                     Termination::new().with_time_limit(Duration::from_secs_f64(a.time_limit));
                 let t0 = Instant::now();
@@ -206,6 +220,12 @@ pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
                     row.after.push(plan.makespan);
                     row.ratios.push(plan.makespan / plan.makespan_before);
                     *row.methods.entry(plan.method.name()).or_default() += 1;
+                    for at in &plan.stats.attempts {
+                        row.attempts
+                            .entry(at.method.name())
+                            .or_default()
+                            .push(at.time.as_secs_f64() * 1e3);
+                    }
                     if name == "auto" {
                         row.checked += 1;
                         if penetrations(p, &plan) > 0 {
@@ -235,6 +255,16 @@ pub fn run(ctx: &Ctx, a: &MultiArmBenchArgs) -> Result<()> {
                     "  {:<15} exact re-check of {} plans (all arms moving, ≤ 0.005 rad): {} with a \
                      penetration",
                     "", row.checked, row.penetrating
+                );
+                let attempts: Vec<String> = row
+                    .attempts
+                    .iter_mut()
+                    .map(|(m, t)| format!("{m} {} × median {:.1} ms", t.len(), median(t)))
+                    .collect();
+                println!(
+                    "  {:<15} attempts of the solved plans: {}",
+                    "",
+                    attempts.join(", ")
                 );
             }
         }

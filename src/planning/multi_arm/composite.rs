@@ -36,10 +36,11 @@ pub(crate) fn composite_motion(
     ))
 }
 
-/// The composite fallback for the arms in conflict `conflicted` (module documentation): the
-/// timed motions (the composite one first) and the arms in the composite search.
+/// The bounded composite search over the arms in conflict `conflicted` (a proper, non-empty
+/// subset of the arms), the other arms then planned around its motion in space-time: the timed
+/// motions (the composite one first), or `None` when either part fails within its budget.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn composite(
+pub(crate) fn composite_subset(
     p: &MultiArmProblem,
     conflicted: &[usize],
     rrt: &RrtConnectSettings,
@@ -49,28 +50,30 @@ pub(crate) fn composite(
     rng: &mut ChaCha8Rng,
     seed: u64,
     segments: &mut u64,
-) -> Result<(Vec<Timed>, Vec<usize>), PlanError> {
+) -> Option<Vec<Timed>> {
     let n = p.arms.len();
-    if !conflicted.is_empty() && conflicted.len() < n {
-        // A bounded search over the conflicting arms, so that the complete one keeps its time.
-        let mut sub = Termination::new().with_iteration_limit(subset_iterations);
-        if let Ok((m, s)) = composite_motion(p, conflicted, rrt, &mut sub, seed) {
-            *segments += s;
-            let rest: Vec<usize> = (0..n).filter(|k| !conflicted.contains(k)).collect();
-            if let Ok(all) = plan_in_order(p, Some(m), &rest, st, term, rng, segments) {
-                return Ok((all, conflicted.to_vec()));
-            }
-        }
-        if term.should_stop_now() {
-            return Err(PlanError::stopped(
-                term.reason()
-                    .unwrap_or(crate::planning::StopReason::TimeLimit),
-                Default::default(),
-            ));
-        }
+    if conflicted.is_empty() || conflicted.len() >= n {
+        return None;
     }
-    let all: Vec<usize> = (0..n).collect();
+    // Bounded by its own iteration budget, so that the complete search keeps its time.
+    let mut sub = Termination::new().with_iteration_limit(subset_iterations);
+    let (m, s) = composite_motion(p, conflicted, rrt, &mut sub, seed).ok()?;
+    *segments += s;
+    let rest: Vec<usize> = (0..n).filter(|k| !conflicted.contains(k)).collect();
+    plan_in_order(p, Some(m), &rest, st, term, rng, segments).ok()
+}
+
+/// The complete fallback: RRT-Connect in the composite space of every arm (module
+/// documentation); the timed motion.
+pub(crate) fn composite_all(
+    p: &MultiArmProblem,
+    rrt: &RrtConnectSettings,
+    term: &mut Termination,
+    seed: u64,
+    segments: &mut u64,
+) -> Result<Timed, PlanError> {
+    let all: Vec<usize> = (0..p.arms.len()).collect();
     let (m, s) = composite_motion(p, &all, rrt, term, seed.wrapping_add(1))?;
     *segments += s;
-    Ok((vec![m], all))
+    Ok(m)
 }

@@ -77,6 +77,9 @@ pub struct MultiArmSettings {
     /// RRT-Connect iterations of the composite search over the conflicting arms only (the
     /// search over all arms has the rest of the time).
     pub subset_iterations: u64,
+    /// After `decoupled` failed: the composite search over the arms in conflict (the pairs
+    /// without a schedule of their own) before prioritized planning, instead of after it.
+    pub composite_first: bool,
     /// Shortcut tries (0: no shortcutting).
     pub shortcut_iterations: u64,
     /// Factors (0, 1] on the velocity and acceleration limits of the final timing.
@@ -89,12 +92,17 @@ impl Default for MultiArmSettings {
         MultiArmSettings {
             methods: Methods::default(),
             rrt: RrtConnectSettings::default(),
+            // A schedule not found within 100 phase-space iterations is believed absent: the
+            // fallbacks are complete, and on the crossing tasks of `manyhands bench multi-arm`
+            // the longer search (1500) made the automatic choice 2–3× slower (the failed
+            // schedule was most of its time) without solving more.
             phase: PhaseSpaceSettings {
-                max_iterations: 1500,
+                max_iterations: 100,
                 ..PhaseSpaceSettings::default()
             },
             space_time: SpaceTimeSettings::default(),
             subset_iterations: 5000,
+            composite_first: false,
             shortcut_iterations: 200,
             velocity_scaling: 1.0,
             acceleration_scaling: 1.0,
@@ -188,6 +196,115 @@ pub fn plan_multi_arm(
         });
     }
 
+    // The composite searches; `conflicts` are known once `decoupled` failed to schedule.
+    let mut composite_all_tried = false;
+    let mut composite_step = |found: &mut Option<(MultiArmMethod, Vec<Vec<f64>>)>,
+                              conflicts: &mut Vec<(usize, usize)>,
+                              order: &mut Vec<usize>,
+                              composite_arms: &mut Vec<usize>,
+                              attempts: &mut Vec<Attempt>,
+                              last_error: &mut Option<PlanError>,
+                              segments: &mut u64,
+                              rng: &mut ChaCha8Rng,
+                              term: &mut Termination|
+     -> Result<(), PlanError> {
+        if found.is_some() || !settings.methods.composite || composite_all_tried {
+            return Ok(());
+        }
+        // The arms in conflict: the pairs whose paths alone have no schedule between the two
+        // of them. With two arms the failed schedule of `decoupled` was that pair's already.
+        // Their time counts in the first composite attempt.
+        let mut ta = Instant::now();
+        if let (Some(paths), true) = (&alone, conflicts.is_empty()) {
+            *conflicts = if n == 2 {
+                vec![(0, 1)]
+            } else {
+                decoupled::conflicts(p, paths, &settings.phase, term, seed)
+            };
+        }
+        let mut conflicted: Vec<usize> = conflicts.iter().flat_map(|&(a, b)| [a, b]).collect();
+        conflicted.sort_unstable();
+        conflicted.dedup();
+        if !conflicted.is_empty() && conflicted.len() < n {
+            let r = composite::composite_subset(
+                p,
+                &conflicted,
+                &settings.rrt,
+                &settings.space_time,
+                settings.subset_iterations,
+                term,
+                rng,
+                seed,
+                segments,
+            );
+            if let Some(motions) = r {
+                *found = Some((
+                    MultiArmMethod::Composite,
+                    timed::merge(&vars, &start, &motions),
+                ));
+                *order = conflicted.clone();
+                order.extend((0..n).filter(|k| !conflicted.contains(k)));
+                *composite_arms = conflicted.clone();
+            } else if let Some(s) = stopped(term) {
+                return Err(s);
+            }
+            attempts.push(Attempt {
+                method: MultiArmMethod::Composite,
+                solved: found.is_some(),
+                time: ta.elapsed(),
+                note: format!(
+                    "{} of {n} arms (those in conflict) in a composite search of at most {} \
+                     iterations, the others around them in space-time",
+                    conflicted.len(),
+                    settings.subset_iterations
+                ),
+            });
+            if found.is_some() {
+                return Ok(());
+            }
+            ta = Instant::now();
+        }
+        // Over all arms: the complete search, with the rest of the time.
+        composite_all_tried = true;
+        let note = match composite::composite_all(p, &settings.rrt, term, seed, segments) {
+            Ok(m) => {
+                *found = Some((MultiArmMethod::Composite, timed::merge(&vars, &start, &[m])));
+                *order = (0..n).collect();
+                *composite_arms = (0..n).collect();
+                format!("{n} arms in the composite search")
+            }
+            Err(e) => {
+                if let Some(s) = stopped(term) {
+                    return Err(s);
+                }
+                let note = e.to_string();
+                *last_error = Some(e.in_phase("composite"));
+                note
+            }
+        };
+        attempts.push(Attempt {
+            method: MultiArmMethod::Composite,
+            solved: found.is_some(),
+            time: ta.elapsed(),
+            note,
+        });
+        Ok(())
+    };
+    // Composite before prioritized when so chosen and the arms in conflict can be known.
+    if settings.composite_first && alone.is_some() {
+        composite_step(
+            &mut found,
+            &mut conflicts,
+            &mut order,
+            &mut composite_arms,
+            &mut attempts,
+            &mut last_error,
+            &mut segments,
+            &mut rng,
+            term,
+        )?;
+    }
+
     // (b) prioritized in space-time.
     if found.is_none() && settings.methods.prioritized {
         let ta = Instant::now();
@@ -235,53 +352,18 @@ pub fn plan_multi_arm(
         });
     }
 
-    // (c) composite.
-    if found.is_none() && settings.methods.composite {
-        let ta = Instant::now();
-        if let Some(paths) = &alone {
-            conflicts = decoupled::conflicts(p, paths, &settings.phase, term, seed);
-        }
-        let mut conflicted: Vec<usize> = conflicts.iter().flat_map(|&(a, b)| [a, b]).collect();
-        conflicted.sort_unstable();
-        conflicted.dedup();
-        let r = composite::composite(
-            p,
-            &conflicted,
-            &settings.rrt,
-            &settings.space_time,
-            settings.subset_iterations,
-            term,
-            &mut rng,
-            seed,
-            &mut segments,
-        );
-        let note = match r {
-            Ok((motions, arms)) => {
-                found = Some((
-                    MultiArmMethod::Composite,
-                    timed::merge(&vars, &start, &motions),
-                ));
-                order = arms.clone();
-                order.extend((0..n).filter(|k| !arms.contains(k)));
-                composite_arms = arms;
-                format!("{} arms in the composite search", composite_arms.len())
-            }
-            Err(e) => {
-                if let Some(s) = stopped(term) {
-                    return Err(s);
-                }
-                let note = e.to_string();
-                last_error = Some(e.in_phase("composite"));
-                note
-            }
-        };
-        attempts.push(Attempt {
-            method: MultiArmMethod::Composite,
-            solved: found.is_some(),
-            time: ta.elapsed(),
-            note,
-        });
-    }
+    // (c) composite: over the arms in conflict, then over every arm (the complete fallback).
+    composite_step(
+        &mut found,
+        &mut conflicts,
+        &mut order,
+        &mut composite_arms,
+        &mut attempts,
+        &mut last_error,
+        &mut segments,
+        &mut rng,
+        term,
+    )?;
 
     let Some((method, raw)) = found else {
         return Err(match (stopped(term), last_error) {
