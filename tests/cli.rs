@@ -501,3 +501,145 @@ fn plan_multi_arm_takes_the_http_body() {
     assert_ne!(code, 0);
     assert!(err.contains("robots[1].group"), "{err}");
 }
+
+/// A `.tar.gz` source package holding `resources/panda/` of the data folder `data` (URDF, SRDF,
+/// every file of `meshes/`), a one-problem `problems.tar.bz2`, and `extra` entries written with
+/// their names as given (unchecked, as a hostile archive could).
+fn panda_sdist(data: &std::path::Path, out: &std::path::Path, extra: &[(&str, Vec<u8>)]) {
+    use std::io::Write;
+    fn raw(b: &mut tar::Builder<impl Write>, name: &str, data: &[u8]) {
+        let mut h = tar::Header::new_gnu();
+        let gnu = h.as_gnu_mut().expect("gnu header");
+        gnu.name[..name.len()].copy_from_slice(name.as_bytes());
+        h.set_size(data.len() as u64);
+        h.set_mode(0o644);
+        h.set_entry_type(tar::EntryType::Regular);
+        h.set_cksum();
+        b.append(&h, data).expect("tar entry");
+    }
+    let scene = "world:\n  collision_objects:\n    - id: far_box\n      primitives:\n        - type: box\n          dimensions: [0.1, 0.1, 0.1]\n      primitive_poses:\n        - position: [3.0, 0.0, 0.0]\n          orientation: [0.0, 0.0, 0.0, 1.0]\n";
+    let joints = (1..=7).map(|i| format!("panda_joint{i}"));
+    let names: Vec<String> = joints.clone().collect();
+    let request = format!(
+        "start_state:\n  joint_state:\n    name: [{}]\n    position: [0, -0.5, 0, -2.0, 0, 1.5, 0.7]\ngoal_constraints:\n  - joint_constraints:\n{}",
+        names.join(", "),
+        joints
+            .zip([0.1, -0.6, 0.1, -2.1, 0.1, 1.6, 0.8])
+            .map(|(j, q)| format!("      - joint_name: {j}\n        position: {q}\n"))
+            .collect::<String>()
+    );
+    let mut problems = tar::Builder::new(Vec::new());
+    raw(
+        &mut problems,
+        "problems/far_panda/scene0001.yaml",
+        scene.as_bytes(),
+    );
+    raw(
+        &mut problems,
+        "problems/far_panda/request0001.yaml",
+        request.as_bytes(),
+    );
+    let problems = problems.into_inner().expect("tar");
+    let mut bz = bzip2::write::BzEncoder::new(Vec::new(), bzip2::Compression::fast());
+    bz.write_all(&problems).expect("bz2");
+    let problems = bz.finish().expect("bz2");
+    let gz = flate2::write::GzEncoder::new(
+        std::fs::File::create(out).expect("sdist file"),
+        flate2::Compression::fast(),
+    );
+    let mut b = tar::Builder::new(gz);
+    let root = "vamp_planner-0.6.4/resources/panda";
+    for f in ["panda_spherized.urdf", "panda.srdf"] {
+        let bytes = std::fs::read(data.join("panda").join(f)).expect("panda file");
+        raw(&mut b, &format!("{root}/{f}"), &bytes);
+    }
+    raw(&mut b, &format!("{root}/problems.tar.bz2"), &problems);
+    let meshes = data.join("panda/meshes");
+    for kind in std::fs::read_dir(&meshes).expect("panda meshes") {
+        let kind = kind.expect("entry").path();
+        for f in std::fs::read_dir(&kind).expect("mesh folder") {
+            let f = f.expect("entry").path();
+            let rel = f.strip_prefix(&meshes).expect("under meshes");
+            let bytes = std::fs::read(&f).expect("mesh file");
+            raw(&mut b, &format!("{root}/meshes/{}", rel.display()), &bytes);
+        }
+    }
+    for (name, data) in extra {
+        raw(&mut b, name, data);
+    }
+    b.into_inner()
+        .expect("tar")
+        .finish()
+        .expect("gz")
+        .sync_all()
+        .expect("sync");
+}
+
+/// The installer puts the Panda's visual meshes beside its URDF, so the installed model finds
+/// every visual mesh it names; entries that climb out of `meshes/` or are not mesh files are
+/// not written, and a mesh file over the size bound fails the install and leaves no folder.
+#[test]
+fn data_install_puts_the_visual_meshes_beside_the_urdf_with_path_and_size_bounds() {
+    use manyhands::model::VisualGeometry;
+    use manyhands::planning::mbm_data::{unpack_and_convert, Quiet, MAX_MESH_FILE_BYTES};
+    let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
+        return;
+    };
+    let dir = common::tmp::TestDir::new("data-mbm-meshes");
+    let sdist = dir.join("vamp_planner-0.6.4.tar.gz");
+    let root = "vamp_planner-0.6.4/resources/panda/meshes";
+    panda_sdist(
+        &data,
+        &sdist,
+        &[
+            (
+                &format!("{root}/../../../escaped.obj"),
+                b"v 0 0 0\n".to_vec(),
+            ),
+            (&format!("{root}/visual/.hidden.obj"), b"v 0 0 0\n".to_vec()),
+            (&format!("{root}/visual/run.sh"), b"#!/bin/sh\n".to_vec()),
+        ],
+    );
+    let dest = dir.join("mbm");
+    let report = unpack_and_convert(&sdist, &dest, &["panda"], &mut Quiet).expect("install");
+    assert_eq!(report.robots, vec![("panda".to_string(), 1, 1)]);
+    let urdf = dest.join("panda/panda_spherized.urdf");
+    let robot = manyhands::Robot::from_files(&urdf, Some(&dest.join("panda/panda.srdf")))
+        .expect("installed Panda loads");
+    let mut meshes = 0;
+    for link in &robot.links {
+        for v in &link.visual {
+            if let VisualGeometry::Mesh { filename, path, .. } = &v.geometry {
+                let p = path
+                    .as_deref()
+                    .unwrap_or_else(|| panic!("{}: mesh {filename} not installed", link.name));
+                assert!(p.starts_with(dest.join("panda/meshes")), "{}", p.display());
+                assert!(p.is_file(), "{}", p.display());
+                meshes += 1;
+            }
+        }
+    }
+    assert!(meshes >= 8, "{meshes} visual meshes");
+    for bad in [
+        dir.join("escaped.obj"),
+        dest.join("escaped.obj"),
+        dest.join("panda/meshes/visual/.hidden.obj"),
+        dest.join("panda/meshes/visual/run.sh"),
+    ] {
+        assert!(!bad.exists(), "{} was written", bad.display());
+    }
+    assert!(std::fs::read_to_string(dest.join("SOURCE.md"))
+        .expect("SOURCE.md")
+        .contains("visual meshes"));
+
+    // One mesh file over the bound: the install fails, names it, and leaves nothing behind.
+    let big = dir.join("big.tar.gz");
+    let huge = vec![b' '; MAX_MESH_FILE_BYTES as usize + 1];
+    panda_sdist(&data, &big, &[(&format!("{root}/visual/huge.obj"), huge)]);
+    let dest2 = dir.join("mbm2");
+    let err = unpack_and_convert(&big, &dest2, &["panda"], &mut Quiet)
+        .expect_err("an oversized mesh is refused")
+        .to_string();
+    assert!(err.contains("huge.obj") && err.contains("limit"), "{err}");
+    assert!(!dest2.exists());
+}

@@ -114,6 +114,49 @@ async fn client_covers_every_endpoint_kind() {
     assert_eq!(summary.name, "kitchen_copy");
     c.delete_scene("kitchen_copy").await.expect("delete scene");
     assert!(c.scene("kitchen_copy").await.is_err());
+    // A robot's visual geometry: an uploaded robot whose visuals are a box and an uploaded mesh.
+    let tet = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    let r = h
+        .http
+        .put(format!("{}/v1/meshes/tet.obj", h.base))
+        .header("content-type", "application/octet-stream")
+        .body(tet)
+        .send()
+        .await
+        .expect("PUT mesh");
+    assert_eq!(r.status(), StatusCode::CREATED);
+    let urdf = r#"<robot name="vis"><link name="base">
+        <visual><geometry><box size="0.2 0.4 0.6"/></geometry></visual>
+        <visual><geometry><mesh filename="meshes/tet.obj" scale="2 2 2"/></geometry></visual>
+        <collision><geometry><sphere radius="0.05"/></geometry></collision></link></robot>"#;
+    c.put_robot("vis", &req(json!({ "urdf": urdf })))
+        .await
+        .expect("put robot");
+    let v = c.robot_visuals("vis").await.expect("visuals");
+    assert_eq!(v.robot, "vis");
+    assert_eq!(v.visuals.len(), 2, "{v:?}");
+    let b = v.visuals[0].shape.as_ref().expect("box shape");
+    assert_eq!(
+        (b.kind.as_str(), b.half_extents),
+        ("box", Some([0.1, 0.2, 0.3]))
+    );
+    let m = &v.visuals[1];
+    let url = m.shape.as_ref().and_then(|s| s.url.as_deref());
+    assert_eq!(url, Some("/v1/robots/vis/visuals/base/1"), "{m:?}");
+    let obj = c
+        .robot_visual_mesh("vis", &m.link, m.index)
+        .await
+        .expect("visual mesh");
+    let verts: Vec<&str> = obj.lines().filter(|l| l.starts_with("v ")).collect();
+    assert_eq!(verts.len(), 4, "{obj}");
+    assert!(verts.contains(&"v 0.2 0 0"), "{obj}");
+    let e = c
+        .robot_visual_mesh("vis", "base", 0)
+        .await
+        .expect_err("a box is not a mesh");
+    assert_eq!(e.status(), Some(StatusCode::NOT_FOUND), "{e}");
+    assert_eq!(e.field(), Some("index"), "{e}");
+    c.delete_robot("vis").await.expect("delete robot");
 
     // Queries.
     let fk = c

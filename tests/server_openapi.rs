@@ -39,6 +39,21 @@ fn openapi_spec_matches_the_checked_in_copy() {
     ] {
         assert!(v["paths"].get(p).is_some(), "{p} missing from the spec");
     }
+    // Routes that run on the bounded query pool answer 503 with `Retry-After` when it is full.
+    for p in [
+        "/v1/meshes",
+        "/v1/meshes/{name}",
+        "/v1/scenes/{name}/meshes/{list}/{index}/{shape}",
+        "/v1/robots/{name}/visuals",
+        "/v1/robots/{name}/visuals/{link}/{index}",
+    ] {
+        let r = &v["paths"][p]["get"]["responses"]["503"];
+        let text = r["description"].as_str().unwrap_or("");
+        assert!(
+            text.contains("Retry-After"),
+            "GET {p}: no documented 503: {r}"
+        );
+    }
 }
 
 #[test]

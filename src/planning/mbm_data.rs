@@ -11,8 +11,10 @@
 //!
 //! [`install_from_sdist`] fills a folder from the public source of the data: the `resources/`
 //! of the `vamp-planner` 0.6.4 source package on PyPI (Apache-2.0). It checks the package's
-//! sha256 ([`SDIST_SHA256`]), copies each robot's spherized URDF and SRDF (visual meshes are
-//! left out: loaders ignore visual geometry) and converts the robot's `problems.tar.bz2`
+//! sha256 ([`SDIST_SHA256`]), copies each robot's spherized URDF and SRDF, its visual meshes
+//! (`resources/ROBOT/meshes/**`, beside the URDF where it names them, so the viewer draws the
+//! robot with them; planners never read them; bounded by [`MAX_MESH_FILE_BYTES`],
+//! [`MAX_MESH_FILES`] and [`MAX_MESH_BYTES`], names restricted to plain file names) and converts the robot's `problems.tar.bz2`
 //! (MoveIt scene and request YAML files) to the `problems.json` that [`super::mbm::MbmFile`]
 //! reads, as VAMP's own `resources/problem_tar_to_pkl_json.py` does; a problem is `valid` when
 //! its start and at least one goal are collision-free for the robot's sphere model.
@@ -430,6 +432,9 @@ fn unpack_into(
     progress.stage("unpack", Some(len));
     let mut bytes = 0u64;
     let mut problem_archives: BTreeMap<String, Vec<u8>> = BTreeMap::new();
+    // Visual meshes (written below as they come): per robot, files and bytes so far.
+    let mut mesh_counts: BTreeMap<String, (usize, u64)> = BTreeMap::new();
+    let mut mesh_files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     {
         let gz = flate2::read::GzDecoder::new(Counting { inner: f, progress });
         let mut tar = tar::Archive::new(gz);
@@ -448,6 +453,44 @@ fn unpack_into(
                 .collect();
             let target = match parts.as_slice() {
                 [_, lic] if lic == "LICENSE.txt" => Some(out.join("LICENSE-vamp-resources.txt")),
+                [_, res, robot, meshes, rest @ ..]
+                    if res == "resources"
+                        && meshes == "meshes"
+                        && !rest.is_empty()
+                        && robots.contains(&robot.as_str()) =>
+                {
+                    if entry.header().entry_type().is_file()
+                        && path
+                            .components()
+                            .all(|c| matches!(c, std::path::Component::Normal(_)))
+                        && rest.iter().all(|p| safe_mesh_part(p))
+                        && rest.last().is_some_and(|f| mesh_file_kind(f))
+                    {
+                        let n = mesh_counts.entry(robot.clone()).or_insert((0, 0));
+                        let data = read_bounded(&mut entry, MAX_MESH_FILE_BYTES)
+                            .map_err(|e| archive_err(format!("{}: {e}", path.display())))?
+                            .ok_or_else(|| {
+                                archive_err(format!(
+                                    "{}: over {MAX_MESH_FILE_BYTES} bytes (the limit of one mesh file)",
+                                    path.display()
+                                ))
+                            })?;
+                        n.0 += 1;
+                        n.1 += data.len() as u64;
+                        if n.0 > MAX_MESH_FILES || n.1 > MAX_MESH_BYTES {
+                            return Err(archive_err(format!(
+                                "resources/{robot}/meshes: over {MAX_MESH_FILES} files or \
+                                 {MAX_MESH_BYTES} bytes"
+                            )));
+                        }
+                        let mut t = out.join(robot.as_str()).join("meshes");
+                        for part in rest {
+                            t.push(part);
+                        }
+                        mesh_files.push((t, data));
+                    }
+                    None
+                }
                 [_, res, robot, file] if res == "resources" && robots.contains(&robot.as_str()) => {
                     if file == "problems.tar.bz2" {
                         let mut data = Vec::new();
@@ -466,6 +509,12 @@ fn unpack_into(
                 }
                 _ => None,
             };
+            for (t, data) in mesh_files.drain(..) {
+                let dir = t.parent().unwrap_or(out);
+                std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+                std::fs::write(&t, &data).map_err(io_err(&t))?;
+                bytes += data.len() as u64;
+            }
             if let Some(t) = target {
                 let dir = t.parent().unwrap_or(out);
                 std::fs::create_dir_all(dir).map_err(io_err(dir))?;
@@ -518,8 +567,9 @@ fn unpack_into(
     let text = format!(
         "# MotionBenchMaker problem sets\n\nWritten by `manyhands data mbm` from `resources/` of \
          {SDIST_FILE} (the `vamp-planner` 0.6.4 source package on PyPI, sha256 {SDIST_SHA256}; \
-         Apache-2.0, see LICENSE-vamp-resources.txt). Robots: {}. Each robot's spherized URDF \
-         and SRDF are copied as they are (visual meshes left out); `problems.json` is converted \
+         Apache-2.0, see LICENSE-vamp-resources.txt). Robots: {}. Each robot's spherized URDF, \
+         SRDF and visual meshes (`meshes/`, when the package has them) are copied as they are; \
+         `problems.json` is converted \
          from its `problems.tar.bz2` (MoveIt scenes and requests) as VAMP's \
          `resources/problem_tar_to_pkl_json.py` does, `valid` = start and one goal free for \
          the sphere model. The problems are MotionBenchMaker's (Chamzas et al., RA-L 2022).\n",
@@ -528,6 +578,40 @@ fn unpack_into(
     std::fs::write(&note, &text).map_err(io_err(&note))?;
     report.bytes = bytes + text.len() as u64;
     Ok(report)
+}
+
+/// Largest visual mesh file [`unpack_and_convert`] installs (the bound of an uploaded mesh).
+pub const MAX_MESH_FILE_BYTES: u64 = 16 << 20;
+/// Most visual mesh files of one robot [`unpack_and_convert`] installs.
+pub const MAX_MESH_FILES: usize = 512;
+/// Most bytes of visual mesh files of one robot [`unpack_and_convert`] installs.
+pub const MAX_MESH_BYTES: u64 = 128 << 20;
+
+/// A folder or file name under `resources/ROBOT/meshes/` that is installed: ASCII letters,
+/// digits, `_`, `-` and `.`, not starting with `.` (no `..`, no hidden files), at most 128 bytes.
+fn safe_mesh_part(p: &str) -> bool {
+    !p.is_empty()
+        && p.len() <= 128
+        && !p.starts_with('.')
+        && p.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+}
+
+/// A mesh file or a file a mesh refers to: OBJ (with its MTL), STL, COLLADA, and the PNG/JPEG
+/// textures a COLLADA or MTL file may name.
+fn mesh_file_kind(file: &str) -> bool {
+    let ext = file.rsplit_once('.').map(|(_, e)| e.to_ascii_lowercase());
+    matches!(
+        ext.as_deref(),
+        Some("obj" | "mtl" | "stl" | "dae" | "png" | "jpg" | "jpeg")
+    )
+}
+
+/// All of `r` when it has at most `limit` bytes, `None` when it has more (reading stops there).
+fn read_bounded(r: &mut impl Read, limit: u64) -> std::io::Result<Option<Vec<u8>>> {
+    let mut data = Vec::new();
+    r.take(limit + 1).read_to_end(&mut data)?;
+    Ok((data.len() as u64 <= limit).then_some(data))
 }
 
 /// One obstacle of a converted problem (VAMP's JSON form).

@@ -21,7 +21,8 @@ use super::error::{ApiError, ApiResult, ErrorBody};
 use super::AppState;
 
 #[utoipa::path(get, path = "/v1/meshes", tag = "resources",
-    responses((status = 200, body = [MeshSummary], description = "the uploaded meshes")))]
+    responses((status = 200, body = [MeshSummary], description = "the uploaded meshes"),
+              (status = 503, body = ErrorBody, description = "overloaded (the query pool is full); see `Retry-After`")))]
 pub async fn list_meshes(State(st): State<Arc<AppState>>) -> ApiResult<Json<Vec<MeshSummary>>> {
     let st2 = st.clone();
     Ok(Json(st.pool.run(move || Ok(st2.catalog.meshes())).await?))
@@ -29,7 +30,8 @@ pub async fn list_meshes(State(st): State<Arc<AppState>>) -> ApiResult<Json<Vec<
 
 #[utoipa::path(get, path = "/v1/meshes/{name}", tag = "resources", params(("name" = String, Path)),
     responses((status = 200, description = "the mesh file as uploaded", content_type = "application/octet-stream", body = Vec<u8>),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, body = ErrorBody, description = "overloaded (the query pool is full); see `Retry-After`")))]
 pub async fn get_mesh(
     State(st): State<Arc<AppState>>,
     Path(name): Path<String>,
@@ -102,7 +104,8 @@ pub async fn delete_mesh(
     params(("name" = String, Path), ("list" = String, Path, description = "obstacles or objects"),
            ("index" = usize, Path, description = "the body's index in the list"), ("shape" = usize, Path, description = "the shape's index in the body")),
     responses((status = 200, content_type = "model/obj", body = String, description = "Wavefront OBJ text"),
-              (status = 404, body = ErrorBody, description = "no such scene, body or mesh shape")))]
+              (status = 404, body = ErrorBody, description = "no such scene, body or mesh shape"),
+              (status = 503, body = ErrorBody, description = "overloaded (the query pool is full); see `Retry-After`")))]
 pub async fn scene_mesh(
     State(st): State<Arc<AppState>>,
     Path((name, list, index, shape)): Path<(String, String, String, String)>,

@@ -168,6 +168,17 @@ class Client:
     def delete_mesh(self, name: str) -> None:
         self._request("DELETE", f"/v1/meshes/{_segment(name)}")
 
+    def visuals(self, robot: str) -> Json:
+        """GET /v1/robots/NAME/visuals: the robot's URDF ``<visual>`` elements (``link``,
+        ``index``, ``pose`` in the link frame, ``shape`` or the ``problem`` why it cannot be
+        drawn); a mesh's ``shape.url`` serves it as OBJ text (:meth:`visual_mesh`)."""
+        return self._get(f"/v1/robots/{_segment(robot)}/visuals")
+
+    def visual_mesh(self, robot: str, link: str, index: int) -> str:
+        """GET /v1/robots/NAME/visuals/LINK/INDEX: visual mesh INDEX of LINK as Wavefront OBJ
+        text, in the geometry frame with the URDF's scale applied."""
+        return self._get(f"/v1/robots/{_segment(robot)}/visuals/{_segment(link)}/{int(index)}")
+
     # -- queries ----------------------------------------------------------------------------
     def fk(self, robot: str, config: Optional[Dict[str, float]] = None, **kw: Any) -> Json:
         return self._post("/v1/fk", {"robot": robot, "config": config or {}, **kw})

@@ -222,6 +222,24 @@ class ClientTest(unittest.TestCase):
         with self.assertRaises(ApiError) as e:
             self.c.put_mesh("tet.txt", stl)
         self.assertEqual((e.exception.status, e.exception.field), (422, "name"))
+        # A robot whose visual is that mesh: its visuals list it with a URL, the mesh is OBJ text.
+        vis_urdf = MINI_URDF.replace('<robot name="mini">', '<robot name="mini_vis">').replace(
+            '<link name="base">', '<link name="base"><visual><geometry>'
+            '<mesh filename="meshes/tet.stl" scale="2 2 2"/></geometry></visual>')
+        self.c.put_robot("mini_vis", vis_urdf)
+        v = self.c.visuals("mini_vis")
+        self.assertEqual(v["robot"], "mini_vis")
+        [m] = v["visuals"]
+        self.assertEqual((m["link"], m["index"], m["shape"]["type"]), ("base", 0, "mesh"))
+        self.assertEqual(m["shape"]["url"], "/v1/robots/mini_vis/visuals/base/0")
+        obj = self.c.visual_mesh("mini_vis", "base", 0)
+        verts = [line for line in obj.splitlines() if line.startswith("v ")]
+        self.assertEqual(len(verts), 4, obj)
+        self.assertIn("v 0.2 0 0", verts)
+        with self.assertRaises(ApiError) as e:
+            self.c.visual_mesh("mini_vis", "base", 1)
+        self.assertEqual((e.exception.status, e.exception.field), (404, "index"))
+        self.c.delete_robot("mini_vis")
         self.c.delete_mesh("tet.stl")
 
     def test_every_job_kind_is_accepted(self) -> None:

@@ -98,6 +98,62 @@ pub struct JobEvent {
     pub data: Value,
 }
 
+/// `GET /v1/robots/{name}/visuals`: a robot's visual geometry (its URDF's `<visual>`
+/// elements), what a viewer draws; planners never check it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotVisuals {
+    pub robot: String,
+    /// Every `<visual>` element of every link, links in tree order.
+    pub visuals: Vec<VisualItem>,
+}
+
+/// One `<visual>` element of a link.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VisualItem {
+    /// The link it belongs to.
+    pub link: String,
+    /// Its index among the link's `<visual>` elements ([`Client::robot_visual_mesh`]'s `index`).
+    pub index: usize,
+    /// Pose of the geometry in the link frame.
+    pub pose: VisualPose,
+    /// The drawable geometry; `None` when the element cannot be drawn (see `problem`).
+    #[serde(default)]
+    pub shape: Option<VisualShape>,
+    /// Why it cannot be drawn (an unreadable element, a mesh file the server does not have).
+    #[serde(default)]
+    pub problem: Option<String>,
+}
+
+/// Position (m) and unit quaternion (x, y, z, w).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VisualPose {
+    pub position: [f64; 3],
+    pub quat_xyzw: [f64; 4],
+}
+
+/// The geometry of a [`VisualItem`] in the scene format's shape fields.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VisualShape {
+    /// `box`, `cylinder`, `capsule`, `sphere` or `mesh`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// A box's half extents (m).
+    #[serde(default)]
+    pub half_extents: Option<[f64; 3]>,
+    /// A cylinder's, capsule's or sphere's radius (m).
+    #[serde(default)]
+    pub radius: Option<f64>,
+    /// A cylinder's or capsule's length along z (m).
+    #[serde(default)]
+    pub length: Option<f64>,
+    /// A mesh's file name as the URDF writes it.
+    #[serde(default)]
+    pub filename: Option<String>,
+    /// A mesh's path on the server (its OBJ text: [`Client::robot_visual_mesh`]).
+    #[serde(default)]
+    pub url: Option<String>,
+}
+
 /// A connection to one server.
 #[derive(Debug, Clone)]
 pub struct Client {
@@ -260,6 +316,33 @@ impl Client {
     /// `DELETE /v1/robots/{name}` of an uploaded robot.
     pub async fn delete_robot(&self, name: &str) -> ClientResult<()> {
         self.delete(&format!("/v1/robots/{}", segment(name))).await
+    }
+
+    /// `GET /v1/robots/{name}/visuals`: the robot's visual geometry (URDF `<visual>`
+    /// elements), each mesh with the URL of its OBJ text.
+    pub async fn robot_visuals(&self, name: &str) -> ClientResult<RobotVisuals> {
+        self.get(&format!("/v1/robots/{}/visuals", segment(name)))
+            .await
+    }
+
+    /// `GET /v1/robots/{name}/visuals/{link}/{index}`: visual mesh `index` of `link` as
+    /// Wavefront OBJ text, in the geometry frame with the URDF's scale applied.
+    pub async fn robot_visual_mesh(
+        &self,
+        name: &str,
+        link: &str,
+        index: usize,
+    ) -> ClientResult<String> {
+        let path = format!(
+            "/v1/robots/{}/visuals/{}/{index}",
+            segment(name),
+            segment(link)
+        );
+        let r = self.request(Method::GET, &path).send().await?;
+        if !r.status().is_success() {
+            return Self::answer(r).await;
+        }
+        Ok(r.text().await?)
     }
 
     /// `GET /v1/scenes`: every scene.
