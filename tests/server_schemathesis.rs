@@ -92,11 +92,13 @@ async fn schemathesis_finds_nothing() {
     std::fs::write(&spec, manyhands::server::openapi::openapi_json()).expect("spec");
     // Schema-valid requests may be refused only for the reasons the spec names besides their
     // content: auth, a missing resource, a conflict with the server's state, overload.
-    // Three exceptions, each documented in the spec: an uploaded robot or scene is a document
+    // Four exceptions, each documented in the spec: an uploaded robot or scene is a document
     // (URDF, SRDF, scene JSON) whose validity no schema states, a base-placement map is
     // bounded by its number of platform poses, (2⌈radius / cell⌉ + 1)² × yaw_bins, a product
     // of three fields, and grasp contacts must be geometrically sound (non-zero normals,
-    // wrenches within range).
+    // wrenches within range); and a request's joint values, group or named state must fit the
+    // robot model it names (how many joints, which groups are chains, which states the SRDF
+    // defines), which a schema of the request cannot state.
     std::fs::write(
         dir.join("schemathesis.toml"),
         r#"[checks.positive_data_acceptance]
@@ -109,6 +111,11 @@ checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409",
 
 [[operations]]
 include-path = "/v1/ik/base-placement"
+checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409", "422", "429", "503"]
+
+[[operations]]
+include-path-regex = "^/v1/(fk|ik|trajectories)$"
+include-method = "POST"
 checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "404", "409", "422", "429", "503"]
 
 [[operations]]

@@ -22,7 +22,7 @@ __all__ = ["ApiError", "WaitTimeout", "Client", "AsyncClient", "Event", "FINAL_S
 # tests/python_sdk.rs, as is every request body the test suite sends and every answer it gets.
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled", "interrupted"})
 JOB_KINDS = ("joint_space", "collision_sweep", "reach", "regrasp", "kitchen_task", "bimanual",
-             "multi_robot", "schedule", "grasp_list", "pick_place")
+             "multi_robot", "schedule", "multi_arm", "grasp_list", "pick_place")
 Json = Dict[str, Any]
 
 
@@ -246,6 +246,14 @@ class Client:
         ``time_limit``, ``sample_period``, ``sequential_fallback``."""
         return self.submit({"kind": "schedule", "scene": scene, "trajectories": trajectories,
                             **kw}, wait)
+
+    def multi_arm(self, scene: str, robots: List[Json], wait: Optional[float] = None,
+                  **kw: Any) -> Json:
+        """Job kind ``multi_arm``: independent arms in one cell, one timed plan on one clock
+        (decoupled, prioritized or composite, the method chosen and reported); ``robots`` is
+        ``[{"name", "group", "goal" | "goal_pose", "start"?}]``; also ``method``,
+        ``shortcut_iterations``, ``seed``, ``time_limit``."""
+        return self.submit({"kind": "multi_arm", "scene": scene, "robots": robots, **kw}, wait)
 
     def job(self, job_id: str) -> Json:
         return self._get(f"/v1/plans/{_segment(job_id)}")

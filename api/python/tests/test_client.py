@@ -9,6 +9,7 @@ and JSON answer against api/openapi.json with an independent JSON Schema validat
 import asyncio
 import json
 import os
+import pathlib
 import sys
 import threading
 import unittest
@@ -65,6 +66,9 @@ EVERY_KIND = [
     {"kind": "schedule", "scene": "kitchen_two", "trajectories": [
         {"robot": "armar_a", "joints": ["base_x", "base_y"], "path": [[0, -1.2], [0, 2.6]]},
         {"robot": "armar_b", "joints": ["base_x", "base_y"], "path": [[-1.2, -0.7], [1.2, -0.7]]}]},
+    {"kind": "multi_arm", "scene": "arms_crossing", "robots": [
+        {"name": "armar_a", "group": "right_arm", "goal": {"right_elbow": -0.3}},
+        {"name": "armar_b", "group": "left_arm", "goal": {"left_elbow": -0.3}}]},
     {"kind": "grasp_list", "robot": "justin", "hand": "left_hand", "mesh": "statuette",
      "params": {"positions": 8}},
     {"kind": "pick_place", "scene": "pick_place", "robot": "justin", "object": "statuette",
@@ -189,6 +193,19 @@ class ClientTest(unittest.TestCase):
         with self.assertRaises(ApiError) as e:
             self.c.schedule("kitchen_two", [{"robot": "ghost", "path": [[0.0]]}])
         self.assertEqual(e.exception.field, "trajectories[0].robot")
+
+    def test_multi_arm(self) -> None:
+        scene_file = pathlib.Path(__file__).resolve().parents[3] / "scenes" / "arms_crossing.json"
+        scene = json.loads(scene_file.read_text())
+        goal = [r["configs"]["goal"] for r in scene["robots"]]
+        robots = [{"name": "armar_a", "group": "right_arm", "goal": goal[0]},
+                  {"name": "armar_b", "group": "left_arm", "goal": goal[1]}]
+        job = self.c.multi_arm("arms_crossing", robots, wait=60, seed=1)
+        self.assertEqual(job["state"], "succeeded", job)
+        self.assertGreater(job["result"]["makespan"], 0.0)
+        with self.assertRaises(ApiError) as e:
+            self.c.multi_arm("arms_crossing", [{**robots[0], "group": "tentacle"}, robots[1]])
+        self.assertEqual(e.exception.field, "robots[0].group")
 
     def test_uploads(self) -> None:
         self.assertEqual(self.c.put_robot("mini", MINI_URDF, MINI_SRDF)["name"], "mini")

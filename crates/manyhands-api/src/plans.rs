@@ -920,6 +920,8 @@ mod tests {
             json!({"kind": "grasp_list", "robot": "r", "hand": "h", "mesh": "m"}),
             json!({"kind": "pick_place", "scene": "s", "robot": "r", "object": "o",
                 "pick_hand": "a", "place_hand": "b"}),
+            json!({"kind": "multi_arm", "scene": "s",
+                "robots": [{"name": "r", "group": "g", "goal": {"j": 0.0}}]}),
         ];
         assert_eq!(bodies.len(), PlanRequest::KINDS.len());
         for (body, kind) in bodies.iter().zip(PlanRequest::KINDS) {
