@@ -28,7 +28,7 @@ use nalgebra::{Translation3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::fingers::{FingerCertificate, FingerVerdict, MAX_EVALUATIONS};
+use super::fingers::{link_speed, FingerCertificate, FingerVerdict, MAX_EVALUATIONS};
 use super::{ArmHand, PickPlaceProblem};
 use crate::geometry::Pose;
 use crate::grasp::GraspObject;
@@ -76,23 +76,8 @@ impl<'a> ApproachCertificate<'a> {
             if geoms.is_empty() || !ah.hand.shapes.contains_key(&l) {
                 continue;
             }
-            let (rep, off) = fk.mount(l);
-            let balls: Vec<(Vector3<f64>, f64)> = geoms
-                .iter()
-                .map(|g| (g.origin.translation.vector, g.shape.bounding_radius()))
-                .collect();
-            let n = balls.len() as f64;
-            let centre = balls.iter().fold(Vector3::zeros(), |s, (c, _)| s + c) / n;
-            let radius = balls
-                .iter()
-                .map(|(c, r)| (c - centre).norm() + r)
-                .fold(0.0, f64::max);
-            let in_rep = off.map_or(centre, |o| o.transform_point(&centre));
-            // A link whose speed cannot be bounded gets an infinite bound: never proven.
-            let speed = fk
-                .speed_bounds(robot, rep, &in_rep, radius)
-                .unwrap_or_else(|| (0..robot.dof()).map(|v| (v, f64::INFINITY)).collect());
-            links.push((l, speed));
+            let all: Vec<usize> = (0..robot.dof()).collect();
+            links.push((l, link_speed(&fk, robot, l, &all)));
         }
         ApproachCertificate {
             ah,

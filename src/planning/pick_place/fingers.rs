@@ -121,21 +121,7 @@ impl<'a> FingerCertificate<'a> {
                     continue;
                 }
                 let (rep, off) = fk.mount(l);
-                let balls: Vec<(Vector3<f64>, f64)> = geoms
-                    .iter()
-                    .map(|g| (g.origin.translation.vector, g.shape.bounding_radius()))
-                    .collect();
-                let n = balls.len() as f64;
-                let centre = balls.iter().fold(Vector3::zeros(), |s, (c, _)| s + c) / n;
-                let radius = balls
-                    .iter()
-                    .map(|(c, r)| (c - centre).norm() + r)
-                    .fold(0.0, f64::max);
-                let in_rep = off.map_or(centre, |o| o.transform_point(&centre));
-                // A link whose speed cannot be bounded gets an infinite bound: never proven.
-                let speed = fk
-                    .speed_bounds(robot, rep, &in_rep, radius)
-                    .unwrap_or_else(|| h.vars.iter().map(|&v| (v, f64::INFINITY)).collect());
+                let speed = link_speed(&fk, robot, l, &h.vars);
                 let contact = grasp
                     .contacts
                     .iter()
@@ -264,6 +250,32 @@ impl<'a> FingerCertificate<'a> {
         path.windows(2)
             .all(|w| self.certify(&w[0], &w[1]) == FingerVerdict::Certified)
     }
+}
+
+/// Speed bounds `(variable, w)` of the ball around link `l`'s collision geometry
+/// ([`FkModel::speed_bounds`]); a link whose speed cannot be bounded gets an infinite bound on
+/// each of `vars` (never proven).
+pub(super) fn link_speed(
+    fk: &FkModel,
+    robot: &crate::model::Robot,
+    l: usize,
+    vars: &[usize],
+) -> Vec<(usize, f64)> {
+    let (rep, off) = fk.mount(l);
+    let balls: Vec<(Vector3<f64>, f64)> = robot.links[l]
+        .collision
+        .iter()
+        .map(|g| (g.origin.translation.vector, g.shape.bounding_radius()))
+        .collect();
+    let n = balls.len().max(1) as f64;
+    let centre = balls.iter().fold(Vector3::zeros(), |s, (c, _)| s + c) / n;
+    let radius = balls
+        .iter()
+        .map(|(c, r)| (c - centre).norm() + r)
+        .fold(0.0, f64::max);
+    let in_rep = off.map_or(centre, |o| o.transform_point(&centre));
+    fk.speed_bounds(robot, rep, &in_rep, radius)
+        .unwrap_or_else(|| vars.iter().map(|&v| (v, f64::INFINITY)).collect())
 }
 
 /// Back-off distances of the retreat from the contacts, as multiples of the finger's tip
