@@ -630,6 +630,38 @@ fn link_displacement(link: usize, a: &[f64], b: &[f64]) -> f64 {
     worst
 }
 
+/// The robot and the statuette alone, the statuette a fixed body where it is at the start
+/// `q0` of phase `ph` (resting, or held: then also the holding attachment).
+fn statuette_alone<'a>(
+    ph: &'a manyhands::planning::task::TaskPhase,
+    q0: &[f64],
+) -> (
+    CollisionWorld,
+    Option<&'a manyhands::collision::AttachedBody>,
+) {
+    let p = problem();
+    let held = ph.world.attached.iter().find(|a| a.name == p.object_name);
+    let pose = match held {
+        Some(a) => link_pose(&p.robot, q0, a.link) * a.rel,
+        None => {
+            ph.world
+                .statics
+                .iter()
+                .find(|s| s.name == p.object_name)
+                .expect("object")
+                .pose
+        }
+    };
+    let mut strict = CollisionWorld::single(p.robot.clone(), p.base);
+    strict.statics.push(manyhands::collision::StaticBody {
+        name: p.object_name.clone(),
+        kind: manyhands::collision::StaticKind::Object,
+        pose,
+        shapes: p.object.clone(),
+    });
+    (strict, held)
+}
+
 /// The phases that close a hand on the statuette or open it are checked state by state, at
 /// most 0.5 mm of any hand point's travel apart, by the exact checker against the statuette as
 /// the solid it is, with no link allowed to touch it: only the grasp's contact fingertips may,
@@ -692,26 +724,7 @@ fn grasp_and_release_touch_the_statuette_only_at_the_contacts() {
             // touch the statuette at all (only the hand that holds it, when one does).
             if ph.name.ends_with("_approach") || ph.name.ends_with("_depart") {
                 approaches += 1;
-                let q0 = &plan.waypoints[ph.first];
-                let held = ph.world.attached.iter().find(|a| a.name == p.object_name);
-                let pose = match held {
-                    Some(a) => link_pose(robot, q0, a.link) * a.rel,
-                    None => {
-                        ph.world
-                            .statics
-                            .iter()
-                            .find(|s| s.name == p.object_name)
-                            .expect("object")
-                            .pose
-                    }
-                };
-                let mut strict = CollisionWorld::single(robot.clone(), p.base);
-                strict.statics.push(manyhands::collision::StaticBody {
-                    name: p.object_name.clone(),
-                    kind: manyhands::collision::StaticKind::Object,
-                    pose,
-                    shapes: p.object.clone(),
-                });
+                let (mut strict, held) = statuette_alone(ph, &plan.waypoints[ph.first]);
                 if let Some(a) = held {
                     for &l in a.touch.iter().chain([&a.link]) {
                         strict.allow(
@@ -762,25 +775,8 @@ fn grasp_and_release_touch_the_statuette_only_at_the_contacts() {
             };
             let grasp_state = if closing { q1 } else { q0 };
             // The statuette where it is during the phase, as a fixed body nothing may touch.
-            let held = ph.world.attached.iter().find(|a| a.name == p.object_name);
-            let pose = match held {
-                Some(a) => link_pose(robot, q0, a.link) * a.rel,
-                None => {
-                    ph.world
-                        .statics
-                        .iter()
-                        .find(|s| s.name == p.object_name)
-                        .expect("object")
-                        .pose
-                }
-            };
-            let mut strict = CollisionWorld::single(robot.clone(), p.base);
-            strict.statics.push(manyhands::collision::StaticBody {
-                name: p.object_name.clone(),
-                kind: manyhands::collision::StaticKind::Object,
-                pose,
-                shapes: p.object.clone(),
-            });
+            let (mut strict, _) = statuette_alone(ph, q0);
+            let pose = strict.statics[0].pose;
             let object_id = manyhands::collision::BodyId::Static(0);
             let link_id = |l: usize| manyhands::collision::BodyId::Link { robot: 0, link: l };
             // The other hand holds the statuette at its own grasp while the place hand closes
