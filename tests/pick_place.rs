@@ -328,6 +328,65 @@ fn same_seed_same_configurations() {
     assert_eq!(a, b);
 }
 
+/// The hand-alone environment filter the configuration search applies before a grasp's IK
+/// (`hand_free_of`) is a necessary condition of the exact test: a grasp it refuses has no
+/// collision-free configuration over every torso sample and IK solution, and a grasp with one
+/// passes it. A non-convex solid among the bodies is left out (never stood for by its hull).
+#[test]
+fn the_hand_alone_filter_never_refuses_a_free_configuration() {
+    use manyhands::grasp::double_grasp::{hand_free_of, Environment};
+    let p = problem();
+    let (r, l) = lists();
+    let params = ConfigParams::default();
+    let env = Environment::new(&p.obstacles);
+    let (mut refused, mut found) = (0, 0);
+    for (holder, ah, list, pose, name) in [
+        (Holder::Pick, &p.pick, r, &p.initial, "initial"),
+        (Holder::Place, &p.place, l, &p.final_pose, "final"),
+    ] {
+        for (gi, g) in list.grasps.iter().enumerate() {
+            let free = hand_free_of(&ah.hand, &g.config, &(pose * g.palm_pose()), &env);
+            let mut st = ConfigStats::default();
+            let c = single_configuration(p, holder, list, &[gi], pose, name, &params, &mut st);
+            if !free {
+                refused += 1;
+                assert!(
+                    c.is_err(),
+                    "{name} grasp {gi}: refused by the hand-alone filter, yet {c:?}"
+                );
+            }
+            if c.is_ok() {
+                found += 1;
+                assert!(
+                    free,
+                    "{name} grasp {gi} has a free configuration but the filter refuses it"
+                );
+            }
+        }
+    }
+    assert!(
+        refused > 0 && found > 0,
+        "refused {refused}, found {found}: the test has no teeth"
+    );
+    // The statuette (a non-convex solid) among the bodies changes no verdict at its own pose:
+    // its hull would swallow every closed hand.
+    let mut with_object = p.obstacles.clone();
+    with_object.push(manyhands::collision::StaticBody {
+        name: "statuette".into(),
+        kind: manyhands::collision::StaticKind::Object,
+        shapes: p.object.clone(),
+        pose: p.initial,
+    });
+    let env2 = Environment::new(&with_object);
+    for g in &r.grasps {
+        let palm = p.initial * g.palm_pose();
+        assert_eq!(
+            hand_free_of(&p.pick.hand, &g.config, &palm, &env),
+            hand_free_of(&p.pick.hand, &g.config, &palm, &env2)
+        );
+    }
+}
+
 #[test]
 fn a_pose_out_of_both_hands_reach_fails_clearly() {
     let p = problem();

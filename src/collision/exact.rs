@@ -180,6 +180,21 @@ pub(crate) fn parry_shape(g: &Geometry) -> (SharedShape, Pose) {
     (shape, g.origin * fix)
 }
 
+/// The parry shape [`ExactChecker`] tests for `g` when that shape alone stands for `g`: `None`
+/// for a mesh it models as a non-convex solid (its surface and its inside), which no convex
+/// shape stands for. A test made with these shapes finds a collision only where the exact
+/// checker finds it too.
+pub(crate) fn exact_convex_shape(g: &Geometry) -> Option<(SharedShape, Pose)> {
+    if let Shape::Mesh(m) = &g.shape {
+        if let Ok(solid) = &m.solid {
+            if solid_surface(solid).is_some() {
+                return None;
+            }
+        }
+    }
+    Some(parry_shape(g))
+}
+
 fn convert_all(geoms: &[Geometry], out: &mut Vec<ShapeRec>) {
     for g in geoms {
         let (shape, fix, radius, solid) = convert_solid(&g.shape);

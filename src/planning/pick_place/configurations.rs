@@ -55,7 +55,9 @@ use super::exchange::{exchange_poses, ExchangeGrid, ExchangeParams};
 use super::{ArmHand, PickPlaceError, PickPlaceProblem};
 use crate::collision::{AttachedBody, CollisionChecker, CollisionWorld, ExactChecker};
 use crate::geometry::Pose;
-use crate::grasp::double_grasp::{approach_score, double_grasps, DoubleGrasp, DoubleGraspParams};
+use crate::grasp::double_grasp::{
+    approach_score, double_grasps, hand_free_of, DoubleGrasp, DoubleGraspParams, Environment,
+};
 use crate::grasp::{GraspList, SingleGrasp};
 use crate::kinematics::SolutionOrder;
 
@@ -151,12 +153,35 @@ pub struct ConfigStats {
     pub collision_checks: usize,
     pub double_grasps_tried: usize,
     pub exchange_poses: usize,
+    /// Grasps left out before their IK: the closed hand collides with the obstacles at the pose
+    /// (003 §IV-B's environment filter) or the hand alone has no room there
+    /// ([`HandRoom::hand_alone`]).
+    #[serde(default)]
+    pub hands_filtered: usize,
     /// Time of the single-grasp configurations of both hands (ms; 003 §VI: 4.2 s).
     #[serde(default)]
     pub single_ms: f64,
     /// Time of the double grasps and their exchange configurations (ms; 003 §VI: 2.6 s).
     #[serde(default)]
     pub double_ms: f64,
+}
+
+impl ConfigStats {
+    /// The counts of two searches added (times: `self`'s).
+    fn plus(&self, o: &ConfigStats) -> ConfigStats {
+        ConfigStats {
+            single_pick: self.single_pick + o.single_pick,
+            single_place: self.single_place + o.single_place,
+            double_grasps: self.double_grasps + o.double_grasps,
+            ik_calls: self.ik_calls + o.ik_calls,
+            ik_solutions: self.ik_solutions + o.ik_solutions,
+            collision_checks: self.collision_checks + o.collision_checks,
+            double_grasps_tried: self.double_grasps_tried + o.double_grasps_tried,
+            exchange_poses: self.exchange_poses + o.exchange_poses,
+            hands_filtered: self.hands_filtered + o.hands_filtered,
+            ..*self
+        }
+    }
 }
 
 /// A grasp or place configuration: the grasp (index into its list), the object pose, the
@@ -201,6 +226,13 @@ pub trait HandRoom {
     fn exchange(&mut self, a: usize, b: usize, q: &[f64]) -> bool;
     /// q_r^p: the place hand can open from place grasp `b`, the object resting at q_o^f.
     fn place(&mut self, b: usize, q: &[f64]) -> bool;
+    /// Can `holder`'s hand have room on its grasp `g` at all, whatever the arm does: the part
+    /// of [`HandRoom::grasp`] (pick) or [`HandRoom::place`] (place) that depends on the hand
+    /// alone, its palm at the grasp's pose. A necessary condition of those two, asked once per
+    /// grasp before any of its IK solutions; the default admits every grasp.
+    fn hand_alone(&mut self, _holder: Holder, _g: usize) -> bool {
+        true
+    }
 }
 
 /// Admits every configuration ([`HandRoom`]).
@@ -571,7 +603,17 @@ pub fn single_configurations(
     let mut last = None;
     let tried = list.grasps.len().min(params.max_single);
     let before = *stats;
+    let (ah, _) = p.arm_hand(holder);
+    let env = Environment::new(&p.obstacles);
     for gi in 0..tried {
+        // The hand's own tests first: they hold for every torso sample and IK solution alike.
+        let g = &list.grasps[gi];
+        if !hand_free_of(&ah.hand, &g.config, &(pose * g.palm_pose()), &env)
+            || !room.hand_alone(holder, gi)
+        {
+            stats.hands_filtered += 1;
+            continue;
+        }
         match single_configuration_with(
             p,
             holder,
@@ -593,9 +635,11 @@ pub fn single_configurations(
         }
     }
     if out.is_empty() {
-        let (ah, _) = p.arm_hand(holder);
         let reason = match last {
             Some(PickPlaceError::Unreachable { reason, .. }) => reason,
+            None if tried > 0 => "the hand collides with the obstacles, or has no room to close \
+                                  or open, at every grasp of its list"
+                .into(),
             _ => "the hand's grasp list is empty".into(),
         };
         return Err(PickPlaceError::Unreachable {
@@ -635,42 +679,60 @@ pub fn key_configurations(
     grid: &ExchangeGrid,
     params: &ConfigParams,
 ) -> Result<KeyConfigurations, PickPlaceError> {
-    key_configurations_with(p, pick_list, place_list, grid, params, &mut AnyHand)
+    key_configurations_with(
+        p,
+        pick_list,
+        place_list,
+        grid,
+        params,
+        [&mut AnyHand, &mut AnyHand],
+    )
 }
 
-/// [`key_configurations`] whose every configuration also leaves `room` for the hands' motions
-/// on the object ([`HandRoom`]).
+/// [`key_configurations`] whose every configuration also leaves room for the hands' motions on
+/// the object ([`HandRoom`]): `rooms[0]` answers for the grasp and exchange configurations,
+/// `rooms[1]` for the place configurations. The single-grasp configurations of the two hands
+/// are searched at once (two independent searches, each deterministic per seed).
 pub fn key_configurations_with(
     p: &PickPlaceProblem,
     pick_list: &GraspList,
     place_list: &GraspList,
     grid: &ExchangeGrid,
     params: &ConfigParams,
-    room: &mut dyn HandRoom,
+    rooms: [&mut (dyn HandRoom + Send); 2],
 ) -> Result<KeyConfigurations, PickPlaceError> {
     params.validate()?;
-    let mut stats = ConfigStats::default();
+    let [room, place_room] = rooms;
     let t_single = std::time::Instant::now();
-    let picks = single_configurations(
-        p,
-        Holder::Pick,
-        pick_list,
-        &p.initial,
-        "initial",
-        params,
-        &mut stats,
-        &mut *room,
-    )?;
-    let places = single_configurations(
-        p,
-        Holder::Place,
-        place_list,
-        &p.final_pose,
-        "final",
-        params,
-        &mut stats,
-        &mut *room,
-    )?;
+    let (mut pick_stats, mut place_stats) = (ConfigStats::default(), ConfigStats::default());
+    let (picks, places) = rayon::join(
+        || {
+            single_configurations(
+                p,
+                Holder::Pick,
+                pick_list,
+                &p.initial,
+                "initial",
+                params,
+                &mut pick_stats,
+                &mut *room,
+            )
+        },
+        || {
+            single_configurations(
+                p,
+                Holder::Place,
+                place_list,
+                &p.final_pose,
+                "final",
+                params,
+                &mut place_stats,
+                &mut *place_room,
+            )
+        },
+    );
+    let (picks, places) = (picks?, places?);
+    let mut stats = pick_stats.plus(&place_stats);
     stats.single_ms = t_single.elapsed().as_secs_f64() * 1e3;
     let t_double = std::time::Instant::now();
     let (pl, ll) = (sub_list(pick_list, &picks), sub_list(place_list, &places));

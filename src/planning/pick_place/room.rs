@@ -12,11 +12,12 @@
 
 use std::collections::HashMap;
 
-use super::configurations::HandRoom;
+use super::configurations::{HandRoom, Holder};
 use super::fingers::FingerPath;
 use super::hands::with_fingers;
 use super::{ArmHand, PickPlaceProblem};
 use crate::collision::{CollisionChecker, CollisionWorld, ExactChecker, FastChecker};
+use crate::grasp::double_grasp::{hand_free_of, Environment};
 use crate::grasp::GraspList;
 use crate::planning::roadmap_query::attach_at_link;
 
@@ -113,6 +114,9 @@ pub(super) struct SceneRoom<'a> {
     lists: [&'a GraspList; 2],
     motions: [&'a [Vec<FingerPath>]; 2],
     worlds: HashMap<Where, Option<Checked>>,
+    /// The fixed bodies of [`Where::Initial`] and [`Where::Final`] for [`HandRoom::hand_alone`]
+    /// (`None`: the world allows pairs, so the hand alone is not tested).
+    alone: HashMap<Where, Option<Environment>>,
 }
 
 impl<'a> SceneRoom<'a> {
@@ -130,6 +134,7 @@ impl<'a> SceneRoom<'a> {
             lists,
             motions,
             worlds: HashMap::new(),
+            alone: HashMap::new(),
         }
     }
 
@@ -202,6 +207,42 @@ impl<'a> SceneRoom<'a> {
 }
 
 impl HandRoom for SceneRoom<'_> {
+    /// Some candidate pre-shape of the grasp, the hand alone with its palm at the grasp's pose,
+    /// is free (exact shapes) of every fixed body of the world where the closing motion starts
+    /// (the object resting at q_o^i) or the opening motion ends (at q_o^f): the hand-only part
+    /// of [`first_free`]'s [`Test::Free`], whose exact checker tests the whole robot in that
+    /// world.
+    fn hand_alone(&mut self, holder: Holder, g: usize) -> bool {
+        let (side, w, pose) = match holder {
+            Holder::Pick => (0, Where::Initial, self.p.initial),
+            Holder::Place => (1, Where::Final, self.p.final_pose),
+        };
+        if !self.alone.contains_key(&w) {
+            let env = self
+                .build(w)
+                .filter(|world| world.allowed.is_empty())
+                .map(|world| Environment::new(&world.statics));
+            self.alone.insert(w, env);
+        }
+        let (Some(Some(env)), Some(grasp), Some(motions)) = (
+            self.alone.get(&w),
+            self.lists[side].grasps.get(g),
+            self.motions[side].get(g),
+        ) else {
+            return true;
+        };
+        let ah = if side == 0 {
+            &self.p.pick
+        } else {
+            &self.p.place
+        };
+        let palm = pose * grasp.palm_pose();
+        motions
+            .iter()
+            .filter_map(|m| m.first())
+            .any(|pre| hand_free_of(&ah.hand, pre, &palm, env))
+    }
+
     fn grasp(&mut self, g: usize, q: &[f64]) -> bool {
         self.room(0, g, q, Where::Initial, Where::Pick(g))
     }

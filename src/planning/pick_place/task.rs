@@ -1147,14 +1147,24 @@ pub fn plan_pick_place(
             ..settings.config
         };
         // Only key configurations where the hands have room to close and open (`super::room`).
-        let mut room = SceneRoom::new(
+        let rooms = || {
+            SceneRoom::new(
+                p,
+                &off.world,
+                [&pick_list, &place_list],
+                [&pick_motions, &place_motions],
+            )
+        };
+        let (mut room, mut place_room) = (rooms(), rooms());
+        let keys = key_configurations_with(
             p,
-            &off.world,
-            [&pick_list, &place_list],
-            [&pick_motions, &place_motions],
+            &pick_list,
+            &place_list,
+            &grid,
+            &params,
+            [&mut room, &mut place_room],
         );
-        let keys = key_configurations_with(p, &pick_list, &place_list, &grid, &params, &mut room);
-        drop(room);
+        drop((room, place_room));
         timings.configurations_ms += ms(t);
         let keys = match keys {
             Ok(k) => k,
