@@ -387,6 +387,53 @@ fn the_hand_alone_filter_never_refuses_a_free_configuration() {
     }
 }
 
+/// Exchange rounds: a search whose first exchange poses give no exchange configuration draws
+/// new ones (no pose twice) before it fails, and a search the first round completes is the
+/// same whatever the number of rounds.
+#[test]
+fn exchange_rounds_rescue_searches_and_change_nothing_else() {
+    let p = problem();
+    let (r, l) = lists();
+    let run = |seed: u64, rounds: usize| {
+        let params = ConfigParams {
+            seed,
+            exchange_samples: 1,
+            exchange_rounds: rounds,
+            torso_samples: 2,
+            single_keep: 3,
+            max_double_grasps: 1,
+            accept: 1,
+            ..ConfigParams::default()
+        };
+        let grid = exchange_grid(p, &params.exchange).expect("grid");
+        key_configurations(p, r, l, &grid, &params)
+    };
+    let (mut failed_one, mut failed_more) = (0, 0);
+    for seed in 1..=8 {
+        let (one, more) = (run(seed, 1), run(seed, 6));
+        match (&one, &more) {
+            (Ok(a), Ok(b)) => {
+                assert_eq!(a.exchange, b.exchange, "seed {seed}: round 0 changed");
+                assert_eq!(a.double, b.double, "seed {seed}");
+            }
+            (Err(e), Ok(_)) => {
+                println!("seed {seed}: one round: {e}");
+                failed_one += 1
+            }
+            (Err(_), Err(e)) => {
+                println!("seed {seed}: six rounds: {e}");
+                failed_one += 1;
+                failed_more += 1;
+            }
+            (Ok(_), Err(e)) => panic!("seed {seed}: more rounds lost a search: {e}"),
+        }
+    }
+    assert!(
+        failed_more < failed_one,
+        "one exchange pose per round: {failed_one} of 8 searches fail with one round, {failed_more} with six"
+    );
+}
+
 #[test]
 fn a_pose_out_of_both_hands_reach_fails_clearly() {
     let p = problem();

@@ -73,8 +73,12 @@ pub struct ConfigParams {
     pub psi_steps: usize,
     /// IK solutions checked per arm and torso sample (nearest to the rest arm first).
     pub solutions_per_sample: usize,
-    /// Exchange object poses tried per double grasp.
+    /// Exchange object poses tried per double grasp and round.
     pub exchange_samples: usize,
+    /// Rounds of exchange poses: when no double grasp has an exchange configuration, the
+    /// double grasps are tried again with new exchange poses (round 0: the first poses), up to
+    /// this many rounds, before the search fails. Only a search that would fail pays for them.
+    pub exchange_rounds: usize,
     /// Most grasps of a list searched for a single-grasp configuration (best first).
     pub max_single: usize,
     /// Single-grasp configurations gathered per hand before the double grasps.
@@ -90,7 +94,7 @@ pub struct ConfigParams {
 
 impl Default for ConfigParams {
     /// 16 torso samples in ± 10 % of each range, 12 swivel angles, 4 solutions, 8 exchange
-    /// poses, 6 single-grasp configurations per hand out of at most 200 grasps, 24 double
+    /// poses in up to 4 rounds, 6 single-grasp configurations per hand out of at most 200 grasps, 24 double
     /// grasps, 2 accepted, seed 1.
     fn default() -> Self {
         ConfigParams {
@@ -99,6 +103,7 @@ impl Default for ConfigParams {
             psi_steps: 12,
             solutions_per_sample: 4,
             exchange_samples: 8,
+            exchange_rounds: 4,
             max_single: 200,
             single_keep: 6,
             max_double_grasps: 24,
@@ -122,6 +127,7 @@ impl ConfigParams {
             ("psi_steps", self.psi_steps, 3600),
             ("solutions_per_sample", self.solutions_per_sample, 64),
             ("exchange_samples", self.exchange_samples, 10_000),
+            ("exchange_rounds", self.exchange_rounds, 100),
             ("max_single", self.max_single, 1_000_000),
             ("single_keep", self.single_keep, 10_000),
             ("max_double_grasps", self.max_double_grasps, 100_000),
@@ -523,12 +529,22 @@ pub fn exchange_configuration(
     seed: u64,
     stats: &mut ConfigStats,
 ) -> Option<(Vec<f64>, Pose)> {
-    exchange_configuration_with(p, grid, (a, 0), (b, 0), params, seed, stats, &mut AnyHand)
+    exchange_configuration_with(
+        p,
+        grid,
+        (a, 0),
+        (b, 0),
+        params,
+        (seed, 0),
+        stats,
+        &mut AnyHand,
+    )
 }
 
 /// [`exchange_configuration`] whose configurations must also leave `room` for the hands'
 /// motions on the object ([`HandRoom::exchange`]); `a` and `b` with their indices in the lists
-/// `room` knows.
+/// `room` knows. Round `r` of a seed tries the exchange poses after those of rounds 0..r (one
+/// stream of poses per seed, so no pose is tried twice).
 #[allow(clippy::too_many_arguments)]
 pub fn exchange_configuration_with(
     p: &PickPlaceProblem,
@@ -536,19 +552,13 @@ pub fn exchange_configuration_with(
     (a, ia): (&SingleGrasp, usize),
     (b, ib): (&SingleGrasp, usize),
     params: &ConfigParams,
-    seed: u64,
+    (seed, round): (u64, usize),
     stats: &mut ConfigStats,
     room: &mut dyn HandRoom,
 ) -> Option<(Vec<f64>, Pose)> {
-    let poses = exchange_poses(
-        p,
-        grid,
-        a,
-        b,
-        &params.exchange,
-        params.exchange_samples,
-        seed,
-    );
+    let n = params.exchange_samples;
+    let poses =
+        exchange_poses(p, grid, a, b, &params.exchange, n * (round + 1), seed).split_off(n * round);
     let torsos = p.torso_samples(params, seed);
     let mut checker: Option<ExactChecker> = None;
     for pose in &poses {
@@ -752,22 +762,27 @@ pub fn key_configurations_with(
     stats.single_place = places.len();
     stats.double_grasps = doubles.grasps.len();
     let mut complete: Vec<(DoubleGrasp, Vec<f64>, Pose)> = Vec::new();
-    for (k, d) in doubles.grasps.iter().enumerate() {
-        stats.double_grasps_tried += 1;
-        let seed = params.seed ^ 0x9E37_79B9_7F4A_7C15u64.wrapping_mul(k as u64 + 1);
-        if let Some((qe, pose)) = exchange_configuration_with(
-            p,
-            grid,
-            (&pl.grasps[d.pick], picks[d.pick].grasp),
-            (&ll.grasps[d.place], places[d.place].grasp),
-            params,
-            seed,
-            &mut stats,
-            &mut *room,
-        ) {
-            complete.push((*d, qe, pose));
-            if complete.len() >= params.accept {
-                break;
+    'rounds: for round in 0..params.exchange_rounds {
+        if !complete.is_empty() {
+            break;
+        }
+        for (k, d) in doubles.grasps.iter().enumerate() {
+            stats.double_grasps_tried += 1;
+            let seed = params.seed ^ 0x9E37_79B9_7F4A_7C15u64.wrapping_mul(k as u64 + 1);
+            if let Some((qe, pose)) = exchange_configuration_with(
+                p,
+                grid,
+                (&pl.grasps[d.pick], picks[d.pick].grasp),
+                (&ll.grasps[d.place], places[d.place].grasp),
+                params,
+                (seed, round),
+                &mut stats,
+                &mut *room,
+            ) {
+                complete.push((*d, qe, pose));
+                if complete.len() >= params.accept {
+                    break 'rounds;
+                }
             }
         }
     }

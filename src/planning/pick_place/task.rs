@@ -433,6 +433,12 @@ pub struct QueryRecord {
     pub direct: bool,
     pub vertices: usize,
     pub total_ms: f64,
+    /// Of the roadmap's planning time: start and goal connections, graph searches, RRT
+    /// repairs, shortcutting (ms).
+    pub connect_ms: f64,
+    pub search_ms: f64,
+    pub rrt_ms: f64,
+    pub shortcut_ms: f64,
 }
 
 /// Online timings (ms).
@@ -772,6 +778,10 @@ impl<'a> Chain<'a> {
                     direct: s.direct,
                     vertices: s.vertices,
                     total_ms: s.total_ms,
+                    connect_ms: s.connect_ms,
+                    search_ms: s.search_ms,
+                    rrt_ms: s.rrt_ms,
+                    shortcut_ms: s.shortcut_ms,
                 };
                 (r.world_path, rec)
             }
