@@ -694,6 +694,14 @@ async fn grasp_lists_over_http() {
         ),
         (with(json!({"params": {"mu": -0.5}})), "params.mu"),
         (
+            with(json!({"params": {"thumb_contacts": 0}})),
+            "params.thumb_contacts",
+        ),
+        (
+            with(json!({"params": {"min_separation": 0.5}})),
+            "params.min_separation",
+        ),
+        (
             with(json!({"params": {"weights": [1, 1, 1, -6]}})),
             "params.weights[3]",
         ),

@@ -37,6 +37,7 @@ pub fn list_params(b: Option<&GraspListParamsBody>) -> ApiResult<GraspListParams
             max_spheres,
             candidates_per_sphere,
             base_steps,
+            thumb_contacts,
             contact_tolerance,
             mu,
             cone_edges,
@@ -46,6 +47,7 @@ pub fn list_params(b: Option<&GraspListParamsBody>) -> ApiResult<GraspListParams
         );
         p.surface_spacing = b.surface_spacing;
         p.min_sphere_radius = b.min_sphere_radius;
+        p.min_separation = b.min_separation;
         p.fingers = b.fingers.clone();
     }
     p.validate().map_err(|e| list_invalid(&e))?;

@@ -213,6 +213,17 @@ pub struct GraspListParamsBody {
     #[serde(default)]
     #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 16))]
     pub base_steps: Option<usize>,
+    /// Thumb contacts tried per grasp frame, each a closure of the other fingers, until one is
+    /// force closure (1..=64, default 2).
+    #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 1, maximum = 64))]
+    pub thumb_contacts: Option<usize>,
+    /// Near-duplicate distance in m: grasps with the same contact fingers whose palm origins and
+    /// contact points all lie closer than this keep only the best (0..=0.1, default: the width
+    /// of the narrowest fingertip).
+    #[serde(default)]
+    #[cfg_attr(feature = "openapi", schema(minimum = 0.0, maximum = 0.1))]
+    pub min_separation: Option<f64>,
     /// Depth in m a fingertip may enter the object at its contact (0..=0.01, default 0.001).
     #[serde(default)]
     #[cfg_attr(feature = "openapi", schema(minimum = 0.0, maximum = 0.01))]
