@@ -1,7 +1,7 @@
 //! A shared second tier behind the file caches of expensive, content-keyed results — the
 //! reachability grids ([`crate::reachability::GridCache`], `reach`), the single-grasp lists
 //! ([`crate::grasp::GraspListCache`], `grasps`) and the super-graph roadmaps
-//! ([`crate::planning::roadmap_cache::load_or_build`], `roadmaps`) — so that several processes
+//! ([`crate::planning::planners::roadmap_cache::load_or_build`], `roadmaps`) — so that several processes
 //! (server replicas sharing one job store) build each entry once instead of once each.
 //!
 //! A cache with a tier looks in memory, then in its folder, then in the tier (the fetched file

@@ -6,6 +6,7 @@
 //! the `manyhands-api` crate (re-exported in [`server::api`]); the Rust client is the separate
 //! `manyhands-client` crate, which depends on none of this one.
 
+pub mod benchmark;
 pub mod cache_tier;
 pub mod collision;
 pub mod geometry;
@@ -16,5 +17,6 @@ pub mod planning;
 pub mod reachability;
 pub mod server;
 pub mod skips;
+pub mod trajectory;
 
 pub use model::{Robot, Scene};

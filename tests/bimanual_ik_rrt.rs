@@ -13,7 +13,9 @@ use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::kinematics::Chain;
 use manyhands::model::Scene;
-use manyhands::planning::bimanual_ik_rrt::{paper_settings, BimanualProblem, BimanualSettings};
+use manyhands::planning::planners::bimanual_ik_rrt::{
+    paper_settings, BimanualProblem, BimanualSettings,
+};
 use manyhands::planning::{PlanError, PlanResult, Termination};
 use manyhands::reachability::{GridParams, ReachabilityGrid};
 

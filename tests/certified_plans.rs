@@ -17,9 +17,9 @@ use rayon::prelude::*;
 use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker, FastChecker};
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::JointKind;
-use manyhands::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
-use manyhands::planning::grasping::arm_grid;
-use manyhands::planning::task::{
+use manyhands::planning::planners::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use manyhands::planning::tasks::grasping::arm_grid;
+use manyhands::planning::tasks::task::{
     bimanual_task, kitchen_task, reach_task, regrasp_task, GraspAlgorithm, KitchenTask,
     RegraspTask, TaskPlan,
 };

@@ -185,7 +185,7 @@ fn random_boxes_scene_is_written_and_loads() {
 /// `--out` writes every run with its returned path.
 #[test]
 fn bench_mbm_writes_an_ompl_benchmark_log() {
-    let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
+    let Some(data) = manyhands::benchmark::mbm_data::data_for_test() else {
         return;
     };
     let dir = common::tmp::run_root().join(format!("manyhands-ompl-log-{}", std::process::id()));
@@ -580,9 +580,9 @@ fn panda_sdist(data: &std::path::Path, out: &std::path::Path, extra: &[(&str, Ve
 /// not written, and a mesh file over the size bound fails the install and leaves no folder.
 #[test]
 fn data_install_puts_the_visual_meshes_beside_the_urdf_with_path_and_size_bounds() {
+    use manyhands::benchmark::mbm_data::{unpack_and_convert, Quiet, MAX_MESH_FILE_BYTES};
     use manyhands::model::VisualGeometry;
-    use manyhands::planning::mbm_data::{unpack_and_convert, Quiet, MAX_MESH_FILE_BYTES};
-    let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
+    let Some(data) = manyhands::benchmark::mbm_data::data_for_test() else {
         return;
     };
     let dir = common::tmp::TestDir::new("data-mbm-meshes");

@@ -3,18 +3,18 @@
 //! agree with state-by-state checks; certified segments are free. On the suite's own two-arm
 //! sphere robot (`tests/robots/twin_arms`) among obstacles the test draws itself (always), and on
 //! the MotionBenchMaker scenes of Panda and Baxter (skipped without their data, see
-//! `manyhands::planning::mbm_data`).
+//! `manyhands::benchmark::mbm_data`).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use manyhands::benchmark::mbm::{MbmFile, MbmObstacle, MbmProblem, MbmSet};
+use manyhands::benchmark::mbm_data::data_for_test;
 use manyhands::collision::{
     AutoChecker, CertifyCounts, CollisionChecker, CollisionWorld, ExactChecker, SegmentScreen,
     SphereChecker,
 };
 use manyhands::geometry::{iso_from_rpy, Pose, Shape};
-use manyhands::planning::mbm::{MbmFile, MbmObstacle, MbmProblem, MbmSet};
-use manyhands::planning::mbm_data::data_for_test;
 use manyhands::Robot;
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};

@@ -8,9 +8,9 @@ use std::path::PathBuf;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use manyhands::benchmark::mbm_data::data_for_test;
 use manyhands::geometry::Pose;
 use manyhands::kinematics::{forward, link_pose, FkModel, FkPath, Frame};
-use manyhands::planning::mbm_data::data_for_test;
 use manyhands::Robot;
 
 /// The shipped robots and the suite's own sphere robot (always there).

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use manyhands::collision::CollisionWorld;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::Scene;
-use manyhands::planning::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::tasks::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{IkRrt, IkRrtSettings, JointSpace, PlanError, Termination};
 
 fn ik_settings() -> RandomizedIkSettings {
@@ -205,7 +205,7 @@ fn shipped_grasps_leave_the_hand_free_of_the_object() {
 
 #[test]
 fn kitchen_task_grasps_regrasps_and_places_the_wok() {
-    use manyhands::planning::task::{kitchen_task, EventKind, KitchenTask};
+    use manyhands::planning::tasks::task::{kitchen_task, EventKind, KitchenTask};
     let s = scene("kitchen");
     let task = KitchenTask::armar_wok();
     // Seed 74's first re-grasp leaves the right fingers hooked around the handle (no retreat
@@ -258,7 +258,7 @@ fn kitchen_task_grasps_regrasps_and_places_the_wok() {
 
 /// Checks a chained plan: starts at the scene's start, phases joined, every phase exactly free in
 /// the world it was planned in.
-fn check_task(s: &Scene, plan: &manyhands::planning::task::TaskPlan) {
+fn check_task(s: &Scene, plan: &manyhands::planning::tasks::task::TaskPlan) {
     assert_eq!(plan.waypoints[0], CollisionWorld::start_config(s));
     for (k, ph) in plan.phases.iter().enumerate() {
         if k > 0 {
@@ -272,7 +272,7 @@ fn check_task(s: &Scene, plan: &manyhands::planning::task::TaskPlan) {
 
 #[test]
 fn hand_off_between_two_robots() {
-    use manyhands::planning::task::{regrasp_task, EventKind, RegraspTask};
+    use manyhands::planning::tasks::task::{regrasp_task, EventKind, RegraspTask};
     let s = scene("handoff");
     let task = RegraspTask {
         giver: ("armar_a".into(), "torso_right_arm".into()),
@@ -317,7 +317,7 @@ fn hand_off_between_two_robots() {
 
 #[test]
 fn regrasp_task_grasps_first_when_the_object_rests() {
-    use manyhands::planning::task::{regrasp_task, RegraspTask};
+    use manyhands::planning::tasks::task::{regrasp_task, RegraspTask};
     let s = scene("kitchen");
     let mut task = RegraspTask {
         giver: ("armar".into(), "torso_right_arm".into()),

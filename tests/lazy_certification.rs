@@ -3,15 +3,15 @@
 //! that fails goes with its subtree. Every returned path must still be fully certified: each
 //! segment is re-certified here by a fresh sphere checker, and the path passes the exact
 //! checker. Runs on MotionBenchMaker's Panda problems (skipped without the data, see
-//! `manyhands::planning::mbm_data`).
+//! `manyhands::benchmark::mbm_data`).
 
 use std::sync::Arc;
 use std::time::Duration;
 
+use manyhands::benchmark::mbm::MbmFile;
+use manyhands::benchmark::mbm_data::data_for_test;
 use manyhands::collision::{AutoChecker, ExactChecker, SegmentScreen, SphereChecker};
-use manyhands::planning::mbm::MbmFile;
-use manyhands::planning::mbm_data::data_for_test;
-use manyhands::planning::range::DerivedSettings;
+use manyhands::planning::base::range::DerivedSettings;
 use manyhands::planning::{RrtConnect, RrtConnectSettings, SpaceValidator, Termination};
 use manyhands::Robot;
 

@@ -1,18 +1,18 @@
 //! The MotionBenchMaker loader and planning on its problems: both problem files load, one Panda
 //! problem per set is solved by RRT-Connect and its path verified by the exact checker, and a
 //! path through an obstacle is rejected. The benchmark's files are outside the repository
-//! (`manyhands::planning::mbm_data`: skipped without them); the loader's errors and planning on a
+//! (`manyhands::benchmark::mbm_data`: skipped without them); the loader's errors and planning on a
 //! problem file in the same form for the suite's own `tests/robots/twin_arms` always run.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
+use manyhands::benchmark::mbm::{MbmError, MbmFile, MbmProblem};
+use manyhands::benchmark::mbm_data::data_for_test;
 use manyhands::collision::CollisionWorld;
 use manyhands::collision::{CollisionChecker, ExactChecker, FastChecker};
 use manyhands::geometry::Shape;
-use manyhands::planning::mbm::{MbmError, MbmFile, MbmProblem};
-use manyhands::planning::mbm_data::data_for_test;
 use manyhands::planning::{
     PlanResult, RrtConnect, RrtConnectSettings, SegmentChecker, SpaceValidator, Termination,
 };
@@ -291,7 +291,7 @@ fn sphere_checker_solves_two_panda_problems_per_set_exactly_valid() {
 }
 
 /// `bench mbm`'s default configuration: certified motion checks (4 cm), range and
-/// dynamic-domain radius derived from the robot and space (`planning::range`), balanced trees.
+/// dynamic-domain radius derived from the robot and space (`planning::base::range`), balanced trees.
 /// Every path must pass the exact check at `check_deg`.
 fn certified_bench_settings_solve(name: &str, per_set: usize, check_deg: f64) {
     let Some(dir) = data_for_test() else { return };
@@ -313,7 +313,7 @@ fn certified_settings_solve(robot: &Arc<Robot>, file: &MbmFile, per_set: usize, 
     let vars = file.joint_vars(robot).expect("joints");
     let p0 = &file.sets[0].problems[0];
     let world0 = p0.world(robot.clone());
-    let derived = manyhands::planning::range::DerivedSettings::of(
+    let derived = manyhands::planning::base::range::DerivedSettings::of(
         &world0,
         &p0.space(&world0, &vars).expect("space"),
     )

@@ -9,11 +9,11 @@ mod common;
 use std::sync::Arc;
 use std::time::Duration;
 
+use manyhands::benchmark::mbm::MbmFile;
+use manyhands::benchmark::mbm_gen::{generate, solve_settings, GenSettings, SETS};
 use manyhands::collision::{AutoChecker, ExactChecker};
 use manyhands::geometry::{Pose, Shape};
 use manyhands::kinematics::forward;
-use manyhands::planning::mbm::MbmFile;
-use manyhands::planning::mbm_gen::{generate, solve_settings, GenSettings, SETS};
 use manyhands::planning::{RrtConnect, SpaceValidator, Termination};
 use manyhands::Robot;
 use nalgebra::Vector3;

@@ -1,10 +1,10 @@
 //! Outside robots (written by others) load with their SRDFs: the MotionBenchMaker Panda and
-//! Baxter (skipped without the data, see `manyhands::planning::mbm_data`), and the suite's own
+//! Baxter (skipped without the data, see `manyhands::benchmark::mbm_data`), and the suite's own
 //! sphere robot `tests/robots/twin_arms.urdf` (always).
 
 use std::path::{Path, PathBuf};
 
-use manyhands::planning::mbm_data::data_for_test;
+use manyhands::benchmark::mbm_data::data_for_test;
 use manyhands::Robot;
 
 fn mbm(dir: &Path, p: &str) -> PathBuf {

@@ -10,13 +10,13 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker};
-use manyhands::planning::multi_arm::{
+use manyhands::planning::planners::multi_arm::{
     plan_multi_arm, Arm, Methods, MultiArmMethod, MultiArmPlan, MultiArmProblem, MultiArmSettings,
 };
-use manyhands::planning::multi_robot_rrt::{
+use manyhands::planning::planners::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotPlan, MultiRobotProblem, MultiRobotSettings,
 };
-use manyhands::planning::phase_space::{
+use manyhands::planning::planners::phase_space::{
     PhaseSpace, PhaseSpaceSettings, RobotTrajectory, Schedule, ScheduleMethod,
 };
 use manyhands::planning::{PlanError, Termination};
@@ -465,7 +465,7 @@ fn assert_multi_arm_free(p: &MultiArmProblem, plan: &MultiArmPlan) {
             }
         }
     }
-    let limits = manyhands::planning::timing::world_limits(&p.world).select(&vars);
+    let limits = manyhands::trajectory::timing::world_limits(&p.world).select(&vars);
     let d = plan.timed.duration;
     assert!((plan.makespan - d).abs() < 1e-12);
     assert!(plan.makespan <= plan.makespan_before + 1e-9);

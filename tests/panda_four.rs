@@ -13,14 +13,14 @@ use std::path::Path;
 use common::server::start;
 use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker, MotionValidator};
 use manyhands::model::{panda_four, Scene};
-use manyhands::planning::decoupled::{composite, decoupled, RobotGoal};
-use manyhands::planning::phase_space::ScheduleMethod;
+use manyhands::planning::planners::decoupled::{composite, decoupled, RobotGoal};
+use manyhands::planning::planners::phase_space::ScheduleMethod;
 use manyhands::planning::{JointSpace, Termination};
 use reqwest::StatusCode;
 use serde_json::{json, Value};
 
 fn local_scene(dir: &Path) -> Scene {
-    manyhands::planning::mbm_data::panda_four_scene(dir).expect("panda_four")
+    manyhands::benchmark::mbm_data::panda_four_scene(dir).expect("panda_four")
 }
 
 fn goals(scene: &Scene) -> Vec<RobotGoal> {
@@ -39,7 +39,7 @@ fn goals(scene: &Scene) -> Vec<RobotGoal> {
 /// other in index order, but the straight-line motions collide when run together.
 #[test]
 fn the_cell_has_crossing_goals_and_a_decoupled_schedule() {
-    let Some(dir) = manyhands::planning::mbm_data::data_for_test() else {
+    let Some(dir) = manyhands::benchmark::mbm_data::data_for_test() else {
         return;
     };
     let scene = local_scene(&dir);
@@ -92,11 +92,11 @@ fn the_cell_has_crossing_goals_and_a_decoupled_schedule() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn panda_four_over_http_joint_space_plans_then_a_schedule() {
-    let Some(dir) = manyhands::planning::mbm_data::data_for_test() else {
+    let Some(dir) = manyhands::benchmark::mbm_data::data_for_test() else {
         return;
     };
     let h = start("panda-four").await;
-    let f = manyhands::planning::mbm_data::robot_files(&dir, "panda");
+    let f = manyhands::benchmark::mbm_data::robot_files(&dir, "panda");
     let urdf = std::fs::read_to_string(&f.urdf).expect("urdf");
     let srdf = std::fs::read_to_string(&f.srdf).expect("srdf");
     let put = |path: String, body: Value| {
@@ -183,11 +183,11 @@ async fn panda_four_over_http_joint_space_plans_then_a_schedule() {
 /// the same task.
 #[test]
 fn vamp_mr_cells_and_crossing_tasks() {
-    use manyhands::collision::AutoChecker;
-    use manyhands::planning::multi_arm_cells::{
+    use manyhands::benchmark::multi_arm_cells::{
         crossing_task, vamp_mr, CrossingSettings, VampMrCell, ROD_LINK,
     };
-    let Some(dir) = manyhands::planning::mbm_data::data_for_test() else {
+    use manyhands::collision::AutoChecker;
+    let Some(dir) = manyhands::benchmark::mbm_data::data_for_test() else {
         return;
     };
     for cell in VampMrCell::ALL {

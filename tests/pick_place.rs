@@ -1,5 +1,5 @@
 //! The pick-and-place scene and the key configurations of paper 003 §V-C
-//! (`manyhands::planning::pick_place`): `scenes/pick_place.json`'s statuette is reachable by
+//! (`manyhands::planning::tasks::pick_place`): `scenes/pick_place.json`'s statuette is reachable by
 //! justin's right hand only at its initial pose and by the left only at its goal pose (the
 //! configuration search: torso sampled in its window — ± 10 % of each torso joint's range about
 //! the rest configuration by default; justin's torso_1 turns ± 2.6 rad, and a hand can reach
@@ -21,7 +21,7 @@ use manyhands::grasp::list::workspace_params;
 use manyhands::grasp::{build_grasp_list, GraspList, GraspListParams, GraspObject};
 use manyhands::kinematics::link_pose;
 use manyhands::model::load_robot_dir;
-use manyhands::planning::pick_place::{
+use manyhands::planning::tasks::pick_place::{
     exchange_grid, key_configurations, single_configuration, within_limits, ConfigParams,
     ConfigStats, ExchangeParams, Holder, KeyConfigurations, PickPlaceError, PickPlaceProblem,
 };
@@ -469,13 +469,13 @@ fn a_pose_out_of_both_hands_reach_fails_clearly() {
 mod common;
 
 use manyhands::collision::MotionValidator;
-use manyhands::planning::pick_place::task::{decomposition, OfflineStats};
-use manyhands::planning::pick_place::{
+use manyhands::planning::planners::roadmap_cache::load_or_build;
+use manyhands::planning::tasks::pick_place::task::{decomposition, OfflineStats};
+use manyhands::planning::tasks::pick_place::{
     plan_pick_place, task_world, PickPlaceOffline, PickPlacePlan, PickPlaceSettings,
     PickPlaceTaskError,
 };
-use manyhands::planning::roadmap_cache::load_or_build;
-use manyhands::planning::task::EventKind;
+use manyhands::planning::tasks::task::EventKind;
 use manyhands::planning::Termination;
 
 /// The task's offline data: the lists above and the super graph (default parameters), built
@@ -739,7 +739,7 @@ fn link_displacement(link: usize, a: &[f64], b: &[f64]) -> f64 {
 /// The robot and the statuette alone, the statuette a fixed body where it is at the start
 /// `q0` of phase `ph` (resting, or held: then also the holding attachment).
 fn statuette_alone<'a>(
-    ph: &'a manyhands::planning::task::TaskPhase,
+    ph: &'a manyhands::planning::tasks::task::TaskPhase,
     q0: &[f64],
 ) -> (
     CollisionWorld,

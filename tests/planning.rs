@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use manyhands::collision::{CollisionWorld, ExactChecker, StaticBody, StaticKind};
 use manyhands::geometry::{iso_from_rpy, Geometry, Pose, Shape};
-use manyhands::planning::shortcut::simplify;
+use manyhands::planning::base::shortcut::simplify;
 use manyhands::planning::{
     JointSpace, PlanError, PlanResult, RrtConnect, RrtConnectSettings, Sampler, ShortcutSettings,
     SpaceValidator, Termination,

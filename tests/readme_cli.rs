@@ -115,7 +115,8 @@ fn run_in_order(list: &[String], tag: &str) {
     let mut failures = Vec::new();
     // The MotionBenchMaker examples need the outside data: found once here (a SKIPPED line,
     // or a failure under MANYHANDS_REQUIRE_MBM=1, without it) and handed to the examples.
-    let mbm = manyhands::planning::mbm_data::data_for_test().map(|d| d.canonicalize().unwrap_or(d));
+    let mbm =
+        manyhands::benchmark::mbm_data::data_for_test().map(|d| d.canonicalize().unwrap_or(d));
     for ex in list {
         if ex.contains(" mbm") && mbm.is_none() {
             continue;

@@ -14,17 +14,17 @@ use manyhands::collision::{
 use manyhands::geometry::{Geometry, Pose, Shape};
 use manyhands::kinematics::forward;
 use manyhands::model::{load_robot_dir, Robot, Scene};
-use manyhands::planning::roadmap_cache::{
+use manyhands::planning::planners::roadmap_cache::{
     load_or_build, load_super_graph, save_super_graph, RoadmapFileError, RoadmapKey, RoadmapSource,
 };
-use manyhands::planning::roadmap_query::{
+use manyhands::planning::planners::roadmap_query::{
     attach_at_link, query_learning, query_super_graph, LearnedGraph, RoadmapPath,
     RoadmapQuerySettings,
 };
-use manyhands::planning::super_graph::{
+use manyhands::planning::planners::super_graph::{
     build_super_graph, roadmap_world, Decomposition, SuperGraph, SuperGraphParams,
 };
-use manyhands::planning::visibility_prm::VisibilityPrmSettings;
+use manyhands::planning::planners::visibility_prm::VisibilityPrmSettings;
 use manyhands::planning::{space_checker, JointSpace, PlannerRng, Termination};
 use rand::{Rng, SeedableRng};
 

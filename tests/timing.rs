@@ -7,9 +7,9 @@ mod common;
 
 use std::sync::Arc;
 
+use manyhands::benchmark::mbm_data::data_for_test;
 use manyhands::model::load_robot_dir;
-use manyhands::planning::mbm_data::data_for_test;
-use manyhands::planning::timing::{time_polyline, TimedPath, TimingLimits};
+use manyhands::trajectory::timing::{time_polyline, TimedPath, TimingLimits};
 use manyhands::Robot;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -586,7 +586,7 @@ fn robots_with_panda(dir: &Path, data: &Path) -> PathBuf {
         let src = e.path().canonicalize().expect("shipped robot file");
         std::os::unix::fs::symlink(src, robots.join(e.file_name())).expect("link");
     }
-    let f = manyhands::planning::mbm_data::robot_files(data, "panda");
+    let f = manyhands::benchmark::mbm_data::robot_files(data, "panda");
     let from = f.urdf.parent().expect("panda folder");
     for (src, dst) in [
         (f.urdf.clone(), "panda.urdf"),
@@ -614,10 +614,10 @@ async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
     if !manyhands::server::viewer::built() {
         return skip("this build has no viewer bundle (npm was missing when it was compiled)");
     }
-    let Some(data) = manyhands::planning::mbm_data::data_for_test() else {
+    let Some(data) = manyhands::benchmark::mbm_data::data_for_test() else {
         return;
     };
-    let meshes = manyhands::planning::mbm_data::robot_files(&data, "panda")
+    let meshes = manyhands::benchmark::mbm_data::robot_files(&data, "panda")
         .urdf
         .with_file_name("meshes");
     if !meshes.is_dir() {
@@ -627,7 +627,7 @@ async fn panda_four_schedule_shows_visual_meshes_and_its_phase_panel() {
             meshes.display()
         );
         assert!(
-            !manyhands::planning::mbm_data::data_required(),
+            !manyhands::benchmark::mbm_data::data_required(),
             "MANYHANDS_REQUIRE_MBM is set but {why}"
         );
         return manyhands::skips::report(&format!("viewer test: {why}"));

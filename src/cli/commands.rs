@@ -733,8 +733,8 @@ pub fn panda_four(a: &PandaFourArgs) -> Result<()> {
         println!("{text}");
         return Ok(());
     };
-    let data = manyhands::planning::mbm_data::locate().map_err(|e| anyhow::anyhow!(e))?;
-    let files = manyhands::planning::mbm_data::robot_files(&data, "panda");
+    let data = manyhands::benchmark::mbm_data::locate().map_err(|e| anyhow::anyhow!(e))?;
+    let files = manyhands::benchmark::mbm_data::robot_files(&data, "panda");
     let (robots, scenes) = (out.join("robots"), out.join("scenes"));
     for d in [&robots, &scenes] {
         std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
@@ -769,8 +769,8 @@ pub struct VampMrArgs {
 }
 
 pub fn vamp_mr(a: &VampMrArgs) -> Result<()> {
-    let data = manyhands::planning::mbm_data::locate().map_err(|e| anyhow::anyhow!(e))?;
-    let cell = manyhands::planning::multi_arm_cells::vamp_mr_by_name(&a.cell, &data)?;
+    let data = manyhands::benchmark::mbm_data::locate().map_err(|e| anyhow::anyhow!(e))?;
+    let cell = manyhands::benchmark::multi_arm_cells::vamp_mr_by_name(&a.cell, &data)?;
     let text = serde_json::to_string_pretty(&cell.json)?;
     let Some(out) = &a.out else {
         println!("{text}");

@@ -1,6 +1,6 @@
 //! `manyhands data mbm`: fetches the MotionBenchMaker problem sets (Panda, Baxter) from their
 //! public source into the cache, checks them and converts what needs converting
-//! (`manyhands::planning::mbm_data`).
+//! (`manyhands::benchmark::mbm_data`).
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use manyhands::planning::mbm_data::{self, FetchProgress};
+use manyhands::benchmark::mbm_data::{self, FetchProgress};
 
 use super::commands::Ctx;
 
@@ -20,7 +20,7 @@ pub enum DataCmd {
     /// to problems.json. Into $MANYHANDS_CACHE_DIR/mbm, else $XDG_CACHE_HOME/manyhands/mbm, else
     /// ~/.cache/manyhands/mbm.
     Mbm(MbmDataArgs),
-    /// MotionBenchMaker-like problems for any robot (`planning::mbm_gen`): box, cage, shelf and table
+    /// MotionBenchMaker-like problems for any robot (`benchmark::mbm_gen`): box, cage, shelf and table
     /// scenes scaled to its reach, start and goal with the end effector inside them, written as
     /// problems.json for `manyhands bench mbm --robot URDF --problems FILE`.
     Problems(ProblemsArgs),
@@ -152,7 +152,7 @@ pub fn run(ctx: &Ctx, cmd: &DataCmd) -> Result<()> {
 }
 
 fn problems(ctx: &Ctx, a: &ProblemsArgs) -> Result<()> {
-    use manyhands::planning::mbm_gen;
+    use manyhands::benchmark::mbm_gen;
     if !(1..=1000).contains(&a.per_set) {
         bail!("--per-set must be within 1..=1000, got {}", a.per_set);
     }

@@ -1,5 +1,5 @@
 //! `manyhands plan exchange`: the exchange position and the grasp, exchange and place
-//! configurations of paper 003 §V-C ([`manyhands::planning::pick_place`]) for a scene's object
+//! configurations of paper 003 §V-C ([`manyhands::planning::tasks::pick_place`]) for a scene's object
 //! and its goal pose; `manyhands bench exchange`: the time of that configuration phase.
 
 use std::sync::Arc;
@@ -11,7 +11,7 @@ use serde_json::json;
 
 use manyhands::grasp::list::workspace_params;
 use manyhands::grasp::{GraspList, GraspListCache, GraspListParams, GraspObject};
-use manyhands::planning::pick_place::{
+use manyhands::planning::tasks::pick_place::{
     exchange_grid, key_configurations, ConfigParams, ExchangeGrid, KeyConfigurations,
     PickPlaceProblem,
 };

@@ -1,20 +1,12 @@
 //! Command-line front end (clap). Thin: parses arguments, calls the library, prints text or JSON.
 
 mod bench;
-mod bench_collision_multi;
-mod bench_grasp_list;
-mod bench_ik;
-mod bench_multi_arm;
-mod bench_planners;
-mod bench_timing;
 mod commands;
 mod data;
 mod exchange;
 mod grasp;
 mod load_http;
 mod loadtest;
-mod mbm;
-mod mbm_suite;
 mod multi_arm;
 mod multi_robot;
 mod pick_place;

@@ -8,10 +8,10 @@ use super::commands::Ctx;
 use super::plan::{settings, termination, timing, MultiRobotArgs};
 use manyhands::grasp::WrenchSpaceSettings;
 use manyhands::model::Scene;
-use manyhands::planning::multi_robot_rrt::{
+use manyhands::planning::planners::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotEvent, MultiRobotPlan, MultiRobotProblem, MultiRobotSettings,
 };
-use manyhands::planning::phase_space::{phase_space_svg, PhaseSpace, PhaseSpaceSettings};
+use manyhands::planning::planners::phase_space::{phase_space_svg, PhaseSpace, PhaseSpaceSettings};
 use manyhands::reachability::{GridCache, GridRecipe};
 
 /// The robot instances of a request: the given names, else every robot of the scene.
@@ -344,16 +344,18 @@ fn bench_table(
 /// around a table with crossing fixed goals; decoupled (each arm alone with RRT-Connect, then
 /// the phase-space schedule) against RRT-Connect in the composite 28-D space.
 fn bench_panda_four(a: &BenchArgs) -> Result<()> {
-    use manyhands::planning::decoupled::{composite, decoupled, DecoupledSettings, RobotGoal};
-    use manyhands::planning::phase_space::ScheduleMethod;
-    let dir = match manyhands::planning::mbm_data::locate() {
+    use manyhands::planning::planners::decoupled::{
+        composite, decoupled, DecoupledSettings, RobotGoal,
+    };
+    use manyhands::planning::planners::phase_space::ScheduleMethod;
+    let dir = match manyhands::benchmark::mbm_data::locate() {
         Ok(d) => d,
         Err(why) => {
             println!("panda_four: skipped ({why})");
             return Ok(());
         }
     };
-    let scene = manyhands::planning::mbm_data::panda_four_scene(&dir)?;
+    let scene = manyhands::benchmark::mbm_data::panda_four_scene(&dir)?;
     let world = manyhands::collision::CollisionWorld::from_scene(&scene);
     let q0 = manyhands::collision::CollisionWorld::start_config(&scene);
     let goals: Vec<RobotGoal> = scene

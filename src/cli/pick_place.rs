@@ -1,5 +1,5 @@
 //! `manyhands plan pick-place`: the whole two-hand pick-and-place task of paper 003 (Fig. 2,
-//! §V-B; [`manyhands::planning::pick_place::task`]) on a scene; `manyhands bench pick-place`:
+//! §V-B; [`manyhands::planning::tasks::pick_place::task`]) on a scene; `manyhands bench pick-place`:
 //! 003 Table I's shape (per query: nodes, planning and validation time) over seeded runs,
 //! beside the single-query baseline (plain RRT-Connect on the same four queries with the same
 //! certified checks) and the offline costs.
@@ -12,12 +12,12 @@ use clap::Args;
 use serde_json::json;
 
 use manyhands::grasp::GraspListCache;
-use manyhands::planning::pick_place::{
+use manyhands::planning::tasks::pick_place::{
     plan_pick_place, prepare_pick_place, MotionPlanner, PickPlaceOffline, PickPlacePlan,
     PickPlaceProblem, PickPlaceSettings, QueryRecord, RoadmapLearning,
 };
-use manyhands::planning::timing::TimingOptions;
 use manyhands::planning::Termination;
+use manyhands::trajectory::timing::TimingOptions;
 
 use super::commands::Ctx;
 

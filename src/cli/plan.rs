@@ -13,15 +13,15 @@ use super::commands::Ctx;
 use manyhands::collision::CollisionWorld;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::Scene;
-use manyhands::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
-use manyhands::planning::grasping::arm_grid;
-use manyhands::planning::task::{
+use manyhands::planning::planners::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use manyhands::planning::tasks::grasping::arm_grid;
+use manyhands::planning::tasks::task::{
     bimanual_task, kitchen_task, precheck_reach, reach_task, regrasp_task, GraspAlgorithm,
     KitchenTask, RegraspTask, TaskPlan,
 };
-use manyhands::planning::timing::TimingOptions;
 use manyhands::planning::{IkRrtSettings, Termination};
 use manyhands::reachability::{GridCache, GridRecipe};
+use manyhands::trajectory::timing::TimingOptions;
 
 /// Settings every planning command shares.
 #[derive(Args, Debug, Clone)]
@@ -43,7 +43,7 @@ pub struct Common {
     #[arg(long)]
     pub no_prune: bool,
     /// Seconds between the points of the answer's timed `trajectory` (0.001..=10).
-    #[arg(long, default_value_t = manyhands::planning::timing::DEFAULT_SAMPLE_PERIOD)]
+    #[arg(long, default_value_t = manyhands::trajectory::timing::DEFAULT_SAMPLE_PERIOD)]
     pub trajectory_period: f64,
     /// Factor (0, 1] on the joints' velocity limits for the trajectory.
     #[arg(long, default_value_t = 1.0)]

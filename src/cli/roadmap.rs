@@ -12,14 +12,14 @@ use serde_json::json;
 
 use manyhands::collision::CollisionWorld;
 use manyhands::geometry::Pose;
-use manyhands::planning::roadmap_cache::{load_or_build, RoadmapSource};
-use manyhands::planning::roadmap_query::{
+use manyhands::planning::planners::roadmap_cache::{load_or_build, RoadmapSource};
+use manyhands::planning::planners::roadmap_query::{
     attach_at_link, query_super_graph, RoadmapQuerySettings, RoadmapQueryStats,
 };
-use manyhands::planning::super_graph::{
+use manyhands::planning::planners::super_graph::{
     build_super_graph, Decomposition, SuperGraph, SuperGraphParams,
 };
-use manyhands::planning::visibility_prm::VisibilityPrmSettings;
+use manyhands::planning::planners::visibility_prm::VisibilityPrmSettings;
 use manyhands::planning::{PlannerRng, Termination};
 
 use super::commands::Ctx;
@@ -157,13 +157,15 @@ pub fn build(ctx: &Ctx, a: &BuildArgs) -> Result<()> {
     let params = a.roadmap.params();
     let mut term = Termination::new();
     if a.force {
-        let key = manyhands::planning::roadmap_cache::RoadmapKey::of(&world, &dec, &base, &params)?;
+        let key = manyhands::planning::planners::roadmap_cache::RoadmapKey::of(
+            &world, &dec, &base, &params,
+        )?;
         let g = build_super_graph(&world, &dec, &base, &params, &mut term)?;
         std::fs::create_dir_all(&a.dir).with_context(|| a.dir.display().to_string())?;
         let f = a
             .dir
             .join(key.file_name(&world.robots[dec.robot].robot.name));
-        manyhands::planning::roadmap_cache::save_super_graph(&g, &key, &f)?;
+        manyhands::planning::planners::roadmap_cache::save_super_graph(&g, &key, &f)?;
         ctx.print(
             &json!({"file": f, "source": "built", "graph": graph_json(&g)}),
             || format!("built {}\n{}", f.display(), graph_text(&g)),

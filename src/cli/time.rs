@@ -1,4 +1,4 @@
-//! `manyhands time PLAN.json`: the time-optimal trajectory ([`manyhands::planning::timing`]) of
+//! `manyhands time PLAN.json`: the time-optimal trajectory ([`manyhands::trajectory::timing`]) of
 //! a planned path, printed as JSON (the `trajectory` of the plan answers and of
 //! `POST /v1/trajectories`).
 //!
@@ -18,8 +18,8 @@ use serde_json::Value;
 
 use super::commands::Ctx;
 use manyhands::model::Scene;
-use manyhands::planning::timing::TimingOptions;
-use manyhands::planning::trajectory::{path_limits, time_named_path, time_request, PathJoint};
+use manyhands::trajectory::timing::TimingOptions;
+use manyhands::trajectory::{path_limits, time_named_path, time_request, PathJoint};
 use manyhands::Robot;
 use manyhands_api::{JointTrajectory, TrajectoryEvent, TrajectoryRequest};
 
@@ -32,7 +32,7 @@ pub struct TimeArgs {
     #[arg(long)]
     pub scene: Option<String>,
     /// Seconds between points (0.001..=10).
-    #[arg(long, default_value_t = manyhands::planning::timing::DEFAULT_SAMPLE_PERIOD)]
+    #[arg(long, default_value_t = manyhands::trajectory::timing::DEFAULT_SAMPLE_PERIOD)]
     pub sample_period: f64,
     /// Factor (0, 1] on the joints' velocity limits.
     #[arg(long, default_value_t = 1.0)]
@@ -42,7 +42,7 @@ pub struct TimeArgs {
     pub acceleration_scaling: f64,
 }
 
-fn field_err(e: manyhands::planning::timing::TimingError) -> anyhow::Error {
+fn field_err(e: manyhands::trajectory::timing::TimingError) -> anyhow::Error {
     anyhow!("{}: {}", e.field, e.reason)
 }
 

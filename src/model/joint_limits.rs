@@ -17,7 +17,7 @@
 //! top-level `default_velocity_scaling_factor` / `default_acceleration_scaling_factor`) are
 //! accepted and not used: positions come from the URDF, jerk is not limited (time-optimal
 //! parameterisation of the path under velocity and acceleration limits, see
-//! [`crate::planning::timing`]), and scaling is given per request. Unknown keys, unknown joints,
+//! [`crate::trajectory::timing`]), and scaling is given per request. Unknown keys, unknown joints,
 //! mimic or fixed joints and limits that are not finite and > 0 are errors naming the element.
 //! Parsed with `yaml-rust2` (already the project's YAML reader for the MotionBenchMaker files).
 
@@ -183,7 +183,7 @@ mod tests {
         assert_eq!(r2.velocity_limit(elbow), 3.0);
         assert_eq!(
             r2.acceleration_limit(elbow),
-            crate::planning::timing::DEFAULT_ACCELERATION
+            crate::trajectory::timing::DEFAULT_ACCELERATION
         );
         for (bad, element) in [
             ("joint_limits:\n  nope: {}\n", "joint_limits.nope"),

@@ -23,7 +23,7 @@ pub use manyhands_api::{
 
 use crate::geometry::PoseJson;
 use crate::model::GraspType;
-use crate::planning::task::GraspAlgorithm;
+use crate::planning::tasks::task::GraspAlgorithm;
 
 /// Settings shared by the grasp planners (IK-RRT family), as given in a request.
 #[derive(Debug, Clone, Copy, Default)]

@@ -25,7 +25,7 @@ use crate::collision::CollisionWorld;
 use crate::geometry::PoseJson;
 use crate::kinematics::randomized::{IkCounters, RandomizedIkError};
 use crate::model::{Robot, Scene};
-use crate::planning::bimanual_ik_rrt::{base_vars, BimanualProblem, BimanualSettings};
+use crate::planning::planners::bimanual_ik_rrt::{base_vars, BimanualProblem, BimanualSettings};
 use crate::planning::{GoalSampler, PlanError};
 use crate::reachability::cache::{GridCache, GridRecipe};
 use crate::reachability::queries::DualArmProblem;

@@ -15,7 +15,7 @@ use serde_json::{json, Value};
 
 use crate::collision::{AutoChecker, BodyId, CollisionWorld, FastChecker};
 use crate::planning::{
-    halton, JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, Sampler,
+    base::halton, JointSpace, PlanError, PlanStats, RrtConnect, RrtConnectSettings, Sampler,
     ShortcutSettings, Termination,
 };
 
@@ -29,13 +29,13 @@ use super::queries::{apply_config, placement_base};
 use crate::kinematics::randomized::ArmChain;
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
-use crate::planning::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
-use crate::planning::task::{
+use crate::planning::planners::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
+use crate::planning::tasks::task::{
     bimanual_task, kitchen_task, reach_task, regrasp_task, GraspAlgorithm, KitchenTask, RegraspTask,
 };
-use crate::planning::timing::{time_polyline, world_limits, TimingError, TimingOptions};
 use crate::planning::IkRrtSettings;
 use crate::reachability::{GridCache, GridRecipe, ReachError};
+use crate::trajectory::timing::{time_polyline, world_limits, TimingError, TimingOptions};
 
 /// Why a job did not succeed.
 #[derive(Debug, Clone)]
@@ -852,7 +852,7 @@ impl JobWork for GraspWork {
                 algorithm,
             } => {
                 // An object out of reach fails here, before a grid is built.
-                crate::planning::task::precheck_reach(s, robot, group, object)
+                crate::planning::tasks::task::precheck_reach(s, robot, group, object)
                     .map_err(plan_failure)?;
                 let grid = match algorithm {
                     GraspAlgorithm::IkRrt => arm_grid_of(ctx, &w.grids, s, robot, group)?,
@@ -874,7 +874,7 @@ impl JobWork for GraspWork {
             }
             GraspJob::Kitchen(t) => {
                 let mut t = t.clone();
-                crate::planning::task::precheck_reach(s, &t.robot, &t.first, &t.object)
+                crate::planning::tasks::task::precheck_reach(s, &t.robot, &t.first, &t.object)
                     .map_err(plan_failure)?;
                 t.grids = (
                     arm_grid_of(ctx, &w.grids, s, &t.robot, &t.first)?,

@@ -1,5 +1,5 @@
 //! Job kind `multi_arm`: N independent arms of a scene planned together
-//! ([`crate::planning::multi_arm`]): request validation against the catalog (every error a 422
+//! ([`crate::planning::planners::multi_arm`]): request validation against the catalog (every error a 422
 //! naming the field), the work run on a planner thread, and the same without a server for the
 //! CLI (`manyhands plan multi-arm`).
 
@@ -17,7 +17,7 @@ use super::kinds::{
 use super::queries::{apply_config, placement_base, pose_in};
 use crate::collision::CollisionWorld;
 use crate::model::Scene;
-use crate::planning::multi_arm::{
+use crate::planning::planners::multi_arm::{
     plan_multi_arm, pose_goal, Arm, Methods, MultiArmProblem, MultiArmSettings, MAX_ARMS,
     MAX_VARIABLES,
 };

@@ -17,10 +17,10 @@ use super::kinds::{
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::grasp::WrenchSpaceSettings;
 use crate::model::Scene;
-use crate::planning::multi_robot_rrt::{
+use crate::planning::planners::multi_robot_rrt::{
     multi_robot_rrt, MultiRobotEvent, MultiRobotProblem, MultiRobotSettings, Rejection, MAX_ROBOTS,
 };
-use crate::planning::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory};
+use crate::planning::planners::phase_space::{PhaseSpace, PhaseSpaceSettings, RobotTrajectory};
 use crate::planning::PlanError;
 use crate::reachability::{GridCache, GridRecipe};
 

@@ -1,5 +1,5 @@
 //! The job kind `pick_place`: the two-hand pick-and-place task of paper 003
-//! ([`crate::planning::pick_place::task`]) over HTTP. A thin adapter: the request is checked
+//! ([`crate::planning::tasks::pick_place::task`]) over HTTP. A thin adapter: the request is checked
 //! against the catalog (422 naming the field), the offline data live under the data folder
 //! (`grasps/`, `roadmaps/`), the work and its certification are the planning core's.
 
@@ -12,14 +12,14 @@ use serde_json::{json, Value};
 use crate::grasp::list::workspace_params;
 use crate::grasp::list_cache::list_file_name;
 use crate::grasp::{GraspListCache, GraspListError, GraspListParams, GraspObject};
-use crate::planning::pick_place::task::{decomposition, task_world};
-use crate::planning::pick_place::{
+use crate::planning::planners::roadmap_cache::{load_or_build, RoadmapKey, RoadmapSource};
+use crate::planning::tasks::pick_place::task::{decomposition, task_world};
+use crate::planning::tasks::pick_place::{
     plan_pick_place, prepare_pick_place as prepare_offline, MotionPlanner, PickPlaceError,
     PickPlaceProblem, PickPlaceSettings, PickPlaceTaskError, TaskProgress,
 };
-use crate::planning::roadmap_cache::{load_or_build, RoadmapKey, RoadmapSource};
-use crate::planning::timing::TimingOptions;
 use crate::planning::Termination;
+use crate::trajectory::timing::TimingOptions;
 
 use super::api::PickPlaceTaskPlan;
 use super::catalog::Catalog;

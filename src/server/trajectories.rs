@@ -1,5 +1,5 @@
 //! `POST /v1/trajectories`: the time-optimal trajectory of a given path of one robot
-//! ([`crate::planning::trajectory::time_request`]), synchronous and bounded (at most
+//! ([`crate::trajectory::time_request`]), synchronous and bounded (at most
 //! 10 000 waypoints and 100 000 points).
 
 use std::sync::Arc;
@@ -11,7 +11,7 @@ use super::api::{JointTrajectory, TrajectoryRequest};
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use super::AppState;
-use crate::planning::trajectory::time_request;
+use crate::trajectory::time_request;
 
 #[utoipa::path(post, path = "/v1/trajectories", tag = "queries", request_body = TrajectoryRequest,
     responses((status = 200, body = JointTrajectory), (status = 404, body = super::error::ErrorBody),

@@ -1,7 +1,7 @@
 /// A MotionBenchMaker robot (spherized URDF and SRDF) from the data folder of
-/// [`crate::planning::mbm_data::data_for_test`]; `None` (the test is skipped) without it.
+/// [`crate::benchmark::mbm_data::data_for_test`]; `None` (the test is skipped) without it.
 fn mbm_robot(name: &str) -> Option<std::sync::Arc<crate::Robot>> {
-    let dir = crate::planning::mbm_data::data_for_test()?.join(name);
+    let dir = crate::benchmark::mbm_data::data_for_test()?.join(name);
     Some(std::sync::Arc::new(
         crate::Robot::from_files(
             &dir.join(format!("{name}_spherized.urdf")),
@@ -344,10 +344,10 @@ fn avx_checks_equal_the_generic_checks() {
         ("baxter", "bookshelf_tall_both_arms_hard"),
     ] {
         let Some(r) = mbm_robot(name) else { return };
-        let Some(dir) = crate::planning::mbm_data::data_for_test() else {
+        let Some(dir) = crate::benchmark::mbm_data::data_for_test() else {
             return;
         };
-        let file = crate::planning::mbm::MbmFile::load(&dir.join(name).join("problems.json"))
+        let file = crate::benchmark::mbm::MbmFile::load(&dir.join(name).join("problems.json"))
             .expect("problems");
         let set = file.set(set).expect("set");
         let world = set.problems[0].world(r.clone());
