@@ -21,6 +21,14 @@
 //! mimic or fixed joints and limits that are not finite and > 0 are errors naming the element.
 //! Parsed with `yaml-rust2` (already the project's YAML reader for the MotionBenchMaker files).
 
+/// Velocity (rad/s or m/s) of a joint whose URDF and joint-limits file give none (0, missing or
+/// not finite).
+pub const DEFAULT_VELOCITY: f64 = 1.0;
+
+/// Acceleration (rad/s² or m/s²) of a joint without an acceleration limit, as MoveIt's
+/// time-parameterisation does (`time_optimal_trajectory_generation.cpp`: "using 1.0").
+pub const DEFAULT_ACCELERATION: f64 = 1.0;
+
 use yaml_rust2::{Yaml, YamlLoader};
 
 use super::{ModelError, Robot};
@@ -181,10 +189,7 @@ mod tests {
         let mut r2 = r.clone();
         r2.apply_joint_limits(text, "f").expect("apply");
         assert_eq!(r2.velocity_limit(elbow), 3.0);
-        assert_eq!(
-            r2.acceleration_limit(elbow),
-            crate::trajectory::timing::DEFAULT_ACCELERATION
-        );
+        assert_eq!(r2.acceleration_limit(elbow), DEFAULT_ACCELERATION);
         for (bad, element) in [
             ("joint_limits:\n  nope: {}\n", "joint_limits.nope"),
             (

@@ -18,7 +18,7 @@ mod write;
 
 pub use cell::{arm_cell, panda_four, ArmCell};
 pub use error::ModelError;
-pub use joint_limits::{parse_joint_limits, VarDynamics};
+pub use joint_limits::{parse_joint_limits, VarDynamics, DEFAULT_ACCELERATION, DEFAULT_VELOCITY};
 pub use library::{data_root, load_robot_dir, load_scene_dir, load_scene_dir_lenient};
 pub use robot::{
     AlwaysColliding, EndEffector, Group, GroupMember, GroupState, Joint, JointKind, Limits, Link,

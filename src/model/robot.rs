@@ -356,7 +356,7 @@ impl Robot {
 
     /// Velocity limit of variable `v` (rad/s or m/s): the joint-limits file's `max_velocity`,
     /// else the URDF's `<limit velocity>` when finite and > 0, else
-    /// [`crate::trajectory::timing::DEFAULT_VELOCITY`].
+    /// [`super::DEFAULT_VELOCITY`].
     pub fn velocity_limit(&self, v: usize) -> f64 {
         if let Some(x) = self.dynamics.get(v).and_then(|d| d.velocity) {
             return x;
@@ -365,18 +365,18 @@ impl Robot {
         if x.is_finite() && x > 0.0 {
             x
         } else {
-            crate::trajectory::timing::DEFAULT_VELOCITY
+            super::DEFAULT_VELOCITY
         }
     }
 
     /// Acceleration limit of variable `v` (rad/s² or m/s²): the joint-limits file's
-    /// `max_acceleration`, else [`crate::trajectory::timing::DEFAULT_ACCELERATION`] (URDF has
+    /// `max_acceleration`, else [`super::DEFAULT_ACCELERATION`] (URDF has
     /// none).
     pub fn acceleration_limit(&self, v: usize) -> f64 {
         self.dynamics
             .get(v)
             .and_then(|d| d.acceleration)
-            .unwrap_or(crate::trajectory::timing::DEFAULT_ACCELERATION)
+            .unwrap_or(super::DEFAULT_ACCELERATION)
     }
 
     /// Number of configuration variables.

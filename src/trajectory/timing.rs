@@ -42,13 +42,8 @@ use thiserror::Error;
 
 use crate::collision::CollisionWorld;
 
-/// Velocity (rad/s or m/s) used for a joint whose URDF and joint-limits file give none
-/// (0, missing or not finite).
-pub const DEFAULT_VELOCITY: f64 = crate::planning::planners::phase_space::DEFAULT_VELOCITY;
-
-/// Acceleration (rad/s² or m/s²) used for a joint without an acceleration limit, as MoveIt's
-/// time-parameterisation does (`time_optimal_trajectory_generation.cpp`: "using 1.0").
-pub const DEFAULT_ACCELERATION: f64 = 1.0;
+/// The model's defaults for a joint without a velocity or acceleration limit.
+pub use crate::model::{DEFAULT_ACCELERATION, DEFAULT_VELOCITY};
 
 /// Default sampling period of a trajectory, seconds (10 ms, issue 25).
 pub const DEFAULT_SAMPLE_PERIOD: f64 = 0.01;

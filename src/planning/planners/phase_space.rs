@@ -64,8 +64,9 @@ use rand_chacha::ChaCha8Rng;
 use crate::collision::{CollisionChecker, CollisionWorld, FastChecker};
 use crate::planning::{PlanError, PlanStats, StopReason, Termination};
 
-/// Velocity used for a joint whose URDF gives none (0, missing or not finite), rad/s or m/s.
-pub const DEFAULT_VELOCITY: f64 = 1.0;
+/// Velocity used for a joint whose URDF gives none (0, missing or not finite), rad/s or m/s: the
+/// model's default.
+pub use crate::model::DEFAULT_VELOCITY;
 
 /// One robot's trajectory for the scheduler: waypoints of its own configuration (all of its
 /// variables, in the robot's variable order).
