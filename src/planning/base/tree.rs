@@ -630,8 +630,10 @@ impl Tree {
         (best.0 != u32::MAX).then_some(best)
     }
 
+    /// Weighted squared distance of state `i` from `q`: the same operations in the same order
+    /// as the nearest-neighbour scans, so the same value as [`Self::nearest`] gives.
     #[inline(always)]
-    fn dist_sq(&self, i: u32, q: &[f64]) -> f64 {
+    pub(crate) fn dist_sq(&self, i: u32, q: &[f64]) -> f64 {
         let s = &self.states[i as usize * self.dim..(i as usize + 1) * self.dim];
         let mut d = 0.0;
         for k in 0..self.dim {

@@ -671,9 +671,16 @@ fn connect_with<C: SegmentChecker>(
     q_new: &mut [f64],
     mut lazy: Option<&mut Screens>,
 ) -> Option<u32> {
+    // One nearest-neighbour query per CONNECT, not one per step: a step that advances adds the
+    // state `range` along the straight line from the nearest state (at distance `d`) toward
+    // `target`, so the new state is at `d − range` from it (the space's distance is a norm),
+    // nearer than every other state (all at least `d`) — it is the next step's nearest state.
+    // Its squared distance is computed as the scan computes it (`Tree::dist_sq`), so the steps
+    // are the ones of a query per step, bit for bit.
+    let mut near = tree.nearest(target)?;
     loop {
-        match extend_with(tree, v, range, target, q_new, lazy.as_deref_mut()) {
-            Extend::Advanced(_) => continue,
+        match extend_from(tree, v, range, near, target, q_new, lazy.as_deref_mut()) {
+            Extend::Advanced(j) => near = (j, tree.dist_sq(j, target)),
             Extend::Reached(j) => return Some(j),
             Extend::Trapped => return None,
         }
