@@ -1,4 +1,4 @@
-//! Time-optimal parameterisation (src/planning/timing.rs, TOPP-RA on the polyline): limits,
+//! Time-optimal parameterisation (src/trajectory/timing.rs, TOPP-RA on the polyline): limits,
 //! staying on the path, rest at both ends, and the duration against toppra (the reference
 //! implementation of Pham & Pham 2018) on the same paths and limits — a fixture generated once
 //! by tests/data/timing/make_toppra_fixture.py; this test only reads its JSON.

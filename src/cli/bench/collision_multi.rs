@@ -1,5 +1,5 @@
 //! `manyhands bench collision --multi-arm`: the sphere checker on several arms at once, in the
-//! VAMP-MR cells (src/planning/multi_arm_cells.rs), timed as VAMP-MR's Table 1 times its
+//! VAMP-MR cells (src/benchmark/multi_arm_cells.rs), timed as VAMP-MR's Table 1 times its
 //! checker: "single" checks one multi-robot configuration, "motion" one straight segment
 //! between two, over random samples (every arm uniform within its joint limits; VAMP-MR's
 //! benchmark script checks motions every 0.1 rad). Their figures (on their machine) are

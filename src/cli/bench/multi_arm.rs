@@ -1,5 +1,5 @@
-//! `manyhands bench multi-arm`: the multi-arm planner (src/planning/multi_arm/) on seeded
-//! crossing tasks in the VAMP-MR cells (src/planning/multi_arm_cells.rs, over the
+//! `manyhands bench multi-arm`: the multi-arm planner (src/planning/planners/multi_arm/) on seeded
+//! crossing tasks in the VAMP-MR cells (src/benchmark/multi_arm_cells.rs, over the
 //! MotionBenchMaker Panda that `manyhands data mbm` installs): per cell, success within the
 //! time limit, median planning time, the methods that succeeded and the makespan before and
 //! after shortcutting, for the automatic choice beside decoupled-only (each arm alone, then the
