@@ -18,7 +18,7 @@ use manyhands::planning::planners::roadmap_cache::{
     load_or_build, load_super_graph, save_super_graph, RoadmapFileError, RoadmapKey, RoadmapSource,
 };
 use manyhands::planning::planners::roadmap_query::{
-    attach_at_link, query_learning, query_super_graph, LearnedGraph, RoadmapPath,
+    attach_at_link, prm_star_k, query_learning, query_super_graph, LearnedGraph, RoadmapPath,
     RoadmapQuerySettings,
 };
 use manyhands::planning::planners::super_graph::{
@@ -393,6 +393,8 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
     let g = build(&s, &params(9));
     let rw = roadmap_world(&s.world);
     let space = g.space(&rw, s.base.clone()).unwrap();
+    // Every query below connects its start and goal to a fixed 40 nearest nodes per round (not
+    // PRM*'s k for this graph), so the blocked query searches the path found here first.
     // A query the graph answers (not the straight motion).
     let mut found = None;
     for seed in 1..50 {
@@ -404,6 +406,7 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
             &goal,
             &RoadmapQuerySettings {
                 shortcut: None,
+                connect_nearest: Some(40),
                 ..RoadmapQuerySettings::default()
             },
             &mut Termination::new(),
@@ -442,6 +445,7 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
         let st = RoadmapQuerySettings {
             max_searches,
             connect_rounds: 1,
+            connect_nearest: Some(40),
             ..RoadmapQuerySettings::default()
         };
         let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(20));
@@ -465,6 +469,7 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
     let one = RoadmapQuerySettings {
         max_searches: 1,
         connect_rounds: 1,
+        connect_nearest: Some(40),
         ..RoadmapQuerySettings::default()
     };
     let mut term = Termination::new().with_time_limit(std::time::Duration::from_secs(20));
@@ -509,6 +514,7 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
         max_searches: 200,
         connect_rounds: 1,
         shortcut: None,
+        connect_nearest: Some(40),
         ..RoadmapQuerySettings::default()
     };
     let again = query_learning(
@@ -531,4 +537,21 @@ fn lazy_revalidation_repairs_a_stretch_an_object_makes_invalid() {
     );
     assert_eq!(again.stats.learned_nodes, first.stats.learned_added);
     assert_certified_and_exactly_free(&blocked, &again);
+}
+
+/// A query's start and goal try PRM*'s k nearest nodes per round when no number is set:
+/// ⌈e (1 + 1/d) ln n⌉, growing with the roadmap, at least one, never more than the nodes.
+#[test]
+fn prm_star_k_is_karaman_and_frazzolis() {
+    // The pick-and-place roadmap: 3 700 nodes of 17 variables.
+    assert_eq!(prm_star_k(3700, 17), 24);
+    assert_eq!(prm_star_k(100, 7), 15);
+    assert_eq!(prm_star_k(1, 17), 1);
+    assert_eq!(prm_star_k(3, 1), 3);
+    let mut last = 0;
+    for n in [10, 100, 1_000, 10_000, 100_000] {
+        let k = prm_star_k(n, 6);
+        assert!(k > last && k <= n, "n {n}: k {k}");
+        last = k;
+    }
 }

@@ -51,8 +51,9 @@ use crate::planning::{
 /// Settings of [`query_super_graph`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RoadmapQuerySettings {
-    /// Nearest super nodes tried for the start and goal connections (per round).
-    pub connect_nearest: usize,
+    /// Nearest super nodes tried for the start and goal connections (per round); `None`: PRM*'s
+    /// number of neighbours for the graph searched ([`prm_star_k`]).
+    pub connect_nearest: Option<usize>,
     /// Connection rounds at most: after a round whose searches found no valid path, the next
     /// `connect_nearest` nodes are tried (module docs, step 3); 1 = one round.
     pub connect_rounds: usize,
@@ -66,12 +67,13 @@ pub struct RoadmapQuerySettings {
 
 impl Default for RoadmapQuerySettings {
     fn default() -> Self {
-        // 40 nearest: on the pick-and-place task (a 3 700-node graph of 17 variables) every key
-        // configuration then reaches the graph and no query needs the RRT repair in 20 seeded
-        // runs; with 10 the carry, place and rest queries mostly fell back to RRT-Connect, with
-        // 24–30 the place query still did (`bench pick-place`, s42).
+        // PRM*'s k nearest per round (24 on the pick-and-place task's 3 700-node graph of 17
+        // variables), two rounds. `bench pick-place`, 20 seeded runs, one core: the queries'
+        // median 35 → 26 ms against a fixed 40 per round (the place query tried 80 straight
+        // connections before its first search, most of them long and invalid with the object);
+        // 12 per round made the carry query repair in 8 of 20 runs.
         RoadmapQuerySettings {
-            connect_nearest: 40,
+            connect_nearest: None,
             connect_rounds: 2,
             max_searches: 20,
             rrt: RrtConnectSettings {
@@ -81,6 +83,18 @@ impl Default for RoadmapQuerySettings {
             shortcut: Some(ShortcutSettings::default()),
         }
     }
+}
+
+/// PRM*'s number of neighbours, k = ⌈e (1 + 1/d) ln n⌉ (Karaman & Frazzoli, "Sampling-based
+/// algorithms for optimal motion planning", IJRR 2011, §3.3), for a roadmap of `n` nodes in a
+/// `d`-dimensional space: how many nearest nodes a query's start and goal try per round when
+/// [`RoadmapQuerySettings::connect_nearest`] is unset. At least 1.
+pub fn prm_star_k(n: usize, d: usize) -> usize {
+    if n < 2 || d == 0 {
+        return n.max(1);
+    }
+    let k = std::f64::consts::E * (1.0 + 1.0 / d as f64) * (n as f64).ln();
+    (k.ceil() as usize).clamp(1, n)
 }
 
 /// What a query did.
@@ -325,7 +339,10 @@ pub fn query_learning(
         let mut edge_ok: HashMap<(u32, u32), Known> = HashMap::new();
         let mut last: Option<Vec<u32>> = None;
         let mut graph_path: Option<Vec<u32>> = None;
-        let batch = settings.connect_nearest.max(1);
+        let batch = settings
+            .connect_nearest
+            .unwrap_or_else(|| prm_star_k(n as usize, space.dim()))
+            .max(1);
         for round in 0..settings.connect_rounds.max(1) {
             let tried = round * batch;
             if tried >= n as usize || term.should_stop_now() {
