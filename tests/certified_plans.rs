@@ -18,7 +18,7 @@ use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker, FastC
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::JointKind;
 use manyhands::planning::planners::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
-use manyhands::planning::tasks::grasping::arm_grid;
+use manyhands::planning::problems::grasping::arm_grid;
 use manyhands::planning::tasks::task::{
     bimanual_task, kitchen_task, reach_task, regrasp_task, GraspAlgorithm, KitchenTask,
     RegraspTask, TaskPlan,

@@ -422,8 +422,9 @@ fn certified_segments_of_armar_in_the_kitchen_are_free_under_a_dense_exact_check
 
     // The wok attached to the right hand where it lies (the hand links may touch it).
     let mut held = world.clone();
-    let hand = manyhands::planning::tasks::grasping::Hand::new(&held, "armar", "torso_right_arm")
-        .expect("hand");
+    let hand =
+        manyhands::planning::problems::grasping::Hand::new(&held, "armar", "torso_right_arm")
+            .expect("hand");
     let wok_link = hand.tcp_link();
     held.attach("wok", 0, wok_link, &start, hand.touch.clone())
         .expect("attach");
@@ -507,7 +508,7 @@ fn certified_check_refuses_what_the_states_miss() {
 /// in the palm), no other link (refused with no touch links).
 #[test]
 fn only_the_grasping_hand_touches_the_object_from_the_grasp_on() {
-    use manyhands::planning::tasks::grasping::ReachProblem;
+    use manyhands::planning::problems::grasping::ReachProblem;
     use manyhands::planning::tasks::task::{reach_task, GraspAlgorithm};
     use manyhands::planning::{IkRrtSettings, Termination};
 

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use manyhands::collision::CollisionWorld;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::Scene;
-use manyhands::planning::tasks::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::problems::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{IkRrt, IkRrtSettings, JointSpace, PlanError, Termination};
 
 fn ik_settings() -> RandomizedIkSettings {

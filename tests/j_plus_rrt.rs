@@ -14,7 +14,7 @@ use nalgebra::{Translation3, Vector3};
 use manyhands::collision::CollisionWorld;
 use manyhands::geometry::Pose;
 use manyhands::kinematics::pose_error;
-use manyhands::planning::tasks::grasping::ReachProblem;
+use manyhands::planning::problems::grasping::ReachProblem;
 use manyhands::planning::{
     DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings, PlanError, PlanResult, Termination,
 };

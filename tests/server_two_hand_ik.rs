@@ -12,7 +12,7 @@ use common::{pose_close, scene};
 use manyhands::collision::{CollisionChecker, CollisionWorld, ExactChecker};
 use manyhands::geometry::{Pose, PoseJson};
 use manyhands::model::Scene;
-use manyhands::planning::tasks::grasping::Hand;
+use manyhands::planning::problems::grasping::Hand;
 use manyhands::reachability::hand_links;
 use manyhands::reachability::queries::grasp_set;
 use reqwest::StatusCode;

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use manyhands::collision::CollisionWorld;
 use manyhands::model::{load_robot_dir, Scene, SceneJson};
-use manyhands::planning::tasks::grasping::ReachProblem;
+use manyhands::planning::problems::grasping::ReachProblem;
 use manyhands::planning::PlanError;
 use serde_json::json;
 

@@ -14,7 +14,7 @@ use manyhands::collision::CollisionWorld;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::Scene;
 use manyhands::planning::planners::bimanual_ik_rrt::{BimanualProblem, BimanualSettings};
-use manyhands::planning::tasks::grasping::arm_grid;
+use manyhands::planning::problems::grasping::arm_grid;
 use manyhands::planning::tasks::task::{
     bimanual_task, kitchen_task, precheck_reach, reach_task, regrasp_task, GraspAlgorithm,
     KitchenTask, RegraspTask, TaskPlan,

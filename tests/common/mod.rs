@@ -12,7 +12,7 @@ use manyhands::collision::{CollisionWorld, ExactChecker, MotionValidator};
 use manyhands::geometry::Pose;
 use manyhands::kinematics::randomized::RandomizedIkSettings;
 use manyhands::model::{load_robot_dir, Scene};
-use manyhands::planning::tasks::grasping::{HandOffProblem, ReachProblem};
+use manyhands::planning::problems::grasping::{HandOffProblem, ReachProblem};
 use manyhands::planning::{IkRrt, IkRrtSettings, JointSpace, PlanResult, Termination};
 
 /// A fixed obstacle of one shape at `xyz`, turned by `rpy`.

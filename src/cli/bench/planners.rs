@@ -19,7 +19,7 @@ use manyhands::model::Scene;
 use manyhands::planning::planners::bimanual_ik_rrt::{
     paper_settings, BimanualProblem, BimanualSettings,
 };
-use manyhands::planning::tasks::grasping::{arm_grid, HandOffProblem, ReachProblem};
+use manyhands::planning::problems::grasping::{arm_grid, HandOffProblem, ReachProblem};
 use manyhands::planning::tasks::task::{kitchen_task, GraspAlgorithm, KitchenTask};
 use manyhands::planning::{IkRrtSettings, PlanError, PlanResult, PlanStats, Termination};
 use manyhands::reachability::{GridCache, GridRecipe, ReachabilityGrid};

@@ -3,6 +3,7 @@
 //! ([`PlannerRng`], [`halton`]), the derived range ([`range`]), path shortcutting ([`shortcut`])
 //! and results ([`PlanResult`]). It uses `collision`, `kinematics` and `model`, never a planner.
 
+mod goal;
 pub mod halton;
 pub mod range;
 pub(crate) mod result;
@@ -13,6 +14,7 @@ pub(crate) mod termination;
 pub(crate) mod tree;
 pub(crate) mod validity;
 
+pub use goal::GoalSampler;
 pub use result::{PlanError, PlanResult, PlanStats};
 pub(crate) use rng::DomainPretest;
 pub use rng::PlannerRng;

@@ -23,8 +23,8 @@ use crate::kinematics::dual_arm::DualArmIk;
 use crate::kinematics::randomized::{IkCounters, RandomizedIkError, RandomizedIkSettings};
 use crate::model::{Robot, Scene};
 use crate::planning::base::validity::space_checker;
-use crate::planning::planners::ik_rrt::GoalSampler;
-use crate::planning::tasks::grasping::Hand;
+use crate::planning::problems::grasping::Hand;
+use crate::planning::GoalSampler;
 use crate::planning::{IkRrt, IkRrtSettings, JointSpace, PlanError, PlanResult, Termination};
 use crate::reachability::inverse::{
     bimanual, ik_dual_arm_filtered, inverse_map, placement_cdf, InverseMap,

@@ -20,25 +20,20 @@ use std::time::Instant;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use std::sync::Arc;
+
 use crate::collision::{CollisionWorld, FastChecker};
+use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::planning::base::validity::{space_checker, SegmentChecker, SpaceValidator};
 use crate::planning::planners::rrt_connect::{
     connect, extend, finish, join_trees, stopped, Extend,
 };
+use crate::planning::problems::grasping::{ArmGoals, HandOffGoals, HandOffProblem, ReachProblem};
 use crate::planning::{
-    JointSpace, PlanError, PlanResult, PlanStats, RrtConnectSettings, Termination, Tree, NO_PARENT,
+    GoalSampler, JointSpace, PlanError, PlanResult, PlanStats, RrtConnectSettings, Termination,
+    Tree, NO_PARENT,
 };
-
-/// Produces goal states while planning (000 Alg. 3, lines 5–9: "GetRandomGrasp, ComputeIK").
-pub trait GoalSampler {
-    /// One bounded attempt to find a goal. On success writes the goal state (coordinates of the
-    /// planner's space) into `out` and returns its label (e.g. the grasp reached).
-    fn sample_goal(&mut self, rng: &mut ChaCha8Rng, out: &mut [f64]) -> Option<usize>;
-    /// Analytic IK calls made so far (for statistics).
-    fn ik_calls(&self) -> u64 {
-        0
-    }
-}
+use crate::reachability::ReachabilityGrid;
 
 /// Settings of [`IkRrt`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -263,6 +258,52 @@ impl<C: SegmentChecker> IkRrt<C> {
             path,
             goal_index: label,
             stats,
+        })
+    }
+}
+
+/// IK-RRT over `space` of `world` and the goal sampler `goals` makes from a clone of its
+/// collision model (building the model is most of a query's setup).
+fn ik_rrt_sharing_checker<G>(
+    world: &CollisionWorld,
+    space: &JointSpace,
+    planner: IkRrtSettings,
+    goals: impl FnOnce(FastChecker) -> G,
+) -> Result<(IkRrt, G), PlanError> {
+    let checker = space_checker(world, space);
+    let g = goals(checker.clone());
+    Ok((
+        IkRrt::with_checker(space.clone(), world, checker, planner)?,
+        g,
+    ))
+}
+
+impl ReachProblem {
+    /// The IK-RRT planner of this problem and its goal sampler, sharing one collision model:
+    /// built once and cloned (building it is most of a query's setup).
+    pub fn ik_rrt(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        planner: IkRrtSettings,
+        ik: RandomizedIkSettings,
+    ) -> Result<(IkRrt, ArmGoals), PlanError> {
+        ik_rrt_sharing_checker(&self.world, &self.space, planner, |c| {
+            self.goals_with(grid, ik, c)
+        })
+    }
+}
+
+impl HandOffProblem {
+    /// The IK-RRT planner of this problem and its goal sampler, sharing one collision model:
+    /// built once and cloned (building it is most of a query's setup).
+    pub fn ik_rrt(
+        &self,
+        grid: Option<Arc<ReachabilityGrid>>,
+        planner: IkRrtSettings,
+        ik: RandomizedIkSettings,
+    ) -> Result<(IkRrt, HandOffGoals), PlanError> {
+        ik_rrt_sharing_checker(&self.world, &self.space, planner, |c| {
+            self.goals_with(grid, ik, c)
         })
     }
 }

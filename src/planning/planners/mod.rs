@@ -14,6 +14,6 @@ pub(crate) mod rrt_connect;
 pub mod super_graph;
 pub mod visibility_prm;
 
-pub use ik_rrt::{GoalSampler, IkRrt, IkRrtSettings};
+pub use ik_rrt::{IkRrt, IkRrtSettings};
 pub use j_plus_rrt::{DualArmJPlusRrt, JPlusRrt, JPlusRrtSettings};
 pub use rrt_connect::{RrtConnect, RrtConnectSettings, Sampler};

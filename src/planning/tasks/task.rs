@@ -20,7 +20,7 @@ use crate::collision::CollisionWorld;
 use crate::geometry::{iso_from_rpy, Pose};
 use crate::kinematics::randomized::RandomizedIkSettings;
 use crate::model::Scene;
-use crate::planning::tasks::grasping::{attach_by_grasp, Hand, HandOffProblem, ReachProblem};
+use crate::planning::problems::grasping::{attach_by_grasp, Hand, HandOffProblem, ReachProblem};
 use crate::planning::{
     DualArmJPlusRrt, IkRrtSettings, JPlusRrt, JPlusRrtSettings, JointSpace, PlanError, PlanResult,
     PlanStats, RrtConnect, RrtConnectSettings, Termination,
@@ -729,7 +729,7 @@ impl TaskPlan {
 
 /// The checks of [`reach_task`]'s problem without planning: the hand, the object and — before
 /// any reachability grid is built — whether any of its grasps is within the arm's reach
-/// ([`crate::planning::tasks::grasping::Hand::check_reach`]). Cheap (no search).
+/// ([`crate::planning::problems::grasping::Hand::check_reach`]). Cheap (no search).
 pub fn precheck_reach(
     scene: &Scene,
     robot: &str,

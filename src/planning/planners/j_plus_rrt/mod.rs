@@ -16,7 +16,7 @@
 //! the shared tree-planner finish (000 §IV-B: "standard path pruning techniques \[14\]").
 //!
 //! **Dual-arm J+-RRT** ([`DualArmJPlusRrt`], Alg. 4–5): the object is held by the giver hand
-//! ([`crate::planning::tasks::grasping::HandOffProblem`]); the goal is the receiver's TCP at one of its grasps on
+//! ([`crate::planning::problems::grasping::HandOffProblem`]); the goal is the receiver's TCP at one of its grasps on
 //! the moving object. `DualArmExtendToGoal` draws a grasp, takes the node whose receiver TCP is
 //! nearest that grasp on the held object (each node stores the receiver TCP in the object frame,
 //! so again a linear scan), then alternately moves the receiver's TCP toward the grasp pose on the
@@ -106,7 +106,7 @@ use crate::kinematics::randomized::ArmChain;
 use crate::kinematics::{pose_error, Chain, FkPath};
 use crate::planning::base::validity::{space_checker, SegmentChecker, SpaceValidator};
 use crate::planning::planners::rrt_connect::{extend, finish, stopped};
-use crate::planning::tasks::grasping::{Hand, HandOffProblem, ReachProblem};
+use crate::planning::problems::grasping::{Hand, HandOffProblem, ReachProblem};
 use crate::planning::{
     JointSpace, PlanError, PlanResult, PlanStats, RrtConnectSettings, Termination, Tree, NO_PARENT,
 };

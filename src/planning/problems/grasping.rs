@@ -1,7 +1,8 @@
 //! Grasp-planning problems on a scene (paper 000 §IV–VI): what is checked (the
 //! [`CollisionWorld`] with the object resting or held), where the planner searches (the
 //! [`JointSpace`] of the moving chains) and which goals count (a grasp set), plus the
-//! [`GoalSampler`]s that feed [`crate::planning::IkRrt`]:
+//! [`GoalSampler`]s that feed [`crate::planning::IkRrt`] (whose `ik_rrt` constructors for these
+//! problems are in [`crate::planning::planners`]):
 //!
 //! * [`ReachProblem`] + [`ArmGoals`]: one "hip + arm" chain reaches one of an object's grasps
 //!   (000 §IV, IK-RRT / J+-RRT), or — with the object in the hand — brings it to a place pose.
@@ -29,7 +30,7 @@ use crate::kinematics::randomized::{
 use crate::kinematics::{FkPath, FkPathPair};
 use crate::model::Scene;
 use crate::planning::base::validity::space_checker;
-use crate::planning::{GoalSampler, IkRrt, IkRrtSettings, JointSpace, PlanError};
+use crate::planning::{GoalSampler, JointSpace, PlanError};
 use crate::reachability::queries::{end_effector_at, grasp_set, GraspSet};
 use crate::reachability::{hand_links, GridCache, ReachabilityGrid};
 
@@ -227,22 +228,6 @@ pub fn arm_grid(
         .map_err(|e| PlanError::InvalidInput(format!("reachability grid of '{group}': {e}")))
 }
 
-/// IK-RRT over `space` of `world` and the goal sampler `goals` makes from a clone of its
-/// collision model (building the model is most of a query's setup).
-fn ik_rrt_sharing_checker<G>(
-    world: &CollisionWorld,
-    space: &JointSpace,
-    planner: IkRrtSettings,
-    goals: impl FnOnce(FastChecker) -> G,
-) -> Result<(IkRrt, G), PlanError> {
-    let checker = space_checker(world, space);
-    let g = goals(checker.clone());
-    Ok((
-        IkRrt::with_checker(space.clone(), world, checker, planner)?,
-        g,
-    ))
-}
-
 impl ReachProblem {
     /// Grasp `object` (a fixed body of `world`, with grasps in `scene`) with the hand at the tip of
     /// `group` of robot `robot`, from world configuration `world_q`.
@@ -354,20 +339,7 @@ impl ReachProblem {
         self.goals_with(grid, settings, space_checker(&self.world, &self.space))
     }
 
-    /// The IK-RRT planner of this problem and its goal sampler, sharing one collision model:
-    /// built once and cloned (building it is most of a query's setup).
-    pub fn ik_rrt(
-        &self,
-        grid: Option<Arc<ReachabilityGrid>>,
-        planner: IkRrtSettings,
-        ik: RandomizedIkSettings,
-    ) -> Result<(IkRrt, ArmGoals), PlanError> {
-        ik_rrt_sharing_checker(&self.world, &self.space, planner, |c| {
-            self.goals_with(grid, ik, c)
-        })
-    }
-
-    fn goals_with(
+    pub(crate) fn goals_with(
         &self,
         grid: Option<Arc<ReachabilityGrid>>,
         settings: RandomizedIkSettings,
@@ -565,20 +537,7 @@ impl HandOffProblem {
         self.goals_with(grid, settings, space_checker(&self.world, &self.space))
     }
 
-    /// The IK-RRT planner of this problem and its goal sampler, sharing one collision model:
-    /// built once and cloned (building it is most of a query's setup).
-    pub fn ik_rrt(
-        &self,
-        grid: Option<Arc<ReachabilityGrid>>,
-        planner: IkRrtSettings,
-        ik: RandomizedIkSettings,
-    ) -> Result<(IkRrt, HandOffGoals), PlanError> {
-        ik_rrt_sharing_checker(&self.world, &self.space, planner, |c| {
-            self.goals_with(grid, ik, c)
-        })
-    }
-
-    fn goals_with(
+    pub(crate) fn goals_with(
         &self,
         grid: Option<Arc<ReachabilityGrid>>,
         settings: RandomizedIkSettings,
