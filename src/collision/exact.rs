@@ -180,19 +180,18 @@ pub(crate) fn parry_shape(g: &Geometry) -> (SharedShape, Pose) {
     (shape, g.origin * fix)
 }
 
-/// The parry shape [`ExactChecker`] tests for `g` when that shape alone stands for `g`: `None`
-/// for a mesh it models as a non-convex solid (its surface and its inside), which no convex
-/// shape stands for. A test made with these shapes finds a collision only where the exact
+/// Whether [`ExactChecker`] models `g` as a non-convex solid (a mesh: its surface and its
+/// inside), which no convex shape stands for. Every other geometry it tests as [`parry_shape`]
+/// gives it, so a test made with those shapes alone finds a collision only where the exact
 /// checker finds it too.
-pub(crate) fn exact_convex_shape(g: &Geometry) -> Option<(SharedShape, Pose)> {
-    if let Shape::Mesh(m) = &g.shape {
-        if let Ok(solid) = &m.solid {
-            if solid_surface(solid).is_some() {
-                return None;
-            }
-        }
+pub(crate) fn is_solid_mesh(g: &Geometry) -> bool {
+    match &g.shape {
+        Shape::Mesh(m) => m
+            .solid
+            .as_ref()
+            .is_ok_and(|solid| solid_surface(solid).is_some()),
+        _ => false,
     }
-    Some(parry_shape(g))
 }
 
 fn convert_all(geoms: &[Geometry], out: &mut Vec<ShapeRec>) {

@@ -19,7 +19,7 @@ mod spheres;
 mod world;
 
 pub use exact::ExactChecker;
-pub(crate) use exact::{exact_convex_shape, parry_shape, to_parry};
+pub(crate) use exact::{is_solid_mesh, parry_shape, to_parry};
 pub use fast::{Certification, CertifyStats, FastChecker, FastModelSettings};
 pub use generate::{random_boxes, random_config_near, RandomBoxes};
 pub use motion::MotionValidator;

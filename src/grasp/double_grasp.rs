@@ -29,8 +29,8 @@ use serde::{Deserialize, Serialize};
 
 use super::hand::Hand;
 use super::list::{GraspList, SingleGrasp};
-use crate::collision::{exact_convex_shape, parry_shape, to_parry, StaticBody};
-use crate::geometry::Pose;
+use crate::collision::{is_solid_mesh, parry_shape, to_parry, StaticBody};
+use crate::geometry::{Geometry, Pose};
 
 /// Bounds of a double-grasp search.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -81,13 +81,23 @@ pub struct DoubleGraspResult {
 type Placed = Vec<(usize, SharedShape, Pose, f64)>;
 
 fn placed_hand(hand: &Hand, g: &SingleGrasp, object_pose: &Pose) -> Placed {
+    placed_hand_at(hand, &g.config, &(object_pose * g.palm_pose()), |_| true)
+}
+
+/// `hand`'s links with its variables at `values` (the hand group's variables in order) and its
+/// palm at `palm`, each of their collision shapes that `keep` admits.
+fn placed_hand_at(
+    hand: &Hand,
+    values: &[f64],
+    palm: &Pose,
+    keep: impl Fn(&Geometry) -> bool,
+) -> Placed {
     let mut q = hand.base_config();
     for (i, &v) in hand.vars.iter().enumerate() {
-        if let Some(x) = g.config.get(i) {
+        if let Some(x) = values.get(i) {
             q[v] = *x;
         }
     }
-    let palm = object_pose * g.palm_pose();
     let mut out = Vec::new();
     let links = hand
         .palm_links
@@ -95,72 +105,52 @@ fn placed_hand(hand: &Hand, g: &SingleGrasp, object_pose: &Pose) -> Placed {
         .chain(hand.fingers.iter().flat_map(|f| f.links.iter()));
     for &l in links {
         let lp = palm * hand.link_in_palm(l, &q);
-        for (s, local) in hand.shapes.get(&l).into_iter().flatten() {
-            let r = s.compute_local_bounding_sphere().radius() + 1e-9;
-            out.push((l, s.clone(), lp * local, r));
+        // `Hand::shapes` holds one parry shape per collision geometry, in the link's order.
+        let geoms = &hand.robot.links[l].collision;
+        for ((s, local), g) in hand.shapes.get(&l).into_iter().flatten().zip(geoms) {
+            if keep(g) {
+                let r = s.compute_local_bounding_sphere().radius() + 1e-9;
+                out.push((l, s.clone(), lp * local, r));
+            }
         }
     }
     out
 }
 
 /// Fixed bodies as placed parry shapes with their bounding radii, built once for
-/// [`hand_free_of`]: the shapes the exact checker tests alone ([`exact_convex_shape`]); a mesh
-/// it models as a non-convex solid is left out.
+/// [`hand_free_of`]: the shapes the exact checker tests alone; a mesh it models as a non-convex
+/// solid is left out.
 pub struct Environment(Vec<(SharedShape, Pose, f64)>);
 
 impl Environment {
     pub fn new(env: &[StaticBody]) -> Environment {
-        Environment(
-            env.iter()
-                .flat_map(|b| {
-                    b.shapes.iter().filter_map(move |g| {
-                        let (s, p) = exact_convex_shape(g)?;
-                        let r = s.compute_local_bounding_sphere().radius() + 1e-9;
-                        Some((s, b.pose * p, r))
-                    })
-                })
-                .collect(),
-        )
+        let solid_free: Vec<StaticBody> = env
+            .iter()
+            .map(|b| StaticBody {
+                shapes: b
+                    .shapes
+                    .iter()
+                    .filter(|g| !is_solid_mesh(g))
+                    .cloned()
+                    .collect(),
+                ..b.clone()
+            })
+            .collect();
+        Environment(world_shapes(&solid_free))
     }
 }
 
 /// Is `hand` alone, its variables at `values` (the hand group's variables in order) and its
 /// palm at `palm` (world frame), free of every body of `env`? The shapes the exact checker
-/// tests ([`exact_convex_shape`]; a link mesh it models as a non-convex solid is left out), so
-/// a hand that collides here collides in every robot configuration that puts it there, by the
-/// exact checker: 003 §IV-B's environment filter as a necessary condition the configuration
-/// search (003 §V-C) tests once per grasp instead of once per IK solution.
+/// tests (a link mesh it models as a non-convex solid is left out), so a hand that collides
+/// here collides in every robot configuration that puts it there, by the exact checker: 003
+/// §IV-B's environment filter as a necessary condition the configuration search (003 §V-C)
+/// tests once per grasp instead of once per IK solution.
 pub fn hand_free_of(hand: &Hand, values: &[f64], palm: &Pose, env: &Environment) -> bool {
-    let mut q = hand.base_config();
-    for (i, &v) in hand.vars.iter().enumerate() {
-        if let Some(x) = values.get(i) {
-            q[v] = *x;
-        }
-    }
-    let links = hand
-        .palm_links
-        .iter()
-        .chain(hand.fingers.iter().flat_map(|f| f.links.iter()));
-    for &l in links {
-        let lp = palm * hand.link_in_palm(l, &q);
-        for g in &hand.robot.links[l].collision {
-            let Some((s, local)) = exact_convex_shape(g) else {
-                continue;
-            };
-            let (p, r) = (
-                lp * local,
-                s.compute_local_bounding_sphere().radius() + 1e-9,
-            );
-            if env
-                .0
-                .iter()
-                .any(|(es, ep, er)| intersect(&s, &p, r, es, ep, *er))
-            {
-                return false;
-            }
-        }
-    }
-    true
+    free_of(
+        &placed_hand_at(hand, values, palm, |g| !is_solid_mesh(g)),
+        &env.0,
+    )
 }
 
 fn world_shapes(env: &[StaticBody]) -> Vec<(SharedShape, Pose, f64)> {
