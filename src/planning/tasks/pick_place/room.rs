@@ -58,6 +58,9 @@ struct Checked {
     world: CollisionWorld,
     exact: Option<ExactChecker>,
     fast: Option<FastChecker>,
+    /// Its fixed bodies for [`HandRoom::hand_alone`] (`None` inside: the world allows pairs,
+    /// so the hand alone is not tested).
+    alone: Option<Option<Environment>>,
 }
 
 impl Checked {
@@ -66,7 +69,15 @@ impl Checked {
             world,
             exact: None,
             fast: None,
+            alone: None,
         }
+    }
+
+    fn environment(&mut self) -> Option<&Environment> {
+        let w = &self.world;
+        self.alone
+            .get_or_insert_with(|| w.allowed.is_empty().then(|| Environment::new(&w.statics)))
+            .as_ref()
     }
 
     fn free(&mut self, q: &[f64]) -> bool {
@@ -114,9 +125,6 @@ pub(super) struct SceneRoom<'a> {
     lists: [&'a GraspList; 2],
     motions: [&'a [Vec<FingerPath>]; 2],
     worlds: HashMap<Where, Option<Checked>>,
-    /// The fixed bodies of [`Where::Initial`] and [`Where::Final`] for [`HandRoom::hand_alone`]
-    /// (`None`: the world allows pairs, so the hand alone is not tested).
-    alone: HashMap<Where, Option<Environment>>,
 }
 
 impl<'a> SceneRoom<'a> {
@@ -134,7 +142,6 @@ impl<'a> SceneRoom<'a> {
             lists,
             motions,
             worlds: HashMap::new(),
-            alone: HashMap::new(),
         }
     }
 
@@ -172,23 +179,34 @@ impl<'a> SceneRoom<'a> {
         }
     }
 
+    /// World `w` and its checkers (built on first use; `None`: it cannot be built).
+    fn checked(&mut self, w: Where) -> Option<&mut Checked> {
+        if !self.worlds.contains_key(&w) {
+            let built = self.build(w).map(Checked::new);
+            self.worlds.insert(w, built);
+        }
+        self.worlds.get_mut(&w)?.as_mut()
+    }
+
+    /// The pick (`side` 0) or the place hand.
+    fn arm_hand(&self, side: usize) -> &'a ArmHand {
+        if side == 0 {
+            &self.p.pick
+        } else {
+            &self.p.place
+        }
+    }
+
     /// Can `side`'s hand (0: pick, 1: place) make one of grasp `g`'s closing motions at `q`,
     /// starting free in world `state` and moving in world `motion`?
     fn room(&mut self, side: usize, g: usize, q: &[f64], state: Where, motion: Where) -> bool {
         for w in [state, motion] {
-            if !self.worlds.contains_key(&w) {
-                let built = self.build(w).map(Checked::new);
-                self.worlds.insert(w, built);
-            }
+            self.checked(w);
         }
         let Some(motions) = self.motions[side].get(g) else {
             return false;
         };
-        let ah = if side == 0 {
-            &self.p.pick
-        } else {
-            &self.p.place
-        };
+        let ah = self.arm_hand(side);
         // Two entries of one map, borrowed one at a time inside the test.
         let worlds = &mut self.worlds;
         first_free(ah, q, motions, &mut |t| {
@@ -217,24 +235,12 @@ impl HandRoom for SceneRoom<'_> {
             Holder::Pick => (0, Where::Initial, self.p.initial),
             Holder::Place => (1, Where::Final, self.p.final_pose),
         };
-        if !self.alone.contains_key(&w) {
-            let env = self
-                .build(w)
-                .filter(|world| world.allowed.is_empty())
-                .map(|world| Environment::new(&world.statics));
-            self.alone.insert(w, env);
-        }
-        let (Some(Some(env)), Some(grasp), Some(motions)) = (
-            self.alone.get(&w),
-            self.lists[side].grasps.get(g),
-            self.motions[side].get(g),
-        ) else {
+        let (lists, motions, ah) = (self.lists, self.motions, self.arm_hand(side));
+        let (Some(grasp), Some(motions)) = (lists[side].grasps.get(g), motions[side].get(g)) else {
             return true;
         };
-        let ah = if side == 0 {
-            &self.p.pick
-        } else {
-            &self.p.place
+        let Some(env) = self.checked(w).and_then(Checked::environment) else {
+            return true;
         };
         let palm = pose * grasp.palm_pose();
         motions
