@@ -121,6 +121,10 @@ pub struct SphereChecker {
     frames: Vec<[Lane; 12]>,
     bcw: Vec<[Lane; 3]>,
     sw: Vec<[Lane; 3]>,
+    /// Chord certificate: per sphere, its chords' midpoints and half lengths in this call
+    /// (placed with `sw`).
+    swm: Vec<[Lane; 3]>,
+    swh: Vec<Lane>,
     sw_epoch: Vec<u32>,
     /// Per node: its bounding sphere's centre in this call (valid when `ncw_epoch` is
     /// `epoch`) and the largest inflation of its bodies.
@@ -202,6 +206,26 @@ pub struct SphereChecker {
     /// Benchmark-only: certified checks run without inflation (see
     /// [`SphereChecker::set_uncertified_for_benchmark`]).
     uncertified: bool,
+    /// Certified checks use the chord certificate (see `chord.rs`; off only to compare the
+    /// linear one in tests and benchmarks).
+    chord: bool,
+    /// The bodies' coefficients of the acceleration bound (see [`chord::accel_rows`]).
+    acc_rows: Vec<f64>,
+    /// Per node, 2 coefficients of the acceleration bound over the current segment.
+    acc_coef: Vec<f64>,
+    /// Per node: its joint's and its ancestors' revolute speeds summed over the current segment.
+    node_speed: Vec<f64>,
+    /// Per body: its acceleration bound over the segment being certified (chord certificate;
+    /// padded with zeros to the stride of `acc_rows`).
+    seg_acc: Vec<f64>,
+    /// Per node: `Σ (α + β)` over its chain in the current segment (see `chord.rs`).
+    node_coef_sum: Vec<f64>,
+    /// Per node: its first body and the distance of its bounding sphere's centre from that
+    /// body's (`u32::MAX`: no body).
+    node_anchor: Vec<(u32, f64)>,
+    /// Per node: the acceleration bound of its bounding sphere's centre, and its allowance.
+    node_acc: Vec<f64>,
+    node_dl: Vec<f32>,
 }
 
 /// Marks a self pair's index among the bodies' indices in `tight_log` and `focus_pool`.
@@ -929,6 +953,7 @@ impl CollisionChecker for AutoChecker {
 }
 
 mod certified;
+mod chord;
 pub use certified::{CertifyCounts, SegmentScreen};
 mod kinematics;
 use kinematics::{origin_terms, Axis, OriginRot, Step, StepKind};

@@ -229,3 +229,169 @@ pub(super) fn obs(o: &ObsWide, p: [V; 3], r: f32) -> u32 {
     };
     le_zero(d)
 }
+
+/// [`obs`] with a radius per lane (the chord certificate's balls, see `chord.rs`).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn obs_r(o: &ObsWide, p: [V; 3], r: V) -> u32 {
+    let zero = _mm256_setzero_ps();
+    let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+    let rel = |c: &[Lane; 3]| {
+        [
+            _mm256_sub_ps(p[0], load(&c[0])),
+            _mm256_sub_ps(p[1], load(&c[1])),
+            _mm256_sub_ps(p[2], load(&c[2])),
+        ]
+    };
+    let dot = |a: &[Lane; 3], d: &[V; 3]| {
+        _mm256_fmadd_ps(
+            load(&a[2]),
+            d[2],
+            _mm256_fmadd_ps(load(&a[1]), d[1], _mm256_mul_ps(load(&a[0]), d[0])),
+        )
+    };
+    let sq3 = |d: &[V; 3], rr: V| {
+        _mm256_fmadd_ps(
+            d[2],
+            d[2],
+            _mm256_fmadd_ps(
+                d[1],
+                d[1],
+                _mm256_fmsub_ps(d[0], d[0], _mm256_mul_ps(rr, rr)),
+            ),
+        )
+    };
+    let d = match o {
+        ObsWide::Sphere { c, r: ro } => sq3(&rel(c), _mm256_add_ps(r, _mm256_set1_ps(*ro))),
+        ObsWide::Box { c, rt, half } => {
+            let d = rel(c);
+            let mut acc = _mm256_sub_ps(zero, _mm256_mul_ps(r, r));
+            for k in 0..3 {
+                let q = _mm256_and_ps(dot(&rt[k], &d), abs_mask);
+                let e = _mm256_max_ps(_mm256_sub_ps(q, load(&half[k])), zero);
+                acc = _mm256_fmadd_ps(e, e, acc);
+            }
+            acc
+        }
+        ObsWide::Cylinder { c, axis, r: rc, h } => {
+            let d = rel(c);
+            let pz = dot(axis, &d);
+            let all = dist2_minus(d[0], d[1], d[2], 0.0);
+            let rad2 = _mm256_max_ps(_mm256_fnmadd_ps(pz, pz, all), zero);
+            let dr = _mm256_max_ps(_mm256_sub_ps(_mm256_sqrt_ps(rad2), load(rc)), zero);
+            let ez = _mm256_max_ps(_mm256_sub_ps(_mm256_and_ps(pz, abs_mask), load(h)), zero);
+            _mm256_fmadd_ps(dr, dr, _mm256_fmsub_ps(ez, ez, _mm256_mul_ps(r, r)))
+        }
+        ObsWide::Capsule {
+            c,
+            axis,
+            r: rc,
+            h,
+            neg_h,
+        } => {
+            let d = rel(c);
+            let pz = dot(axis, &d);
+            let t = _mm256_min_ps(_mm256_max_ps(pz, load(neg_h)), load(h));
+            let e = [
+                _mm256_fnmadd_ps(t, load(&axis[0]), d[0]),
+                _mm256_fnmadd_ps(t, load(&axis[1]), d[1]),
+                _mm256_fnmadd_ps(t, load(&axis[2]), d[2]),
+            ];
+            sq3(&e, _mm256_add_ps(r, _mm256_set1_ps(*rc)))
+        }
+    };
+    le_zero(d)
+}
+
+/// Chord midpoints and half lengths of 8 lanes of points: `((p + p⁺) / 2, |p⁺ − p| / 2)`, `p⁺`
+/// the next lane's point (the last lane's own).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn chords(p: [V; 3]) -> ([V; 3], V) {
+    let idx = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
+    let half = _mm256_set1_ps(0.5);
+    let n = [
+        _mm256_permutevar8x32_ps(p[0], idx),
+        _mm256_permutevar8x32_ps(p[1], idx),
+        _mm256_permutevar8x32_ps(p[2], idx),
+    ];
+    let mid = [
+        _mm256_mul_ps(_mm256_add_ps(p[0], n[0]), half),
+        _mm256_mul_ps(_mm256_add_ps(p[1], n[1]), half),
+        _mm256_mul_ps(_mm256_add_ps(p[2], n[2]), half),
+    ];
+    let d = [
+        _mm256_sub_ps(n[0], p[0]),
+        _mm256_sub_ps(n[1], p[1]),
+        _mm256_sub_ps(n[2], p[2]),
+    ];
+    let len = _mm256_sqrt_ps(dist2_minus(d[0], d[1], d[2], 0.0));
+    (mid, _mm256_mul_ps(len, half))
+}
+
+/// Lanes whose point `a` lies within `r` (per lane) of point `b`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn within(a: [V; 3], b: [V; 3], r: V) -> u32 {
+    let d = [
+        _mm256_sub_ps(a[0], b[0]),
+        _mm256_sub_ps(a[1], b[1]),
+        _mm256_sub_ps(a[2], b[2]),
+    ];
+    let rr = _mm256_mul_ps(r, r);
+    le_zero(_mm256_sub_ps(dist2_minus(d[0], d[1], d[2], 0.0), rr))
+}
+
+/// Lanes whose point lies within `r` (per lane) of the origin.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn within_origin(a: [V; 3], r: V) -> u32 {
+    le_zero(_mm256_sub_ps(
+        dist2_minus(a[0], a[1], a[2], 0.0),
+        _mm256_mul_ps(r, r),
+    ))
+}
+
+/// `a − b` per lane.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn sub3(a: [V; 3], b: [V; 3]) -> [V; 3] {
+    [
+        _mm256_sub_ps(a[0], b[0]),
+        _mm256_sub_ps(a[1], b[1]),
+        _mm256_sub_ps(a[2], b[2]),
+    ]
+}
+
+/// `v + s` per lane.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn add_s(v: V, s: f32) -> V {
+    _mm256_add_ps(v, _mm256_set1_ps(s))
+}
+
+/// The broadcast point `p`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn splat3(p: [f32; 3]) -> [V; 3] {
+    [
+        _mm256_set1_ps(p[0]),
+        _mm256_set1_ps(p[1]),
+        _mm256_set1_ps(p[2]),
+    ]
+}
+
+/// One lane array as a register.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn load1(l: &Lane) -> V {
+    load(l)
+}
+
+/// A register into one lane array.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn store1(l: &mut Lane, v: V) {
+    // SAFETY: 8 f32.
+    unsafe { _mm256_storeu_ps(l.as_mut_ptr(), v) }
+}

@@ -205,3 +205,64 @@ pub(super) fn sincos_lanes<const N: usize, const AVX: bool>(v: &[f32; N]) -> ([f
     }
     (sn, cs)
 }
+
+/// Lanes (bit l) whose sphere (x, y, z of `p`, radius `r[l]`) touches the obstacle: the tests
+/// of [`obs_mask`] with a radius per lane (the chord certificate's balls).
+#[inline(always)]
+pub(super) fn obs_lanes_mask(o: &Obs, p: &[Lane; 3], r: &Lane) -> u32 {
+    const N: usize = super::LANES;
+    let (x, y, z) = (&p[0], &p[1], &p[2]);
+    let mut d = [0.0f32; N];
+    match *o {
+        Obs::Sphere { c, r: ro } => {
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let rr = r[l] + ro;
+                d[l] = dx * dx + dy * dy + dz * dz - rr * rr;
+            }
+        }
+        Obs::Box { c, rt, half } => {
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let mut d2 = 0.0f32;
+                for k in 0..3 {
+                    let p = rt[k][0] * dx + rt[k][1] * dy + rt[k][2] * dz;
+                    let e = (p.abs() - half[k]).max(0.0);
+                    d2 += e * e;
+                }
+                d[l] = d2 - r[l] * r[l];
+            }
+        }
+        Obs::Cylinder { c, axis, r: rc, h } => {
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let pz = axis[0] * dx + axis[1] * dy + axis[2] * dz;
+                let rad2 = (dx * dx + dy * dy + dz * dz - pz * pz).max(0.0);
+                let dr = (rad2.sqrt() - rc).max(0.0);
+                let ez = (pz.abs() - h).max(0.0);
+                d[l] = dr * dr + ez * ez - r[l] * r[l];
+            }
+        }
+        Obs::Capsule { c, axis, r: rc, h } => {
+            for l in 0..N {
+                let dx = x[l] - c[0];
+                let dy = y[l] - c[1];
+                let dz = z[l] - c[2];
+                let pz = axis[0] * dx + axis[1] * dy + axis[2] * dz;
+                let t = pz.clamp(-h, h);
+                let ex = dx - t * axis[0];
+                let ey = dy - t * axis[1];
+                let ez = dz - t * axis[2];
+                let rr = r[l] + rc;
+                d[l] = ex * ex + ey * ey + ez * ez - rr * rr;
+            }
+        }
+    }
+    le_zero_mask::<N>(&d)
+}

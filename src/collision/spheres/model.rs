@@ -485,6 +485,23 @@ impl SphereChecker {
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
         let avx2 = false;
+        let acc_rows = chord::accel_rows(&steps, &bodies, &spheres, stride);
+        let node_anchor: Vec<(u32, f64)> = steps
+            .iter()
+            .zip(&node_sphere)
+            .map(|(st, ns)| {
+                if st.bodies.0 == st.bodies.1 {
+                    return (u32::MAX, 0.0);
+                }
+                let bc = bodies[st.bodies.0 as usize].bc;
+                let d = Vector3::new(
+                    f64::from(ns[0]) - f64::from(bc[0]),
+                    f64::from(ns[1]) - f64::from(bc[1]),
+                    f64::from(ns[2]) - f64::from(bc[2]),
+                );
+                (st.bodies.0, d.norm() * (1.0 + 1e-6) + 1e-9)
+            })
+            .collect();
         let mut checker = SphereChecker {
             world: world.clone(),
             qv: vec![[0.0; LANES]; world.dof()],
@@ -492,6 +509,8 @@ impl SphereChecker {
             steps,
             bcw: vec![[[0.0; LANES]; 3]; nb],
             sw: vec![[[0.0; LANES]; 3]; ns],
+            swm: vec![[[0.0; LANES]; 3]; ns],
+            swh: vec![[0.0; LANES]; ns],
             sw_epoch: vec![0; nb],
             ncw: vec![[[0.0; LANES]; 3]; n_nodes],
             ncw_epoch: vec![0; n_nodes],
@@ -538,6 +557,15 @@ impl SphereChecker {
             pair_keep: Vec::new(),
             certify_counts: Default::default(),
             uncertified: false,
+            chord: true,
+            acc_rows,
+            acc_coef: vec![0.0; 2 * n_nodes],
+            node_speed: vec![0.0; n_nodes],
+            seg_acc: vec![0.0; stride],
+            node_coef_sum: vec![0.0; n_nodes],
+            node_anchor,
+            node_acc: vec![0.0; n_nodes],
+            node_dl: vec![0.0; n_nodes],
         };
         checker.init_roots();
         Some(checker)

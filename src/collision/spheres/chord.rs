@@ -1,0 +1,832 @@
+//! The chord certificate of the sphere checker's certified motion checks
+//! ([`SphereChecker::segment_certified`]): a straight joint-space segment proven collision-free
+//! from the robot's *computed* positions at a few states and a bound on how far each point can
+//! stray from the straight line between two of them.
+//!
+//! Along `q(t) = a + t (b − a)`, a point `p` riding on a body has bounded *acceleration*
+//! `|p''(t)| ≤ A` (below). The error of linear interpolation of a C² curve is at most
+//! `A (t − t₀)(t₁ − t) / 2 ≤ A h² / 8` on a sub-interval of length `h`, so on `[t₀, t₁]` the
+//! point stays within `δ = A h² / 8` of the chord `[p(t₀), p(t₁)]`, and a sphere of radius `r`
+//! about it stays inside the ball about the chord's midpoint of radius
+//! `r + δ + |p(t₁) − p(t₀)| / 2`. That ball free of an obstacle certifies the sphere free of it
+//! over the whole sub-interval (and, as it contains both end spheres, both end states). For a
+//! self pair the difference of the two points has acceleration at most `A_a + A_b`, and the same
+//! argument applies to it: the pair is apart over the sub-interval when the ball about the
+//! difference's chord midpoint, of radius `r_i + r_j + δ_a + δ_b + |Δd| / 2`, excludes the
+//! origin.
+//!
+//! The linear certificate ([`SphereChecker::segment_certified`]'s other form) inflates each state
+//! by a bound on the *speed*, `Σ_v |Δq_v| w_v`, a sum of worst-case lever arms; the chord's half
+//! length is the motion the arm actually makes, and the acceleration term shrinks with the square
+//! of the sub-interval. Measured on a UR5-like arm's range-length segments: worst sphere's half
+//! chord 0.023 m (median) over seventh-segments and δ 0.006 m, where the speed bound needs 16
+//! states for 0.04 m; so one 8-state call usually certifies what took two or three.
+//!
+//! **The acceleration bound.** Joints `v` of the body's chain from the root, joint speeds
+//! `s_v = |mul_v · Δq_v|`, revolute axes `ω_v` through a point `o_v` fixed in the parent link.
+//! `p' = Σ_v q̇_v ω_v × (p − o_v)` (revolute) `+ Σ_v q̇_v ω_v` (prismatic), and differentiating
+//! (`ω_v' = Σ_{u<v} q̇_u ω_u × ω_v`, `o_v'` the velocity of a point of the parent link):
+//! `|p''| ≤ Σ_{v rev} s_v (2 W_{<v} D_v + Σ_{u≥v} s_u c_u) + Σ_{v pris} s_v W_{<v}`, where
+//! `W_{<v}` sums the revolute speeds above `v`, `D_v ≥ |p − o_v|`, and `c_u` is `ρ_u ≥` the
+//! distance of `p` from axis `u` (revolute) or 1 (prismatic). Summed in one pass from the root:
+//! `A = Σ_{v rev} (2 s_v D_v W_{<v} + s_v ρ_v W_{≤v}) + Σ_{v pris} 2 s_v W_{<v}`. `D_v` and `ρ_v`
+//! are the kinematic-chain bounds of the linear certificate (`model.rs`), taken over the body's
+//! sphere centres and its bounding sphere's centre.
+//!
+//! Rounding: the positions are the f32 kinematics', within the rounding allowance already in
+//! every radius ([`SphereChecker::ROUNDING_MARGIN`]); the midpoint and half chord computed from
+//! them may each be off by that much again, so δ carries one more allowance.
+
+// Lane code indexes several arrays with one lane/row index; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::Vector3;
+
+use super::kinematics::{Step, StepKind};
+use super::lanes::{le_zero_mask, obs_lanes_mask};
+use super::{Body, Hit, Lane, SphereChecker, LANES, NO_FOCUS, SELF_PAIR};
+
+/// The sub-intervals of one 8-lane call (lane `l` to lane `l + 1`).
+const SUB: u32 = (1 << (LANES - 1)) - 1;
+
+/// The bodies' coefficients of the acceleration bound, node-major: for node `n`, row `2n` holds
+/// per body `D_n` (the bound on its points' distance from the node's joint origin; 1 for a
+/// prismatic joint) and row `2n + 1` `ρ_n` (their distance from its axis; 0 for a prismatic
+/// joint), 0 for bodies not below the node; `stride` (the bodies rounded up to a multiple of 4)
+/// entries per row. With the per-node coefficients of a segment (see
+/// [`SphereChecker::segment_accelerations`]) `A_b = Σ_n α_n D_n[b] + β_n ρ_n[b]`.
+pub(super) fn accel_rows(
+    steps: &[Step],
+    bodies: &[Body],
+    spheres: &[[f32; 4]],
+    stride: usize,
+) -> Vec<f64> {
+    let v3 = |a: &[f32; 3]| Vector3::new(f64::from(a[0]), f64::from(a[1]), f64::from(a[2]));
+    let across =
+        |p: &Vector3<f64>, axis: &[f32; 3]| crate::geometry::distance_from_axis(p, &v3(axis));
+    let mut rows = vec![0.0f64; 2 * steps.len() * stride];
+    for (bi, body) in bodies.iter().enumerate() {
+        let mut pts: Vec<Vector3<f64>> = spheres[body.spheres.0 as usize..body.spheres.1 as usize]
+            .iter()
+            .map(|s| v3(&[s[0], s[1], s[2]]))
+            .collect();
+        pts.push(v3(&body.bc));
+        // As the speed bounds (`model.rs`): `d` bounds the distance of the points from the
+        // current node's origin (a point of its joint's axis fixed in the parent), `lever`
+        // their distance from its axis.
+        let mut d = pts.iter().map(|c| c.norm()).fold(0.0, f64::max);
+        let mut k = body.node as usize;
+        let mut lever = pts
+            .iter()
+            .map(|c| across(c, &steps[k].axis))
+            .fold(0.0, f64::max);
+        loop {
+            let st = &steps[k];
+            // The same small relative allowance as the speed bounds.
+            let (dn, rho) = match st.kind {
+                StepKind::Root => break,
+                StepKind::Revolute(_) => (d * (1.0 + 1e-5), lever * (1.0 + 1e-5)),
+                StepKind::Prismatic => (1.0, 0.0),
+            };
+            rows[2 * k * stride + bi] = dn;
+            rows[(2 * k + 1) * stride + bi] = rho;
+            let t = v3(&st.t);
+            let parent = &steps[st.parent as usize];
+            lever = across(&t, &parent.axis) + d + st.travel;
+            d += t.norm() + st.travel;
+            k = st.parent as usize;
+        }
+    }
+    rows
+}
+
+/// Lane `l` ← lane `l + 1` (the last lane keeps its value).
+#[inline(always)]
+fn next(v: &Lane) -> Lane {
+    let mut o = *v;
+    o[..LANES - 1].copy_from_slice(&v[1..]);
+    o
+}
+
+/// Chord midpoints and half lengths of a lane triple: `((p + p⁺) / 2, |p⁺ − p| / 2)` with
+/// `p⁺` the next lane's point.
+#[inline(always)]
+fn chords(p: &[Lane; 3]) -> ([Lane; 3], Lane) {
+    let mut mid = [[0.0f32; LANES]; 3];
+    let mut h2 = [0.0f32; LANES];
+    for r in 0..3 {
+        let n = next(&p[r]);
+        for l in 0..LANES {
+            mid[r][l] = 0.5 * (p[r][l] + n[l]);
+            let d = n[l] - p[r][l];
+            h2[l] += d * d;
+        }
+    }
+    let mut half = [0.0f32; LANES];
+    for l in 0..LANES {
+        half[l] = 0.5 * h2[l].sqrt();
+    }
+    (mid, half)
+}
+
+/// Lanes whose point lies within `r[l]` of `c`.
+#[inline(always)]
+fn within(p: &[Lane; 3], c: [f32; 3], r: &Lane) -> u32 {
+    let mut d = [0.0f32; LANES];
+    for l in 0..LANES {
+        let dx = p[0][l] - c[0];
+        let dy = p[1][l] - c[1];
+        let dz = p[2][l] - c[2];
+        d[l] = dx * dx + dy * dy + dz * dz - r[l] * r[l];
+    }
+    le_zero_mask::<LANES>(&d)
+}
+
+/// Lanes whose two points lie within `r[l]` of each other.
+#[inline(always)]
+fn within_lanes(a: &[Lane; 3], b: &[Lane; 3], r: &Lane) -> u32 {
+    let mut d = [0.0f32; LANES];
+    for l in 0..LANES {
+        let dx = a[0][l] - b[0][l];
+        let dy = a[1][l] - b[1][l];
+        let dz = a[2][l] - b[2][l];
+        d[l] = dx * dx + dy * dy + dz * dz - r[l] * r[l];
+    }
+    le_zero_mask::<LANES>(&d)
+}
+
+#[inline(always)]
+fn sub3(a: &[Lane; 3], b: &[Lane; 3]) -> [Lane; 3] {
+    let mut o = [[0.0f32; LANES]; 3];
+    for r in 0..3 {
+        for l in 0..LANES {
+            o[r][l] = a[r][l] - b[r][l];
+        }
+    }
+    o
+}
+
+#[inline(always)]
+fn plus(half: &Lane, r: f32) -> Lane {
+    let mut o = [0.0f32; LANES];
+    for l in 0..LANES {
+        o[l] = half[l] + r;
+    }
+    o
+}
+
+const ORIGIN: [f32; 3] = [0.0; 3];
+
+impl SphereChecker {
+    /// Turns the chord certificate of certified checks on or off (on by default; off: the
+    /// linear certificate from speed bounds alone). Both are sound; tests compare them.
+    #[doc(hidden)]
+    pub fn set_chord(&mut self, on: bool) {
+        self.chord = on;
+    }
+
+    /// Per body its acceleration bound `A` over the segment (`seg_acc`, from `seg_dq`; see the
+    /// module documentation); returns the largest. Per node `n` (tree order), with `s_n` its
+    /// joint's speed and `W` the revolute speeds summed from the root (`W⁻` above the node,
+    /// `W⁺` including it): `α_n = 2 s_n W⁻`, `β_n = s_n W⁺` (revolute) or `β_n = 0`
+    /// (prismatic); then `A_b = Σ_n α_n D_n[b] + β_n ρ_n[b]` ([`accel_rows`]), four bodies per
+    /// register as the speed bounds.
+    pub(super) fn segment_accelerations(&mut self) -> f64 {
+        for (si, st) in self.steps.iter().enumerate() {
+            let (alpha, beta, w) = match st.kind {
+                StepKind::Root => {
+                    self.node_speed[si] = 0.0;
+                    self.node_coef_sum[si] = 0.0;
+                    self.acc_coef[2 * si] = 0.0;
+                    self.acc_coef[2 * si + 1] = 0.0;
+                    continue;
+                }
+                kind => {
+                    let s = f64::from(st.mul).abs() * self.seg_dq[st.var as usize];
+                    let wp = self.node_speed[st.parent as usize];
+                    if kind == StepKind::Prismatic {
+                        (2.0 * s * wp, 0.0, wp)
+                    } else {
+                        (2.0 * s * wp, s * (wp + s), wp + s)
+                    }
+                }
+            };
+            self.node_speed[si] = w;
+            self.node_coef_sum[si] = self.node_coef_sum[st.parent as usize] + alpha + beta;
+            self.acc_coef[2 * si] = alpha;
+            self.acc_coef[2 * si + 1] = beta;
+        }
+        let amax = self.body_accelerations();
+        // A node's bounding-sphere centre rides with its first body's centre at a fixed offset
+        // `o`: every `D` and `ρ` of it is within `o` of that centre's, so its bound is the
+        // body's plus `o · Σ (α + β)` over the node's chain.
+        for (n, &(b0, off)) in self.node_anchor.iter().enumerate() {
+            self.node_acc[n] = if b0 == u32::MAX {
+                0.0
+            } else {
+                self.seg_acc[b0 as usize] + off * self.node_coef_sum[n]
+            };
+        }
+        amax
+    }
+
+    /// `seg_acc` from `acc_coef` and `acc_rows`; returns the largest.
+    fn body_accelerations(&mut self) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
+            return unsafe {
+                super::certified::segment_lengths_avx(
+                    &mut self.seg_acc,
+                    &self.acc_coef,
+                    &self.acc_rows,
+                )
+            };
+        }
+        let stride = self.seg_acc.len();
+        self.seg_acc.fill(0.0);
+        for (&c, row) in self
+            .acc_coef
+            .iter()
+            .zip(self.acc_rows.chunks_exact(stride.max(1)))
+        {
+            if c != 0.0 {
+                for (a, &w) in self.seg_acc.iter_mut().zip(row) {
+                    *a += c * w;
+                }
+            }
+        }
+        self.seg_acc.iter().fold(0.0f64, |m, &a| m.max(a))
+    }
+
+    /// Sets every body's allowance `δ = A h² / 8` (plus one rounding allowance, see the module
+    /// documentation) for sub-intervals of length `h`, in `infl`.
+    #[inline]
+    pub(super) fn set_chord_allowance(&mut self, h: f64) {
+        let k = h * h / 8.0;
+        for (i, &a) in self.infl.iter_mut().zip(&self.seg_acc) {
+            *i = (a * k + Self::ROUNDING_MARGIN) as f32;
+        }
+        for (i, &a) in self.node_dl.iter_mut().zip(&self.node_acc) {
+            *i = (a * k + Self::ROUNDING_MARGIN) as f32;
+        }
+    }
+
+    /// One 8-lane call of the chord certificate over the states in `qv` (lane `l` and `l + 1`
+    /// the ends of sub-interval `l`, allowances in `infl`): `Some` when a state collides with
+    /// the plain spheres; otherwise the sub-intervals some ball touches are logged per body and
+    /// self pair in `tight_log` (bit `l`). `focus`: only the bodies and pairs
+    /// `focus_pool[fs..fe]` (`NO_FOCUS`: all).
+    pub(super) fn chord8(&mut self, fs: u32, fe: u32) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
+            return unsafe { self.chord8_avx2(fs, fe) };
+        }
+        self.chord_run::<false>(fs, fe)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn chord8_avx2(&mut self, fs: u32, fe: u32) -> Option<Hit> {
+        self.chord_run::<true>(fs, fe)
+    }
+
+    #[inline(always)]
+    fn chord_run<const AVX: bool>(&mut self, fs: u32, fe: u32) -> Option<Hit> {
+        self.new_call();
+        if fs == NO_FOCUS {
+            // Kinematics fused with the tests, the hot body first (as the plain checks do:
+            // `SphereChecker::run`): a state colliding stops the call early.
+            let hot = if self.hot_first {
+                self.hot_body
+            } else {
+                u32::MAX
+            };
+            let mut stepped = 0;
+            if hot != u32::MAX {
+                let node = self.bodies[hot as usize].node as usize;
+                for si in 0..=node {
+                    self.step::<LANES, AVX>(si);
+                }
+                stepped = node + 1;
+                // A plain hit of any lane is a colliding state of the segment.
+                if self.hot_pair.0 != u32::MAX && self.hot_probe::<LANES, AVX>(hot as usize) {
+                    return Some(Hit::Obstacle(hot, self.hot_pair.1, self.hot_pair.0));
+                }
+                if let Some(h) = self.chord_env_of::<AVX>(hot as usize) {
+                    if let Hit::Obstacle(_, o, s) = h {
+                        self.hot_pair = (s, o);
+                    }
+                    return Some(h);
+                }
+            }
+            for si in 0..self.steps.len() {
+                if si >= stepped {
+                    self.step::<LANES, AVX>(si);
+                }
+                let (b0, b1) = self.steps[si].bodies;
+                for b in b0..b1 {
+                    if b == hot {
+                        continue;
+                    }
+                    if let Some(h) = self.chord_env_of::<AVX>(b as usize) {
+                        // The hot pair names a sphere of the hot body: both move.
+                        if let Hit::Obstacle(_, o, s) = h {
+                            self.warm_body = self.hot_body;
+                            self.hot_body = b;
+                            self.hot_pair = (s, o);
+                        }
+                        return Some(h);
+                    }
+                }
+            }
+            let mut pi = 0;
+            while pi < self.self_pairs.len() {
+                let end = self.pair_group_end[pi] as usize;
+                if end != 0 && self.node_cull {
+                    let (a, b) = self.self_pairs[pi];
+                    let (na, nb) = (self.bodies[a as usize].node, self.bodies[b as usize].node);
+                    if !self.chord_nodes_near::<AVX>(na as usize, nb as usize) {
+                        pi = end;
+                        continue;
+                    }
+                }
+                if let Some(h) = self.chord_pair_of::<AVX>(pi) {
+                    return Some(h);
+                }
+                pi += 1;
+            }
+            return None;
+        }
+        let (fs, fe) = (fs as usize, fe as usize);
+        let mut last = 0;
+        for &id in &self.focus_pool[fs..fe] {
+            let (a, b) = if id & SELF_PAIR != 0 {
+                self.self_pairs[(id & !SELF_PAIR) as usize]
+            } else {
+                (id, id)
+            };
+            last = last
+                .max(self.bodies[a as usize].node as usize)
+                .max(self.bodies[b as usize].node as usize);
+        }
+        for si in 0..=last.min(self.steps.len().saturating_sub(1)) {
+            self.step::<LANES, AVX>(si);
+        }
+        for k in fs..fe {
+            let id = self.focus_pool[k];
+            if id & SELF_PAIR == 0 {
+                if let Some(h) = self.chord_env_of::<AVX>(id as usize) {
+                    return Some(h);
+                }
+                continue;
+            }
+            let pi = (id & !SELF_PAIR) as usize;
+            let (a, b) = self.self_pairs[pi];
+            for x in [a, b] {
+                self.place_centre::<AVX>(x as usize);
+            }
+            if let Some(h) = self.chord_pair_of::<AVX>(pi) {
+                return Some(h);
+            }
+        }
+        None
+    }
+
+    /// [`Self::chord_env`], in AVX2 + FMA registers when `AVX`.
+    #[inline(always)]
+    fn chord_env_of<const AVX: bool>(&mut self, b: usize) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: `AVX` is true only inside `chord8_avx2` (AVX2 + FMA checked at
+            // construction).
+            return unsafe { self.chord_env_avx(b) };
+        }
+        self.chord_env::<AVX>(b)
+    }
+
+    /// [`Self::chord_pair`], in AVX2 + FMA registers when `AVX`.
+    #[inline(always)]
+    fn chord_pair_of<const AVX: bool>(&mut self, pi: usize) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: as in `chord_env_of`.
+            return unsafe { self.chord_pair_avx(pi) };
+        }
+        self.chord_pair::<AVX>(pi)
+    }
+
+    /// [`Self::chord_env`] in AVX2 + FMA registers: the same tests in the same order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn chord_env_avx(&mut self, b: usize) -> Option<Hit> {
+        use super::avx8::*;
+        use std::arch::x86_64::_mm256_set1_ps;
+        let SphereChecker {
+            bodies,
+            frames,
+            bcw,
+            infl,
+            body_obstacles,
+            body_obstacle_sphere,
+            obstacles_wide,
+            sw,
+            swm,
+            swh,
+            sw_epoch,
+            epoch,
+            spheres,
+            tight_log,
+            ..
+        } = self;
+        let body = &bodies[b];
+        let f = &frames[body.node as usize];
+        let c = place(f, &body.bc);
+        store3(&mut bcw[b], c);
+        let (o0, o1) = (body.obstacles.0 as usize, body.obstacles.1 as usize);
+        if o0 == o1 {
+            return None;
+        }
+        let dl = infl[b];
+        let (mid, half) = chords(c);
+        let reach = add_s(half, body.br + dl);
+        let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
+        let mut placed = sw_epoch[b] == *epoch;
+        let mut tb = 0u32;
+        for (&oi, ob) in body_obstacles[o0..o1]
+            .iter()
+            .zip(&body_obstacle_sphere[o0..o1])
+        {
+            if within(mid, splat3([ob[0], ob[1], ob[2]]), add_s(reach, ob[3])) & SUB == 0 {
+                continue;
+            }
+            let o = &obstacles_wide[oi as usize];
+            if obs_r(o, mid, reach) & SUB == 0 {
+                continue;
+            }
+            if !placed {
+                placed = true;
+                sw_epoch[b] = *epoch;
+                for (k, sp) in spheres[s0..s1].iter().enumerate() {
+                    let p = place(f, &[sp[0], sp[1], sp[2]]);
+                    store3(&mut sw[s0 + k], p);
+                    let (m, h) = chords(p);
+                    store3(&mut swm[s0 + k], m);
+                    store1(&mut swh[s0 + k], h);
+                }
+            }
+            for (k, sp) in spheres[s0..s1].iter().enumerate() {
+                let smid = load3(&swm[s0 + k]);
+                let shalf = load1(&swh[s0 + k]);
+                let m = obs_r(o, smid, add_s(shalf, sp[3] + dl)) & SUB;
+                if m == 0 {
+                    continue;
+                }
+                let ends = m | (m << 1);
+                if obs_r(o, load3(&sw[s0 + k]), _mm256_set1_ps(sp[3])) & ends != 0 {
+                    return Some(Hit::Obstacle(b as u32, oi, (s0 + k) as u32));
+                }
+                tb |= m;
+            }
+        }
+        if tb != 0 {
+            tight_log.push((b as u32, tb));
+        }
+        None
+    }
+
+    /// [`Self::chord_pair`] in AVX2 + FMA registers: the same tests in the same order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn chord_pair_avx(&mut self, pi: usize) -> Option<Hit> {
+        use super::avx8::*;
+        use std::arch::x86_64::{_mm256_add_ps, _mm256_set1_ps};
+        let (a, b) = self.self_pairs[pi];
+        let (a, b) = (a as usize, b as usize);
+        let dl = self.infl[a] + self.infl[b];
+        let (ra, rb) = (self.bodies[a].br, self.bodies[b].br);
+        let ca = load3(&self.bcw[a]);
+        let cb = load3(&self.bcw[b]);
+        let (mid, half) = chords(sub3(ca, cb));
+        if within_origin(mid, add_s(half, ra + rb + dl)) & SUB == 0 {
+            return None;
+        }
+        self.ensure_chords_avx(a);
+        self.ensure_chords_avx(b);
+        let (sa, sb) = (self.bodies[a].spheres, self.bodies[b].spheres);
+        // Each test first with the two points' own chords (the difference's half chord is at
+        // most the sum of theirs), then, where that touches, with the difference's chord.
+        let (mcb, hcb) = chords(cb);
+        let mut tp = 0u32;
+        for i in sa.0 as usize..sa.1 as usize {
+            let (pi_, ri) = (load3(&self.sw[i]), self.spheres[i][3]);
+            let (mi, hi) = (load3(&self.swm[i]), load1(&self.swh[i]));
+            // The sphere against b's bounding sphere first.
+            if within(mi, mcb, add_s(_mm256_add_ps(hi, hcb), ri + rb + dl)) & SUB == 0 {
+                continue;
+            }
+            for j in sb.0 as usize..sb.1 as usize {
+                let rij = ri + self.spheres[j][3];
+                let (mj, hj) = (load3(&self.swm[j]), load1(&self.swh[j]));
+                if within(mi, mj, add_s(_mm256_add_ps(hi, hj), rij + dl)) & SUB == 0 {
+                    continue;
+                }
+                let pj = load3(&self.sw[j]);
+                let (m1, h1) = chords(sub3(pi_, pj));
+                let m = within_origin(m1, add_s(h1, rij + dl)) & SUB;
+                if m == 0 {
+                    continue;
+                }
+                let ends = m | (m << 1);
+                if within(pi_, pj, _mm256_set1_ps(rij)) & ends != 0 {
+                    return Some(Hit::SelfPair(a as u32, b as u32));
+                }
+                tp |= m;
+            }
+        }
+        if tp != 0 {
+            self.tight_log.push((SELF_PAIR | pi as u32, tp));
+        }
+        None
+    }
+
+    /// Places body `b`'s spheres (once per call) with their chords (`swm`, `swh`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn ensure_chords_avx(&mut self, b: usize) {
+        use super::avx8::*;
+        if self.sw_epoch[b] == self.epoch {
+            return;
+        }
+        self.sw_epoch[b] = self.epoch;
+        let body = &self.bodies[b];
+        let f = &self.frames[body.node as usize];
+        for si in body.spheres.0 as usize..body.spheres.1 as usize {
+            let sp = self.spheres[si];
+            let p = place(f, &[sp[0], sp[1], sp[2]]);
+            store3(&mut self.sw[si], p);
+            let (m, h) = chords(p);
+            store3(&mut self.swm[si], m);
+            store1(&mut self.swh[si], h);
+        }
+    }
+
+    /// Whether the chord balls of nodes `na` and `nb`'s bounding spheres (around all their
+    /// bodies) touch in some sub-interval; when they do not, no pair of their bodies can.
+    #[inline(always)]
+    fn chord_nodes_near<const AVX: bool>(&mut self, na: usize, nb: usize) -> bool {
+        for n in [na, nb] {
+            if self.ncw_epoch[n] != self.epoch {
+                self.ncw_epoch[n] = self.epoch;
+                let s = self.node_sphere[n];
+                self.ncw[n] = Self::place::<LANES, AVX>(&self.frames[n], &[s[0], s[1], s[2]]);
+            }
+        }
+        let r =
+            self.node_sphere[na][3] + self.node_sphere[nb][3] + self.node_dl[na] + self.node_dl[nb];
+        let (mid, half) = chords(&sub3(&self.ncw[na], &self.ncw[nb]));
+        within(&mid, ORIGIN, &plus(&half, r)) & SUB != 0
+    }
+
+    /// Body `b`'s bounding-sphere centre in every lane, into `bcw`.
+    #[inline(always)]
+    fn place_centre<const AVX: bool>(&mut self, b: usize) {
+        let body = &self.bodies[b];
+        let c = Self::place::<LANES, AVX>(&self.frames[body.node as usize], &body.bc);
+        self.bcw[b] = c;
+    }
+
+    /// Body `b` against its obstacles under the chord certificate (its node's frame computed;
+    /// its centre placed into `bcw` for the self pairs).
+    #[inline(always)]
+    fn chord_env<const AVX: bool>(&mut self, b: usize) -> Option<Hit> {
+        self.place_centre::<AVX>(b);
+        let body = &self.bodies[b];
+        let (o0, o1) = (body.obstacles.0 as usize, body.obstacles.1 as usize);
+        if o0 == o1 {
+            return None;
+        }
+        let dl = self.infl[b];
+        let (mid, half) = chords(&self.bcw[b]);
+        let reach = plus(&half, body.br + dl);
+        let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
+        let mut tb = 0u32;
+        for k in o0..o1 {
+            let ob = self.body_obstacle_sphere[k];
+            if within(&mid, [ob[0], ob[1], ob[2]], &plus(&reach, ob[3])) & SUB == 0 {
+                continue;
+            }
+            let oi = self.body_obstacles[k] as usize;
+            let o = self.obstacles[oi];
+            if obs_lanes_mask(&o, &mid, &reach) & SUB == 0 {
+                continue;
+            }
+            self.ensure_spheres::<LANES, AVX>(b);
+            for si in s0..s1 {
+                let p = &self.sw[si];
+                let r = self.spheres[si][3];
+                let (smid, shalf) = chords(p);
+                let m = obs_lanes_mask(&o, &smid, &plus(&shalf, r + dl)) & SUB;
+                if m == 0 {
+                    continue;
+                }
+                let ends = m | (m << 1);
+                if obs_lanes_mask(&o, p, &[r; LANES]) & ends != 0 {
+                    return Some(Hit::Obstacle(b as u32, oi as u32, si as u32));
+                }
+                tb |= m;
+            }
+        }
+        if tb != 0 {
+            self.tight_log.push((b as u32, tb));
+        }
+        None
+    }
+
+    /// Self pair `pi` under the chord certificate (both bodies' centres in `bcw`).
+    #[inline(always)]
+    fn chord_pair<const AVX: bool>(&mut self, pi: usize) -> Option<Hit> {
+        let (a, b) = self.self_pairs[pi];
+        let (a, b) = (a as usize, b as usize);
+        let dl = self.infl[a] + self.infl[b];
+        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
+        let (ra, rb) = (ba.br, bb.br);
+        let d = sub3(&self.bcw[a], &self.bcw[b]);
+        let (mid, half) = chords(&d);
+        if within(&mid, ORIGIN, &plus(&half, ra + rb + dl)) & SUB == 0 {
+            return None;
+        }
+        self.ensure_spheres::<LANES, AVX>(a);
+        self.ensure_spheres::<LANES, AVX>(b);
+        let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
+        let (sa, sb) = (ba.spheres, bb.spheres);
+        let cb = self.bcw[b];
+        let mut tp = 0u32;
+        for i in sa.0 as usize..sa.1 as usize {
+            let (pi_, ri) = (&self.sw[i], self.spheres[i][3]);
+            // The sphere against b's bounding sphere first.
+            let (m0, h0) = chords(&sub3(pi_, &cb));
+            if within(&m0, ORIGIN, &plus(&h0, ri + rb + dl)) & SUB == 0 {
+                continue;
+            }
+            for j in sb.0 as usize..sb.1 as usize {
+                let rij = ri + self.spheres[j][3];
+                let dij = sub3(pi_, &self.sw[j]);
+                let (m1, h1) = chords(&dij);
+                let m = within(&m1, ORIGIN, &plus(&h1, rij + dl)) & SUB;
+                if m == 0 {
+                    continue;
+                }
+                let ends = m | (m << 1);
+                if within_lanes(pi_, &self.sw[j], &[rij; LANES]) & ends != 0 {
+                    return Some(Hit::SelfPair(a as u32, b as u32));
+                }
+                tp |= m;
+            }
+        }
+        if tp != 0 {
+            self.tight_log.push((SELF_PAIR | pi as u32, tp));
+        }
+        None
+    }
+
+    /// Number of 8-lane calls of the chord certificate's first pass: the fewest whose
+    /// sub-intervals (7 per call) keep every body's allowance `δ` within half of
+    /// `max_inflation` (the chords' half lengths take the rest, or refinement does).
+    pub(super) fn chord_calls(amax: f64, max_inflation: f64) -> usize {
+        // A h² / 8 ≤ max_inflation / 2  ⇔  1 / h ≥ sqrt(A / (4 max_infl)); the rounding up
+        // without `ceil` (a library call on the baseline target).
+        let per = (amax / (4.0 * max_inflation)).sqrt() / (LANES - 1) as f64;
+        let most = Self::CERTIFY_MAX_STATES / LANES;
+        // (NaN, from an infinite bound, takes the largest count too.)
+        if per.is_nan() || per >= most as f64 {
+            return most;
+        }
+        let calls = per as usize;
+        (calls + usize::from((calls as f64) < per)).max(1)
+    }
+
+    /// The chord certificate's first pass: `calls` 8-lane calls over `7 · calls` equal
+    /// sub-intervals, states `k / (7 calls)`, consecutive calls sharing their end state. False
+    /// when a state collides; the tight (sub-interval, body or self pair) entries in
+    /// `tight_states`.
+    pub(super) fn chord_first_pass(&mut self, a: &[f64], b: &[f64], calls: usize) -> bool {
+        let n = calls * (LANES - 1);
+        let h = 1.0 / n as f64;
+        self.tight_states.clear();
+        if self.uncertified {
+            // Benchmark only: the same states with plain spheres.
+            for c in 0..calls {
+                let ts: [f64; LANES] =
+                    std::array::from_fn(|l| ((c * (LANES - 1) + l) as f64 * h).min(1.0));
+                self.load_lanes(a, b, &ts);
+                self.checks += LANES as u64;
+                if self.collides8() {
+                    return false;
+                }
+            }
+            return true;
+        }
+        self.set_chord_allowance(h);
+        for c in 0..calls {
+            let first = c * (LANES - 1);
+            let ts: [f64; LANES] = std::array::from_fn(|l| {
+                if first + l == n {
+                    1.0
+                } else {
+                    (first + l) as f64 * h
+                }
+            });
+            self.load_lanes(a, b, &ts);
+            self.checks += LANES as u64;
+            if self.chord8(NO_FOCUS, NO_FOCUS).is_some() {
+                return false;
+            }
+            for e in 0..self.tight_log.len() {
+                let (id, mut m) = self.tight_log[e];
+                while m != 0 {
+                    let l = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    self.tight_states.push((first + l, id));
+                }
+            }
+        }
+        true
+    }
+
+    /// The chord certificate's refinement of the first pass's tight sub-intervals (each split
+    /// in 7 by one 8-lane call testing only what was tight in it, recursively).
+    pub(super) fn chord_refine(&mut self, a: &[f64], b: &[f64], calls: usize) -> bool {
+        let n = calls * (LANES - 1);
+        let h = 1.0 / n as f64;
+        self.refine.clear();
+        self.focus_pool.clear();
+        self.tight_states.sort_unstable();
+        self.tight_states.dedup();
+        let mut i = 0;
+        while i < self.tight_states.len() {
+            let k = self.tight_states[i].0;
+            let start = self.focus_pool.len();
+            while i < self.tight_states.len() && self.tight_states[i].0 == k {
+                if self.focus {
+                    self.focus_pool.push(self.tight_states[i].1);
+                }
+                i += 1;
+            }
+            let (fs, fe) = if self.focus {
+                (start as u32, self.focus_pool.len() as u32)
+            } else {
+                (NO_FOCUS, NO_FOCUS)
+            };
+            let t1 = if k + 1 == n { 1.0 } else { (k + 1) as f64 * h };
+            self.refine.push((k as f64 * h, t1, 0, fs, fe));
+        }
+        let mut budget = Self::CERTIFY_MAX_REFINEMENTS;
+        while let Some((t0, t1, depth, fs, fe)) = self.refine.pop() {
+            if depth >= Self::CERTIFY_MAX_DEPTH || budget == 0 {
+                return false;
+            }
+            budget -= 1;
+            self.certify_counts.refinements += 1;
+            let parts = (LANES - 1) as f64;
+            let hs = (t1 - t0) / parts;
+            self.set_chord_allowance(hs);
+            let ts: [f64; LANES] = std::array::from_fn(|l| {
+                if l == LANES - 1 {
+                    t1
+                } else {
+                    t0 + hs * l as f64
+                }
+            });
+            self.load_lanes(a, b, &ts);
+            self.checks += LANES as u64;
+            if self.chord8(fs, fe).is_some() {
+                return false;
+            }
+            let m = self.tight_log.iter().fold(0, |m, e| m | e.1);
+            let mut bits = m;
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let (nfs, nfe) = if fs == NO_FOCUS {
+                    (NO_FOCUS, NO_FOCUS)
+                } else {
+                    let start = self.focus_pool.len();
+                    for e in 0..self.tight_log.len() {
+                        let (id, em) = self.tight_log[e];
+                        if em & (1 << l) != 0 {
+                            self.focus_pool.push(id);
+                        }
+                    }
+                    (start as u32, self.focus_pool.len() as u32)
+                };
+                self.refine.push((ts[l], ts[l + 1], depth + 1, nfs, nfe));
+            }
+        }
+        true
+    }
+}
