@@ -126,6 +126,8 @@ pub struct SphereChecker {
     swm: Vec<[Lane; 3]>,
     swh: Vec<Lane>,
     sw_epoch: Vec<u32>,
+    /// Per body: the call (`epoch`) its spheres' chords were computed in.
+    chord_epoch: Vec<u32>,
     /// Per node: its bounding sphere's centre in this call (valid when `ncw_epoch` is
     /// `epoch`) and the largest inflation of its bodies.
     ncw: Vec<[Lane; 3]>,
@@ -209,17 +211,28 @@ pub struct SphereChecker {
     /// Certified checks use the chord certificate (see `chord.rs`; off only to compare the
     /// linear one in tests and benchmarks).
     chord: bool,
-    /// The bodies' coefficients of the acceleration bound (see [`chord::accel_rows`]).
-    acc_rows: Vec<f64>,
-    /// Per node, 2 coefficients of the acceleration bound over the current segment.
-    acc_coef: Vec<f64>,
-    /// Per node: its joint's and its ancestors' revolute speeds summed over the current segment.
-    node_speed: Vec<f64>,
+    /// The static terms of the acceleration bound, per node and per body (see
+    /// [`chord::accel_statics`]).
+    acc_static_node: Vec<(f64, f64)>,
+    acc_static_body: Vec<(f64, f64)>,
+    /// Per node over the current segment: `[W, C, E, G, P, β]` of
+    /// [`SphereChecker::segment_accelerations`].
+    acc_node: Vec<[f64; 6]>,
     /// Per body: its acceleration bound over the segment being certified (chord certificate;
-    /// padded with zeros to the stride of `acc_rows`).
+    /// valid where `acc_epoch` is `acc_seg`).
     seg_acc: Vec<f64>,
-    /// Per node: `Σ (α + β)` over its chain in the current segment (see `chord.rs`).
-    node_coef_sum: Vec<f64>,
+    acc_epoch: Vec<u32>,
+    /// Counts chord-certified segments.
+    acc_seg: u32,
+    /// Per node: the largest `d` of its bodies (`-1`: none), for the bound of the call count.
+    acc_node_dmax: Vec<f64>,
+    /// `h² / 8` of the current chord call, and the count of such calls (the epoch of the
+    /// allowances in `infl` and `node_dl`).
+    chord_k: f64,
+    dl_call: u32,
+    dl_epoch: Vec<u32>,
+    node_dl_epoch: Vec<u32>,
+    node_acc_epoch: Vec<u32>,
     /// Per node: its first body and the distance of its bounding sphere's centre from that
     /// body's (`u32::MAX`: no body).
     node_anchor: Vec<(u32, f64)>,
@@ -494,6 +507,7 @@ impl SphereChecker {
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
             self.sw_epoch.iter_mut().for_each(|e| *e = 0);
+            self.chord_epoch.iter_mut().for_each(|e| *e = 0);
             self.ncw_epoch.iter_mut().for_each(|e| *e = 0);
             self.epoch = 1;
         }

@@ -49,55 +49,54 @@ use super::{Body, Hit, Lane, SphereChecker, LANES, NO_FOCUS, SELF_PAIR};
 /// The sub-intervals of one 8-lane call (lane `l` to lane `l + 1`).
 const SUB: u32 = (1 << (LANES - 1)) - 1;
 
-/// The bodies' coefficients of the acceleration bound, node-major: for node `n`, row `2n` holds
-/// per body `D_n` (the bound on its points' distance from the node's joint origin; 1 for a
-/// prismatic joint) and row `2n + 1` `ρ_n` (their distance from its axis; 0 for a prismatic
-/// joint), 0 for bodies not below the node; `stride` (the bodies rounded up to a multiple of 4)
-/// entries per row. With the per-node coefficients of a segment (see
-/// [`SphereChecker::segment_accelerations`]) `A_b = Σ_n α_n D_n[b] + β_n ρ_n[b]`.
-pub(super) fn accel_rows(
+/// Two static terms of the acceleration bound (see [`accel_statics`]).
+pub(super) type Pair = (f64, f64);
+
+/// The static terms of the acceleration bound (see
+/// [`SphereChecker::segment_accelerations`]): per node `(L, g)` with `L = |t| + travel` (its
+/// joint origin's offset in the parent, plus a prismatic joint's travel: what the distance of a
+/// point below it from the parent's origin may exceed its distance from its own) and
+/// `g = |t| − dist(t, parent's axis)` (what the distance from a point of the parent's axis
+/// exceeds that from the axis itself); per body `(d, λ)`, the largest distance of its points
+/// (sphere centres and its bounding sphere's centre) from its node's origin and from its node's
+/// axis.
+pub(super) fn accel_statics(
     steps: &[Step],
     bodies: &[Body],
     spheres: &[[f32; 4]],
-    stride: usize,
-) -> Vec<f64> {
+) -> (Vec<Pair>, Vec<Pair>) {
     let v3 = |a: &[f32; 3]| Vector3::new(f64::from(a[0]), f64::from(a[1]), f64::from(a[2]));
     let across =
         |p: &Vector3<f64>, axis: &[f32; 3]| crate::geometry::distance_from_axis(p, &v3(axis));
-    let mut rows = vec![0.0f64; 2 * steps.len() * stride];
-    for (bi, body) in bodies.iter().enumerate() {
-        let mut pts: Vec<Vector3<f64>> = spheres[body.spheres.0 as usize..body.spheres.1 as usize]
-            .iter()
-            .map(|s| v3(&[s[0], s[1], s[2]]))
-            .collect();
-        pts.push(v3(&body.bc));
-        // As the speed bounds (`model.rs`): `d` bounds the distance of the points from the
-        // current node's origin (a point of its joint's axis fixed in the parent), `lever`
-        // their distance from its axis.
-        let mut d = pts.iter().map(|c| c.norm()).fold(0.0, f64::max);
-        let mut k = body.node as usize;
-        let mut lever = pts
-            .iter()
-            .map(|c| across(c, &steps[k].axis))
-            .fold(0.0, f64::max);
-        loop {
-            let st = &steps[k];
-            // The same small relative allowance as the speed bounds.
-            let (dn, rho) = match st.kind {
-                StepKind::Root => break,
-                StepKind::Revolute(_) => (d * (1.0 + 1e-5), lever * (1.0 + 1e-5)),
-                StepKind::Prismatic => (1.0, 0.0),
-            };
-            rows[2 * k * stride + bi] = dn;
-            rows[(2 * k + 1) * stride + bi] = rho;
+    let nodes = steps
+        .iter()
+        .map(|st| {
             let t = v3(&st.t);
-            let parent = &steps[st.parent as usize];
-            lever = across(&t, &parent.axis) + d + st.travel;
-            d += t.norm() + st.travel;
-            k = st.parent as usize;
-        }
-    }
-    rows
+            let g = if st.kind == StepKind::Root {
+                0.0
+            } else {
+                (t.norm() - across(&t, &steps[st.parent as usize].axis)).max(0.0)
+            };
+            (t.norm() + st.travel, g)
+        })
+        .collect();
+    let bodies = bodies
+        .iter()
+        .map(|body| {
+            let mut pts: Vec<Vector3<f64>> = spheres
+                [body.spheres.0 as usize..body.spheres.1 as usize]
+                .iter()
+                .map(|s| v3(&[s[0], s[1], s[2]]))
+                .collect();
+            pts.push(v3(&body.bc));
+            let axis = &steps[body.node as usize].axis;
+            (
+                pts.iter().map(|c| c.norm()).fold(0.0, f64::max),
+                pts.iter().map(|c| across(c, axis)).fold(0.0, f64::max),
+            )
+        })
+        .collect();
+    (nodes, bodies)
 }
 
 /// Lane `l` ← lane `l + 1` (the last lane keeps its value).
@@ -186,89 +185,132 @@ impl SphereChecker {
     }
 
     /// Per body its acceleration bound `A` over the segment (`seg_acc`, from `seg_dq`; see the
-    /// module documentation); returns the largest. Per node `n` (tree order), with `s_n` its
-    /// joint's speed and `W` the revolute speeds summed from the root (`W⁻` above the node,
-    /// `W⁺` including it): `α_n = 2 s_n W⁻`, `β_n = s_n W⁺` (revolute) or `β_n = 0`
-    /// (prismatic); then `A_b = Σ_n α_n D_n[b] + β_n ρ_n[b]` ([`accel_rows`]), four bodies per
-    /// register as the speed bounds.
+    /// module documentation) and per node that of its bounding sphere's centre (`node_acc`);
+    /// returns the largest of the bodies'.
+    ///
+    /// The bound `Σ_{k rev} (α_k D_k + β_k ρ_k) + Σ_{k pris} α_k` over the body's chain, with
+    /// `α_k = 2 s_k W_{<k}` and `β_k = s_k W_{≤k}`, in O(1) per node and per body: going up from
+    /// a body on node `n`, `D_k = d + R(n → k)` with `R` the sum of the offsets `L` of the nodes
+    /// passed (`model.rs`'s speed bounds grow `D` so), and `D_k − ρ_k = g_c` of the child `c` on
+    /// the way (`ρ_k = dist(t_c, axis_k) + D_c + travel_c`). So with per-node sums
+    /// `C_n = C_p + (α_n + β_n)`, `E_n = E_p + L_n C_p`, `G_n = G_p + β_p g_n` and
+    /// `P_n = P_p + α_n` (prismatic), over revolute nodes where not said:
+    /// `A_b = d_b C_n + E_n − G_n − β_n (d_b − λ_b) + P_n` ([`accel_statics`]).
     pub(super) fn segment_accelerations(&mut self) -> f64 {
-        for (si, st) in self.steps.iter().enumerate() {
-            let (alpha, beta, w) = match st.kind {
-                StepKind::Root => {
-                    self.node_speed[si] = 0.0;
-                    self.node_coef_sum[si] = 0.0;
-                    self.acc_coef[2 * si] = 0.0;
-                    self.acc_coef[2 * si + 1] = 0.0;
-                    continue;
-                }
-                kind => {
-                    let s = f64::from(st.mul).abs() * self.seg_dq[st.var as usize];
-                    let wp = self.node_speed[st.parent as usize];
-                    if kind == StepKind::Prismatic {
-                        (2.0 * s * wp, 0.0, wp)
-                    } else {
-                        (2.0 * s * wp, s * (wp + s), wp + s)
-                    }
-                }
-            };
-            self.node_speed[si] = w;
-            self.node_coef_sum[si] = self.node_coef_sum[st.parent as usize] + alpha + beta;
-            self.acc_coef[2 * si] = alpha;
-            self.acc_coef[2 * si + 1] = beta;
-        }
-        let amax = self.body_accelerations();
-        // A node's bounding-sphere centre rides with its first body's centre at a fixed offset
-        // `o`: every `D` and `ρ` of it is within `o` of that centre's, so its bound is the
-        // body's plus `o · Σ (α + β)` over the node's chain.
-        for (n, &(b0, off)) in self.node_anchor.iter().enumerate() {
-            self.node_acc[n] = if b0 == u32::MAX {
-                0.0
+        for si in 0..self.steps.len() {
+            let st = &self.steps[si];
+            if st.kind == StepKind::Root {
+                self.acc_node[si] = [0.0; 6];
+                continue;
+            }
+            let p = self.acc_node[st.parent as usize];
+            let [wp, cp, ep, gp, pp, bp] = p;
+            let s = f64::from(st.mul).abs() * self.seg_dq[st.var as usize];
+            let (l, g) = self.acc_static_node[si];
+            let alpha = 2.0 * s * wp;
+            let base = [wp, cp, ep + l * cp, gp + bp * g, pp, 0.0];
+            self.acc_node[si] = if st.kind == StepKind::Prismatic {
+                [base[0], base[1], base[2], base[3], pp + alpha, 0.0]
             } else {
-                self.seg_acc[b0 as usize] + off * self.node_coef_sum[n]
+                let w = wp + s;
+                let beta = s * w;
+                [w, cp + alpha + beta, base[2], base[3], pp, beta]
             };
+        }
+        // New segment: every body's and node's bound is computed on first use.
+        self.acc_seg = self.acc_seg.wrapping_add(1);
+        if self.acc_seg == 0 {
+            self.acc_epoch.fill(0);
+            self.node_acc_epoch.fill(0);
+            self.acc_seg = 1;
+        }
+        // For the number of calls, a bound of every body's: `A_b ≤ d_b C_n + E_n + P_n` (the
+        // subtracted terms are ≥ 0) ≤ the same with the node's largest `d`.
+        let mut amax = 0.0f64;
+        for (n, &dmax) in self.acc_node_dmax.iter().enumerate() {
+            if dmax >= 0.0 {
+                let [_, c, e, _, p, _] = self.acc_node[n];
+                amax = amax.max((dmax * c + e + p) * (1.0 + 1e-5));
+            }
         }
         amax
     }
 
-    /// `seg_acc` from `acc_coef` and `acc_rows`; returns the largest.
-    fn body_accelerations(&mut self) -> f64 {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
-            return unsafe {
-                super::certified::segment_lengths_avx(
-                    &mut self.seg_acc,
-                    &self.acc_coef,
-                    &self.acc_rows,
-                )
-            };
+    /// Body `b`'s acceleration bound over the current segment (computed once per segment).
+    #[inline(always)]
+    fn body_acc(&mut self, b: usize) -> f64 {
+        if self.acc_epoch[b] != self.acc_seg {
+            self.acc_epoch[b] = self.acc_seg;
+            let [_, c, e, g, p, beta] = self.acc_node[self.bodies[b].node as usize];
+            let (d, lever) = self.acc_static_body[b];
+            // The relative allowance covers the rounding of these f64 sums.
+            self.seg_acc[b] = ((d * c + e - g - beta * (d - lever)).max(0.0) + p) * (1.0 + 1e-5);
         }
-        let stride = self.seg_acc.len();
-        self.seg_acc.fill(0.0);
-        for (&c, row) in self
-            .acc_coef
-            .iter()
-            .zip(self.acc_rows.chunks_exact(stride.max(1)))
-        {
-            if c != 0.0 {
-                for (a, &w) in self.seg_acc.iter_mut().zip(row) {
-                    *a += c * w;
-                }
-            }
-        }
-        self.seg_acc.iter().fold(0.0f64, |m, &a| m.max(a))
+        self.seg_acc[b]
     }
 
-    /// Sets every body's allowance `δ = A h² / 8` (plus one rounding allowance, see the module
-    /// documentation) for sub-intervals of length `h`, in `infl`.
+    /// Node `n`'s bounding-sphere centre's acceleration bound over the current segment: it
+    /// rides with its first body's centre at a fixed offset `o`, so every `D` and `ρ` of it is
+    /// within `o` of that centre's, and its bound is the body's plus `o · C`.
+    #[inline(always)]
+    fn node_acc_of(&mut self, n: usize) -> f64 {
+        if self.node_acc_epoch[n] != self.acc_seg {
+            self.node_acc_epoch[n] = self.acc_seg;
+            let (b0, off) = self.node_anchor[n];
+            self.node_acc[n] = if b0 == u32::MAX {
+                0.0
+            } else {
+                self.body_acc(b0 as usize) + off * self.acc_node[n][1] * (1.0 + 1e-5)
+            };
+        }
+        self.node_acc[n]
+    }
+
+    /// Every body's and node's bound of the current segment into `seg_acc` and `node_acc`
+    /// (tests).
+    #[cfg(test)]
+    pub(super) fn all_accelerations(&mut self) {
+        for b in 0..self.bodies.len() {
+            self.body_acc(b);
+        }
+        for n in 0..self.steps.len() {
+            self.node_acc_of(n);
+        }
+    }
+
+    /// Body `b`'s allowance `δ = A h² / 8` (plus one rounding allowance, see the module
+    /// documentation) in the current call (computed once per call, in `infl`).
+    #[inline(always)]
+    fn dl(&mut self, b: usize) -> f32 {
+        if self.dl_epoch[b] != self.dl_call {
+            self.dl_epoch[b] = self.dl_call;
+            let a = self.body_acc(b);
+            self.infl[b] = (a * self.chord_k + Self::ROUNDING_MARGIN) as f32;
+        }
+        self.infl[b]
+    }
+
+    /// Node `n`'s allowance in the current call (see [`Self::dl`]).
+    #[inline(always)]
+    fn node_dl_of(&mut self, n: usize) -> f32 {
+        if self.node_dl_epoch[n] != self.dl_call {
+            self.node_dl_epoch[n] = self.dl_call;
+            let a = self.node_acc_of(n);
+            self.node_dl[n] = (a * self.chord_k + Self::ROUNDING_MARGIN) as f32;
+        }
+        self.node_dl[n]
+    }
+
+    /// Sets the allowances `δ = A h² / 8` for sub-intervals of length `h`: each body's and
+    /// node's is computed when first needed ([`Self::dl`]).
     #[inline]
     pub(super) fn set_chord_allowance(&mut self, h: f64) {
-        let k = h * h / 8.0;
-        for (i, &a) in self.infl.iter_mut().zip(&self.seg_acc) {
-            *i = (a * k + Self::ROUNDING_MARGIN) as f32;
-        }
-        for (i, &a) in self.node_dl.iter_mut().zip(&self.node_acc) {
-            *i = (a * k + Self::ROUNDING_MARGIN) as f32;
+        self.chord_k = h * h / 8.0;
+        self.dl_call = self.dl_call.wrapping_add(1);
+        if self.dl_call == 0 {
+            self.dl_epoch.fill(0);
+            self.node_dl_epoch.fill(0);
+            self.dl_call = 1;
         }
     }
 
@@ -424,17 +466,15 @@ impl SphereChecker {
     fn chord_env_avx(&mut self, b: usize) -> Option<Hit> {
         use super::avx8::*;
         use std::arch::x86_64::_mm256_set1_ps;
+        let dl = self.dl(b);
         let SphereChecker {
             bodies,
             frames,
             bcw,
-            infl,
             body_obstacles,
             body_obstacle_sphere,
             obstacles_wide,
             sw,
-            swm,
-            swh,
             sw_epoch,
             epoch,
             spheres,
@@ -449,7 +489,6 @@ impl SphereChecker {
         if o0 == o1 {
             return None;
         }
-        let dl = infl[b];
         let (mid, half) = chords(c);
         let reach = add_s(half, body.br + dl);
         let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
@@ -470,22 +509,20 @@ impl SphereChecker {
                 placed = true;
                 sw_epoch[b] = *epoch;
                 for (k, sp) in spheres[s0..s1].iter().enumerate() {
-                    let p = place(f, &[sp[0], sp[1], sp[2]]);
-                    store3(&mut sw[s0 + k], p);
-                    let (m, h) = chords(p);
-                    store3(&mut swm[s0 + k], m);
-                    store1(&mut swh[s0 + k], h);
+                    store3(&mut sw[s0 + k], place(f, &[sp[0], sp[1], sp[2]]));
                 }
             }
+            // Chords per sphere here, not with the placement: a colliding call usually stops
+            // at a body's first spheres (the self pairs compute all of them, `chord_epoch`).
             for (k, sp) in spheres[s0..s1].iter().enumerate() {
-                let smid = load3(&swm[s0 + k]);
-                let shalf = load1(&swh[s0 + k]);
+                let p = load3(&sw[s0 + k]);
+                let (smid, shalf) = chords(p);
                 let m = obs_r(o, smid, add_s(shalf, sp[3] + dl)) & SUB;
                 if m == 0 {
                     continue;
                 }
                 let ends = m | (m << 1);
-                if obs_r(o, load3(&sw[s0 + k]), _mm256_set1_ps(sp[3])) & ends != 0 {
+                if obs_r(o, p, _mm256_set1_ps(sp[3])) & ends != 0 {
                     return Some(Hit::Obstacle(b as u32, oi, (s0 + k) as u32));
                 }
                 tb |= m;
@@ -506,7 +543,7 @@ impl SphereChecker {
         use std::arch::x86_64::{_mm256_add_ps, _mm256_set1_ps};
         let (a, b) = self.self_pairs[pi];
         let (a, b) = (a as usize, b as usize);
-        let dl = self.infl[a] + self.infl[b];
+        let dl = self.dl(a) + self.dl(b);
         let (ra, rb) = (self.bodies[a].br, self.bodies[b].br);
         let ca = load3(&self.bcw[a]);
         let cb = load3(&self.bcw[b]);
@@ -559,16 +596,23 @@ impl SphereChecker {
     #[inline]
     fn ensure_chords_avx(&mut self, b: usize) {
         use super::avx8::*;
-        if self.sw_epoch[b] == self.epoch {
+        if self.chord_epoch[b] == self.epoch {
             return;
         }
+        self.chord_epoch[b] = self.epoch;
+        let placed = self.sw_epoch[b] == self.epoch;
         self.sw_epoch[b] = self.epoch;
         let body = &self.bodies[b];
         let f = &self.frames[body.node as usize];
         for si in body.spheres.0 as usize..body.spheres.1 as usize {
-            let sp = self.spheres[si];
-            let p = place(f, &[sp[0], sp[1], sp[2]]);
-            store3(&mut self.sw[si], p);
+            let p = if placed {
+                load3(&self.sw[si])
+            } else {
+                let sp = self.spheres[si];
+                let p = place(f, &[sp[0], sp[1], sp[2]]);
+                store3(&mut self.sw[si], p);
+                p
+            };
             let (m, h) = chords(p);
             store3(&mut self.swm[si], m);
             store1(&mut self.swh[si], h);
@@ -586,8 +630,10 @@ impl SphereChecker {
                 self.ncw[n] = Self::place::<LANES, AVX>(&self.frames[n], &[s[0], s[1], s[2]]);
             }
         }
-        let r =
-            self.node_sphere[na][3] + self.node_sphere[nb][3] + self.node_dl[na] + self.node_dl[nb];
+        let r = self.node_sphere[na][3]
+            + self.node_sphere[nb][3]
+            + self.node_dl_of(na)
+            + self.node_dl_of(nb);
         let (mid, half) = chords(&sub3(&self.ncw[na], &self.ncw[nb]));
         within(&mid, ORIGIN, &plus(&half, r)) & SUB != 0
     }
@@ -605,12 +651,13 @@ impl SphereChecker {
     #[inline(always)]
     fn chord_env<const AVX: bool>(&mut self, b: usize) -> Option<Hit> {
         self.place_centre::<AVX>(b);
-        let body = &self.bodies[b];
-        let (o0, o1) = (body.obstacles.0 as usize, body.obstacles.1 as usize);
+        let (o0, o1) = self.bodies[b].obstacles;
+        let (o0, o1) = (o0 as usize, o1 as usize);
         if o0 == o1 {
             return None;
         }
-        let dl = self.infl[b];
+        let dl = self.dl(b);
+        let body = &self.bodies[b];
         let (mid, half) = chords(&self.bcw[b]);
         let reach = plus(&half, body.br + dl);
         let (s0, s1) = (body.spheres.0 as usize, body.spheres.1 as usize);
@@ -652,7 +699,7 @@ impl SphereChecker {
     fn chord_pair<const AVX: bool>(&mut self, pi: usize) -> Option<Hit> {
         let (a, b) = self.self_pairs[pi];
         let (a, b) = (a as usize, b as usize);
-        let dl = self.infl[a] + self.infl[b];
+        let dl = self.dl(a) + self.dl(b);
         let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
         let (ra, rb) = (ba.br, bb.br);
         let d = sub3(&self.bcw[a], &self.bcw[b]);

@@ -485,7 +485,12 @@ impl SphereChecker {
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
         let avx2 = false;
-        let acc_rows = chord::accel_rows(&steps, &bodies, &spheres, stride);
+        let (acc_static_node, acc_static_body) = chord::accel_statics(&steps, &bodies, &spheres);
+        let mut acc_node_dmax = vec![-1.0f64; n_nodes];
+        for (b, body) in bodies.iter().enumerate() {
+            let m = &mut acc_node_dmax[body.node as usize];
+            *m = m.max(acc_static_body[b].0);
+        }
         let node_anchor: Vec<(u32, f64)> = steps
             .iter()
             .zip(&node_sphere)
@@ -512,6 +517,7 @@ impl SphereChecker {
             swm: vec![[[0.0; LANES]; 3]; ns],
             swh: vec![[0.0; LANES]; ns],
             sw_epoch: vec![0; nb],
+            chord_epoch: vec![0; nb],
             ncw: vec![[[0.0; LANES]; 3]; n_nodes],
             ncw_epoch: vec![0; n_nodes],
             ninfl: vec![0.0; n_nodes],
@@ -558,11 +564,18 @@ impl SphereChecker {
             certify_counts: Default::default(),
             uncertified: false,
             chord: true,
-            acc_rows,
-            acc_coef: vec![0.0; 2 * n_nodes],
-            node_speed: vec![0.0; n_nodes],
-            seg_acc: vec![0.0; stride],
-            node_coef_sum: vec![0.0; n_nodes],
+            acc_static_node,
+            acc_static_body,
+            acc_node: vec![[0.0; 6]; n_nodes],
+            seg_acc: vec![0.0; nb],
+            acc_epoch: vec![0; nb],
+            acc_seg: 0,
+            acc_node_dmax,
+            chord_k: 0.0,
+            dl_call: 0,
+            dl_epoch: vec![0; nb],
+            node_dl_epoch: vec![0; n_nodes],
+            node_acc_epoch: vec![0; n_nodes],
             node_anchor,
             node_acc: vec![0.0; n_nodes],
             node_dl: vec![0.0; n_nodes],

@@ -745,6 +745,7 @@ fn acceleration_bounds_bound_chord_distance(robot: std::sync::Arc<crate::Robot>)
             *d = (y - x).abs();
         }
         sc.segment_accelerations();
+        sc.all_accelerations();
         let bounds: Vec<f64> = sc
             .seg_acc
             .iter()
