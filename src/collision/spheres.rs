@@ -17,10 +17,13 @@
 //!   sphere test; meshes become the oriented box around their vertices (a superset);
 //! - no allocation per check;
 //! - certified motion checks ([`SphereChecker::segment_certified`]): a whole straight segment
-//!   is proven collision-free as a continuous motion from bounds on how fast each link's and
-//!   each self-collision pair's spheres can move (Schwarzer, Saha & Latombe's swept-distance
-//!   argument, "Adaptive dynamic collision checking for single and multiple articulated
-//!   robots", IEEE T-RO 2005, here with inflated spheres instead of distances).
+//!   is proven collision-free as a continuous motion. By default from the chord certificate
+//!   (`chord.rs`): the computed positions at the checked states and a bound on each point's
+//!   acceleration along the joint-space line, so that between two states a sphere stays in a
+//!   ball about its chord's midpoint; otherwise (a switch for tests) from bounds on how fast each
+//!   link's and each self-collision pair's spheres can move (Schwarzer, Saha & Latombe's
+//!   swept-distance argument, "Adaptive dynamic collision checking for single and multiple
+//!   articulated robots", IEEE T-RO 2005, here with inflated spheres instead of distances).
 //!
 //! Conservative against [`super::ExactChecker`]: every robot sphere is inflated by
 //! [`SphereChecker::ROUNDING_MARGIN`] (plus the requested padding), above the f32 rounding of

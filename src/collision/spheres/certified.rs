@@ -1,8 +1,9 @@
 //! Certified motion checks of the sphere checker ([`SphereChecker::segment_certified`]): a
-//! whole straight segment proven collision-free as a continuous motion from bounds on how fast
-//! each link's and each self pair's spheres move (Schwarzer, Saha & Latombe, "Adaptive dynamic
-//! collision checking for single and multiple articulated robots", IEEE T-RO 2005, with
-//! inflated spheres instead of distances), refined where the first pass is tight.
+//! whole straight segment proven collision-free as a continuous motion, by default by the chord
+//! certificate (`chord.rs`), or (a switch for tests) from bounds on how fast each link's and
+//! each self pair's spheres move (Schwarzer, Saha & Latombe, "Adaptive dynamic collision
+//! checking for single and multiple articulated robots", IEEE T-RO 2005, with inflated spheres
+//! instead of distances), refined where the first pass is tight.
 
 use super::{SphereChecker, LANES, NO_FOCUS};
 
@@ -249,6 +250,11 @@ impl SphereChecker {
 
     /// Certified motion check: true only when the whole continuous straight segment `a → b`
     /// (world configurations, `a` included) is collision-free — not just states sampled on it.
+    ///
+    /// By default the chord certificate proves it (`chord.rs`: each sphere, between two checked
+    /// states, inside the ball about its chord's midpoint grown by half the chord and an
+    /// acceleration allowance; sub-intervals split in 7 where a ball touches). With
+    /// `set_chord(false)`, the linear certificate described here:
     ///
     /// Along the segment a sphere centre moves at most `L = Σ_v |b_v − a_v|·w_v` (w_v bounds its
     /// distance to the axis of every joint driven by variable v), uniformly in the segment
