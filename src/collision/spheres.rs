@@ -521,18 +521,7 @@ impl SphereChecker {
     #[inline(always)]
     fn run_focus<const N: usize, const AVX: bool>(&mut self, fs: usize, fe: usize) -> Option<Hit> {
         self.new_call();
-        let mut last = 0;
-        for &id in &self.focus_pool[fs..fe] {
-            let (a, b) = if id & SELF_PAIR != 0 {
-                self.self_pairs[(id & !SELF_PAIR) as usize]
-            } else {
-                (id, id)
-            };
-            last = last
-                .max(self.bodies[a as usize].node as usize)
-                .max(self.bodies[b as usize].node as usize);
-        }
-        for si in 0..=last.min(self.steps.len().saturating_sub(1)) {
+        for si in 0..self.focus_steps(fs, fe) {
             self.step::<N, AVX>(si);
         }
         for k in fs..fe {
@@ -557,6 +546,24 @@ impl SphereChecker {
             }
         }
         None
+    }
+
+    /// The number of kinematic steps that the bodies and self pairs `focus_pool[fs..fe]` need:
+    /// up to the deepest node among them.
+    #[inline(always)]
+    fn focus_steps(&self, fs: usize, fe: usize) -> usize {
+        let mut last = 0;
+        for &id in &self.focus_pool[fs..fe] {
+            let (a, b) = if id & SELF_PAIR != 0 {
+                self.self_pairs[(id & !SELF_PAIR) as usize]
+            } else {
+                (id, id)
+            };
+            last = last
+                .max(self.bodies[a as usize].node as usize)
+                .max(self.bodies[b as usize].node as usize);
+        }
+        (last + 1).min(self.steps.len())
     }
 
     /// Whether the hot pair's sphere (of body `b`, its node's frame computed) touches the hot

@@ -169,68 +169,13 @@ pub(super) fn point_near(a: [V; 3], p: &[f32; 4], r: f32) -> u32 {
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 pub(super) fn obs(o: &ObsWide, p: [V; 3], r: f32) -> u32 {
-    let zero = _mm256_setzero_ps();
-    let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
-    let rel = |c: &[Lane; 3]| {
-        [
-            _mm256_sub_ps(p[0], load(&c[0])),
-            _mm256_sub_ps(p[1], load(&c[1])),
-            _mm256_sub_ps(p[2], load(&c[2])),
-        ]
-    };
-    let dot = |a: &[Lane; 3], d: &[V; 3]| {
-        _mm256_fmadd_ps(
-            load(&a[2]),
-            d[2],
-            _mm256_fmadd_ps(load(&a[1]), d[1], _mm256_mul_ps(load(&a[0]), d[0])),
-        )
-    };
-    let d = match o {
-        ObsWide::Sphere { c, r: ro } => {
-            let d = rel(c);
-            dist2_minus(d[0], d[1], d[2], (r + ro) * (r + ro))
-        }
-        ObsWide::Box { c, rt, half } => {
-            let d = rel(c);
-            let mut acc = _mm256_set1_ps(-(r * r));
-            for k in 0..3 {
-                let q = _mm256_and_ps(dot(&rt[k], &d), abs_mask);
-                let e = _mm256_max_ps(_mm256_sub_ps(q, load(&half[k])), zero);
-                acc = _mm256_fmadd_ps(e, e, acc);
-            }
-            acc
-        }
-        ObsWide::Cylinder { c, axis, r: rc, h } => {
-            let d = rel(c);
-            let pz = dot(axis, &d);
-            let all = dist2_minus(d[0], d[1], d[2], 0.0);
-            let rad2 = _mm256_max_ps(_mm256_fnmadd_ps(pz, pz, all), zero);
-            let dr = _mm256_max_ps(_mm256_sub_ps(_mm256_sqrt_ps(rad2), load(rc)), zero);
-            let ez = _mm256_max_ps(_mm256_sub_ps(_mm256_and_ps(pz, abs_mask), load(h)), zero);
-            _mm256_fmadd_ps(dr, dr, _mm256_fmsub_ps(ez, ez, _mm256_set1_ps(r * r)))
-        }
-        ObsWide::Capsule {
-            c,
-            axis,
-            r: rc,
-            h,
-            neg_h,
-        } => {
-            let d = rel(c);
-            let pz = dot(axis, &d);
-            let t = _mm256_min_ps(_mm256_max_ps(pz, load(neg_h)), load(h));
-            let e = [
-                _mm256_fnmadd_ps(t, load(&axis[0]), d[0]),
-                _mm256_fnmadd_ps(t, load(&axis[1]), d[1]),
-                _mm256_fnmadd_ps(t, load(&axis[2]), d[2]),
-            ];
-            dist2_minus(e[0], e[1], e[2], (r + rc) * (r + rc))
-        }
-    };
-    le_zero(d)
+    // The same operations as with a per-lane radius (`(r + ro)²`, `r²` per lane equal the
+    // scalar ones), so the same masks.
+    obs_r(o, p, _mm256_set1_ps(r))
 }
 
-/// [`obs`] with a radius per lane (the chord certificate's balls, see `chord.rs`).
+/// Lanes whose sphere (centre `p`, radius `r` per lane) touches the obstacle ([`obs`] with one
+/// radius; the chord certificate's balls, see `chord.rs`).
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 pub(super) fn obs_r(o: &ObsWide, p: [V; 3], r: V) -> u32 {

@@ -402,18 +402,7 @@ impl SphereChecker {
             return None;
         }
         let (fs, fe) = (fs as usize, fe as usize);
-        let mut last = 0;
-        for &id in &self.focus_pool[fs..fe] {
-            let (a, b) = if id & SELF_PAIR != 0 {
-                self.self_pairs[(id & !SELF_PAIR) as usize]
-            } else {
-                (id, id)
-            };
-            last = last
-                .max(self.bodies[a as usize].node as usize)
-                .max(self.bodies[b as usize].node as usize);
-        }
-        for si in 0..=last.min(self.steps.len().saturating_sub(1)) {
+        for si in 0..self.focus_steps(fs, fe) {
             self.step::<LANES, AVX>(si);
         }
         for k in fs..fe {

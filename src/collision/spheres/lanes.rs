@@ -112,59 +112,7 @@ pub(super) fn obs_mask<const N: usize>(
     z: &[f32; N],
     r: f32,
 ) -> u32 {
-    let mut d = [0.0f32; N];
-    match *o {
-        Obs::Sphere { c, r: ro } => {
-            let rr = (r + ro) * (r + ro);
-            for l in 0..N {
-                let dx = x[l] - c[0];
-                let dy = y[l] - c[1];
-                let dz = z[l] - c[2];
-                d[l] = dx * dx + dy * dy + dz * dz - rr;
-            }
-        }
-        Obs::Box { c, rt, half } => {
-            for l in 0..N {
-                let dx = x[l] - c[0];
-                let dy = y[l] - c[1];
-                let dz = z[l] - c[2];
-                let mut d2 = 0.0f32;
-                for k in 0..3 {
-                    let p = rt[k][0] * dx + rt[k][1] * dy + rt[k][2] * dz;
-                    let e = (p.abs() - half[k]).max(0.0);
-                    d2 += e * e;
-                }
-                d[l] = d2 - r * r;
-            }
-        }
-        Obs::Cylinder { c, axis, r: rc, h } => {
-            for l in 0..N {
-                let dx = x[l] - c[0];
-                let dy = y[l] - c[1];
-                let dz = z[l] - c[2];
-                let pz = axis[0] * dx + axis[1] * dy + axis[2] * dz;
-                let rad2 = (dx * dx + dy * dy + dz * dz - pz * pz).max(0.0);
-                let dr = (rad2.sqrt() - rc).max(0.0);
-                let ez = (pz.abs() - h).max(0.0);
-                d[l] = dr * dr + ez * ez - r * r;
-            }
-        }
-        Obs::Capsule { c, axis, r: rc, h } => {
-            let rr = (r + rc) * (r + rc);
-            for l in 0..N {
-                let dx = x[l] - c[0];
-                let dy = y[l] - c[1];
-                let dz = z[l] - c[2];
-                let pz = axis[0] * dx + axis[1] * dy + axis[2] * dz;
-                let t = pz.clamp(-h, h);
-                let ex = dx - t * axis[0];
-                let ey = dy - t * axis[1];
-                let ez = dz - t * axis[2];
-                d[l] = ex * ex + ey * ey + ez * ez - rr;
-            }
-        }
-    }
-    le_zero_mask::<N>(&d)
+    obs_radii_mask::<N>(o, x, y, z, &[r; N])
 }
 
 /// `(sin x, cos x)` of every lane in f32 (Cephes' sinf/cosf kernels after a three-constant
@@ -206,12 +154,22 @@ pub(super) fn sincos_lanes<const N: usize, const AVX: bool>(v: &[f32; N]) -> ([f
     (sn, cs)
 }
 
-/// Lanes (bit l) whose sphere (x, y, z of `p`, radius `r[l]`) touches the obstacle: the tests
-/// of [`obs_mask`] with a radius per lane (the chord certificate's balls).
+/// [`obs_mask`] for the chord certificate's lane triples with a radius per lane.
 #[inline(always)]
 pub(super) fn obs_lanes_mask(o: &Obs, p: &[Lane; 3], r: &Lane) -> u32 {
-    const N: usize = super::LANES;
-    let (x, y, z) = (&p[0], &p[1], &p[2]);
+    obs_radii_mask::<{ super::LANES }>(o, &p[0], &p[1], &p[2], r)
+}
+
+/// Lanes (bit l) whose sphere (x, y, z, radius `r[l]`) touches the obstacle: closed-form
+/// sphere–primitive tests.
+#[inline(always)]
+fn obs_radii_mask<const N: usize>(
+    o: &Obs,
+    x: &[f32; N],
+    y: &[f32; N],
+    z: &[f32; N],
+    r: &[f32; N],
+) -> u32 {
     let mut d = [0.0f32; N];
     match *o {
         Obs::Sphere { c, r: ro } => {
