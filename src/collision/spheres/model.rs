@@ -491,6 +491,8 @@ impl SphereChecker {
             let m = &mut acc_node_dmax[body.node as usize];
             *m = m.max(acc_static_body[b].0);
         }
+        let acc_steps = chord::acc_steps(&steps, &acc_static_node);
+        let acc_amax = chord::acc_amax_nodes(&steps, &acc_static_node, &acc_node_dmax);
         let node_anchor: Vec<(u32, f64)> = steps
             .iter()
             .zip(&node_sphere)
@@ -564,13 +566,13 @@ impl SphereChecker {
             certify_counts: Default::default(),
             uncertified: false,
             chord: true,
-            acc_static_node,
+            acc_steps,
+            acc_amax,
             acc_static_body,
             acc_node: vec![[0.0; 6]; n_nodes],
             seg_acc: vec![0.0; nb],
             acc_epoch: vec![0; nb],
             acc_seg: 0,
-            acc_node_dmax,
             chord_k: 0.0,
             dl_call: 0,
             dl_epoch: vec![0; nb],

@@ -744,8 +744,20 @@ fn acceleration_bounds_bound_chord_distance(robot: std::sync::Arc<crate::Robot>)
         for (d, (x, y)) in sc.seg_dq.iter_mut().zip(a.iter().zip(&b)) {
             *d = (y - x).abs();
         }
-        sc.segment_accelerations();
+        let amax = sc.segment_accelerations();
         sc.all_accelerations();
+        // The call count's bound (over the nodes no descendant dominates) covers every body's.
+        let mut largest = sc.seg_acc[..nb].iter().fold(0.0f64, |m, &x| m.max(x));
+        // And equals the bound over every node (pruning leaves the maximum unchanged).
+        for (b, body) in sc.bodies.iter().enumerate() {
+            let [_, c, e, _, p, _] = sc.acc_node[body.node as usize];
+            largest = largest.max((sc.acc_static_body[b].0 * c + e + p) * (1.0 + 1e-5));
+        }
+        assert!(
+            largest <= amax * (1.0 + 1e-9),
+            "{}: a body's bound {largest} exceeds the call count's {amax}",
+            robot.name
+        );
         let bounds: Vec<f64> = sc
             .seg_acc
             .iter()
