@@ -255,6 +255,33 @@ impl SphereChecker {
             })
             .collect();
         let pairs = world.pairs();
+        // Moving bodies by a dense index (links of each robot in turn, then attached objects),
+        // and per moving body the fixed bodies it is checked against: set-up ran SipHash
+        // lookups per pair and scanned every pair per (body, obstacle) before (measured,
+        // callgrind, UR5-like problems: 168 k instructions per checker, most of them those).
+        let link_base: Vec<usize> = world
+            .robots
+            .iter()
+            .scan(0, |n, p| {
+                let b = *n;
+                *n += p.robot.links.len();
+                Some(b)
+            })
+            .collect();
+        let n_links: usize = world.robots.iter().map(|p| p.robot.links.len()).sum();
+        let dense = |id: BodyId| match id {
+            BodyId::Link { robot, link } => Some(link_base[robot] + link),
+            BodyId::Attached(a) => Some(n_links + a),
+            BodyId::Static(_) => None,
+        };
+        let n_dense = n_links + world.attached.len();
+        let n_statics = world.statics.len();
+        let mut checked_static = vec![false; n_dense * n_statics];
+        for &(a, b) in &pairs {
+            if let (Some(m), BodyId::Static(s)) = (dense(a), b) {
+                checked_static[m * n_statics + s] = true;
+            }
+        }
         let mut bodies = Vec::new();
         let mut spheres = Vec::new();
         let mut body_obstacles = Vec::new();
@@ -282,10 +309,9 @@ impl SphereChecker {
             let first_o = body_obstacles.len() as u32;
             let n = *node as usize;
             let body_reach = reach[n] + bc.norm() + br;
+            let row = dense(*id).map(|m| m * n_statics);
             for (oi, &si) in obstacle_static.iter().enumerate() {
-                let checked = pairs
-                    .iter()
-                    .any(|&(a, b)| a == *id && b == BodyId::Static(si as usize));
+                let checked = row.is_some_and(|r| checked_static[r + si as usize]);
                 if !checked {
                     continue;
                 }
@@ -317,12 +343,17 @@ impl SphereChecker {
             let end = bodies.partition_point(|b: &Body| (b.node as usize) <= si) as u32;
             s.bodies = (first, end);
         }
-        // By id (a linear search per pair costs O(bodies · pairs) on robots of hundreds of links).
-        let mut by_id: std::collections::HashMap<BodyId, usize> = std::collections::HashMap::new();
+        // By dense id (a linear search per pair costs O(bodies · pairs) on robots of hundreds of
+        // links).
+        let mut by_id = vec![usize::MAX; n_dense];
         for (i, b) in bodies.iter().enumerate() {
-            by_id.entry(b.id).or_insert(i);
+            if let Some(m) = dense(b.id) {
+                if by_id[m] == usize::MAX {
+                    by_id[m] = i;
+                }
+            }
         }
-        let index = |id: BodyId| by_id.get(&id).copied();
+        let index = |id: BodyId| dense(id).map(|m| by_id[m]).filter(|&i| i != usize::MAX);
         let mut self_pairs = Vec::new();
         for &(a, b) in &pairs {
             if let (Some(ia), Some(ib)) = (index(a), index(b)) {

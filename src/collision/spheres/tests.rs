@@ -850,3 +850,113 @@ fn chord_certificate_checks_fewer_states_than_the_linear_one_on_long_links() {
     assert!(disagree * 20 <= both, "{disagree} verdicts differ");
     assert!(c * 5 <= l * 4, "chord {c} states, linear {l}");
 }
+
+/// The checker tests exactly the world's checked pairs: with two robots (the second's links
+/// indexed after the first's), fixed bodies within every link's reach and pairs the world
+/// allows, each body's obstacle list and the self pairs equal what `CollisionWorld::pairs`
+/// names (set-up indexes bodies densely instead of hashing them).
+#[test]
+fn checker_tests_exactly_the_world_s_checked_pairs() {
+    use super::*;
+    use crate::collision::world::{PlacedRobot, StaticBody, StaticKind};
+    use crate::geometry::{Geometry, Pose, Shape};
+    let robot = generality_robot("ur5like", "ur5like");
+    let mut world = CollisionWorld::single(robot.clone(), Pose::identity());
+    world.robots.push(PlacedRobot {
+        name: "second".into(),
+        robot: robot.clone(),
+        base: Pose::translation(0.3, 0.0, 0.0),
+        offset: robot.dof(),
+    });
+    // Within every link's reach from either base (set-up drops a fixed body no configuration
+    // brings a link to).
+    for (k, y) in [0.05, 0.0, -0.05].into_iter().enumerate() {
+        world.statics.push(StaticBody {
+            name: format!("ball{k}"),
+            kind: StaticKind::Obstacle,
+            pose: Pose::translation(0.15, y, 0.0),
+            shapes: vec![Geometry {
+                origin: Pose::identity(),
+                shape: Shape::Sphere { radius: 0.05 },
+            }],
+        });
+    }
+    let links = robot.links.len();
+    // A link of each robot allowed to touch a ball, and one pair across the robots.
+    world.allow(
+        BodyId::Link {
+            robot: 1,
+            link: links - 2,
+        },
+        BodyId::Static(1),
+    );
+    world.allow(
+        BodyId::Link {
+            robot: 0,
+            link: links - 2,
+        },
+        BodyId::Static(2),
+    );
+    world.allow(
+        BodyId::Link {
+            robot: 0,
+            link: links - 3,
+        },
+        BodyId::Link {
+            robot: 1,
+            link: links - 3,
+        },
+    );
+    let pairs = world.pairs();
+    let sc = SphereChecker::new(&world, 0.0).expect("spheres");
+    let mut statics_seen = 0;
+    for body in &sc.bodies {
+        let listed: std::collections::BTreeSet<u32> = sc.body_obstacles
+            [body.obstacles.0 as usize..body.obstacles.1 as usize]
+            .iter()
+            .map(|&oi| sc.obstacle_static[oi as usize])
+            .collect();
+        let named: std::collections::BTreeSet<u32> = pairs
+            .iter()
+            .filter(|p| p.0 == body.id)
+            .filter_map(|p| match p.1 {
+                BodyId::Static(s) => Some(s as u32),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(listed, named, "{:?}", body.id);
+        statics_seen += listed.len();
+    }
+    // Both robots' bodies met every ball but the ones allowed.
+    assert_eq!(statics_seen, 3 * sc.bodies.len() - 2);
+    let id = |b: u32| sc.bodies[b as usize].id;
+    let mut tested: Vec<(BodyId, BodyId)> =
+        sc.self_pairs.iter().map(|&(a, b)| (id(a), id(b))).collect();
+    let mut named: Vec<(BodyId, BodyId)> = pairs
+        .iter()
+        .filter(|p| !matches!(p.1, BodyId::Static(_)))
+        .filter(|p| sc.bodies.iter().any(|b| b.id == p.0) && sc.bodies.iter().any(|b| b.id == p.1))
+        .map(|&(a, b)| {
+            let pos = |x: BodyId| sc.bodies.iter().position(|b| b.id == x);
+            if pos(a) <= pos(b) {
+                (a, b)
+            } else {
+                (b, a)
+            }
+        })
+        .collect();
+    let key = |p: &(BodyId, BodyId)| format!("{p:?}");
+    tested.sort_by_key(key);
+    named.sort_by_key(key);
+    assert_eq!(tested, named);
+    assert!(!tested.contains(&(
+        BodyId::Link {
+            robot: 0,
+            link: links - 3
+        },
+        BodyId::Link {
+            robot: 1,
+            link: links - 3
+        },
+    )));
+}
