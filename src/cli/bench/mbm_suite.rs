@@ -201,7 +201,7 @@ pub fn run(ctx: &Ctx, a: &MbmArgs, suite: Suite) -> Result<()> {
     }
     if !ctx.json {
         println!(
-            "generality suite: {} robots, RRT-Connect as `bench mbm` (derived range and dynamic domain, balanced trees, lazy certification), no simplification, seed {}, {} trial(s); each planned certified and without the certificate (benchmark only); every path re-checked exactly at {}°",
+            "generality suite: {} robots, RRT-Connect as `bench mbm` (derived range and dynamic domain, balanced trees, eager certification), no simplification, seed {}, {} trial(s); each planned certified and without the certificate (benchmark only); every path re-checked exactly at {}°",
             members.len(),
             a.seed,
             a.trials,

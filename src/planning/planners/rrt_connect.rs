@@ -54,12 +54,14 @@ pub struct RrtConnectSettings {
     /// certificate's refinement only). An edge that fails is removed with its subtree
     /// ([`Tree::remove_subtree`]) and the search goes on. A path edge's certification refines
     /// from its screening pass ([`SpaceValidator::certify_screened`]) instead of running that
-    /// pass again. Every returned path is fully certified either way; `false` (the default
-    /// here; `bench mbm` turns it on) certifies every edge when it is added. Measured
-    /// (callgrind, 15 Panda MotionBenchMaker problems per set, search only, lazy against
-    /// eager): cage −12.6 %, bookshelf_small −7.2 %, table_pick −5.2 %, box −4.8 %,
-    /// table_under_pick −3.6 %, bookshelf_thin −2.4 %, bookshelf_tall −0.6 % (rerunning the
-    /// screening pass instead made the easy sets 4–12 % slower).
+    /// pass again. Every returned path is fully certified either way; `false` (the default,
+    /// here and in `bench mbm`; `--lazy-certify` turns it on) certifies every edge when it is
+    /// added. Measured with the linear certificate (callgrind, 15 Panda MotionBenchMaker
+    /// problems per set, search only, lazy against eager): cage −12.6 %, bookshelf_small
+    /// −7.2 %, table_pick −5.2 %, box −4.8 %, table_under_pick −3.6 %, bookshelf_thin −2.4 %,
+    /// bookshelf_tall −0.6 % (rerunning the screening pass instead made the easy sets 4–12 %
+    /// slower); with the chord certificate, all 699 Panda problems +0.7 % for lazy, Baxter
+    /// (30 problems, 3 seeds) +15 % (its searches meet lazily accepted edges that fail).
     pub lazy: bool,
     /// Where EXTEND's samples come from.
     pub sampler: Sampler,
