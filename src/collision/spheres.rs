@@ -431,16 +431,18 @@ impl SphereChecker {
         self.run::<1, false>()
     }
 
-    /// Fused FK and checking of the first `N` lanes of `qv`.
+    /// The fixed-body tests of a call fused with the kinematics (each node's frame computed
+    /// when first needed): the hot body (`u32::MAX`: none) with its probe, then the one that
+    /// collided before it (warm), then every other body in kinematic order, each with `env`;
+    /// `Some` at the first collision, the hot and warm bodies following the hits (8-lane calls
+    /// only). Shared by the plain checks ([`Self::run`]) and the chord certificate's
+    /// (`chord.rs`), which differ in `env` alone.
     #[inline(always)]
-    fn run<const N: usize, const AVX: bool>(&mut self) -> Option<Hit> {
-        self.new_call();
-        // The hot body first (8-lane checks only), with the kinematics up to its node.
-        let hot = if N == LANES && self.hot_first {
-            self.hot_body
-        } else {
-            u32::MAX
-        };
+    fn bodies_hot_first<const N: usize, const AVX: bool>(
+        &mut self,
+        hot: u32,
+        env: fn(&mut Self, usize) -> Option<Hit>,
+    ) -> Option<Hit> {
         let mut stepped = 0;
         if hot != u32::MAX {
             let node = self.bodies[hot as usize].node as usize;
@@ -451,7 +453,7 @@ impl SphereChecker {
             if self.hot_pair.0 != u32::MAX && self.hot_probe::<N, AVX>(hot as usize) {
                 return Some(Hit::Obstacle(hot, self.hot_pair.1, self.hot_pair.0));
             }
-            if let Some(h) = self.env_of::<N, AVX>(hot as usize) {
+            if let Some(h) = env(self, hot as usize) {
                 if let Hit::Obstacle(_, o, s) = h {
                     self.hot_pair = (s, o);
                 }
@@ -469,7 +471,7 @@ impl SphereChecker {
                 self.step::<N, AVX>(si);
             }
             stepped = stepped.max(node + 1);
-            if let Some(h) = self.env_of::<N, AVX>(warm as usize) {
+            if let Some(h) = env(self, warm as usize) {
                 if let Hit::Obstacle(_, o, s) = h {
                     self.warm_body = hot;
                     self.hot_body = warm;
@@ -487,7 +489,7 @@ impl SphereChecker {
                 if b == hot || b == warm {
                     continue;
                 }
-                if let Some(h) = self.env_of::<N, AVX>(b as usize) {
+                if let Some(h) = env(self, b as usize) {
                     if let (true, Hit::Obstacle(_, o, s)) = (N == LANES, h) {
                         self.warm_body = self.hot_body;
                         self.hot_body = b;
@@ -496,6 +498,22 @@ impl SphereChecker {
                     return Some(h);
                 }
             }
+        }
+        None
+    }
+
+    /// Fused FK and checking of the first `N` lanes of `qv`.
+    #[inline(always)]
+    fn run<const N: usize, const AVX: bool>(&mut self) -> Option<Hit> {
+        self.new_call();
+        // The hot body first (8-lane checks only), with the kinematics up to its node.
+        let hot = if N == LANES && self.hot_first {
+            self.hot_body
+        } else {
+            u32::MAX
+        };
+        if let Some(h) = self.bodies_hot_first::<N, AVX>(hot, Self::env_of::<N, AVX>) {
+            return Some(h);
         }
         let mut pi = 0;
         while pi < self.self_pairs.len() {
