@@ -337,6 +337,13 @@ impl SphereChecker {
         }
     }
 
+    /// The allowance `δ = A h² / 8` of a point whose acceleration bound is `a`, in the current
+    /// call, plus one rounding allowance (see the module documentation).
+    #[inline(always)]
+    fn allowance(&self, a: f64) -> f32 {
+        (a * self.chord_k + Self::ROUNDING_MARGIN) as f32
+    }
+
     /// Body `b`'s allowance `δ = A h² / 8` (plus one rounding allowance, see the module
     /// documentation) in the current call (computed once per call, in `infl`).
     #[inline(always)]
@@ -344,7 +351,7 @@ impl SphereChecker {
         if self.dl_epoch[b] != self.dl_call {
             self.dl_epoch[b] = self.dl_call;
             let a = self.body_acc(b);
-            self.infl[b] = (a * self.chord_k + Self::ROUNDING_MARGIN) as f32;
+            self.infl[b] = self.allowance(a);
         }
         self.infl[b]
     }
@@ -355,7 +362,7 @@ impl SphereChecker {
         if self.node_dl_epoch[n] != self.dl_call {
             self.node_dl_epoch[n] = self.dl_call;
             let a = self.node_acc_of(n);
-            self.node_dl[n] = (a * self.chord_k + Self::ROUNDING_MARGIN) as f32;
+            self.node_dl[n] = self.allowance(a);
         }
         self.node_dl[n]
     }
