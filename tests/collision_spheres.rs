@@ -289,8 +289,8 @@ fn segment_check_equals_state_by_state_on((r, file): (Arc<Robot>, MbmFile)) {
 /// colliding ones. (That the cull bounds every pair it skips, inflations included, is tested
 /// directly in the module: `node_cull_bounds_every_pair_of_its_group`.)
 /// Segment `k` (`a → b`) gets the same certified verdict with the same number of checked
-/// states from both checkers, and the same discrete verdict at a random resolution; returns
-/// the certified verdict.
+/// states from both checkers (but for a hot start's early collision, see below), and the same
+/// discrete verdict at a random resolution; returns the certified verdict.
 fn same_segment_verdicts(
     on: &mut SphereChecker,
     off: &mut SphereChecker,
@@ -302,7 +302,14 @@ fn same_segment_verdicts(
     let (c0, d0) = (on.checks(), off.checks());
     let v = on.segment_certified(a, b, 0.04);
     assert_eq!(v, off.segment_certified(a, b, 0.04), "segment {k}");
-    assert_eq!(on.checks() - c0, off.checks() - d0, "segment {k}");
+    // The same states, except that a certified check with a hot body first tests the hot
+    // and warm bodies at 8 states spread over the whole segment (its first call's when it
+    // makes one): a collision there ends it before later calls.
+    let (con, coff) = (on.checks() - c0, off.checks() - d0);
+    assert!(
+        con == coff || (!v && con == 8 && coff > 8),
+        "segment {k}: {con} against {coff} states"
+    );
     let n = rng.random_range(1..40);
     assert_eq!(
         on.segment_free(a, b, n),

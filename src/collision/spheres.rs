@@ -436,20 +436,23 @@ impl SphereChecker {
     /// collided before it (warm), then every other body in kinematic order, each with `env`;
     /// `Some` at the first collision, the hot and warm bodies following the hits (8-lane calls
     /// only). Shared by the plain checks ([`Self::run`]) and the chord certificate's
-    /// (`chord.rs`), which differ in `env` alone.
+    /// (`chord.rs`), which differ in `env` alone. `stepped`: the frames of the first
+    /// `stepped` steps are already computed for the loaded lanes (0: none); on return, those
+    /// computed now too. Without `REST`, only the hot and warm bodies are tested (the chord
+    /// certificate's start, [`Self::hot_start`]).
     #[inline(always)]
-    fn bodies_hot_first<const N: usize, const AVX: bool>(
+    fn bodies_hot_first<const N: usize, const AVX: bool, const REST: bool>(
         &mut self,
         hot: u32,
+        stepped: &mut usize,
         env: fn(&mut Self, usize) -> Option<Hit>,
     ) -> Option<Hit> {
-        let mut stepped = 0;
         if hot != u32::MAX {
             let node = self.bodies[hot as usize].node as usize;
-            for si in 0..=node {
+            for si in *stepped..=node {
                 self.step::<N, AVX>(si);
             }
-            stepped = node + 1;
+            *stepped = (*stepped).max(node + 1);
             if self.hot_pair.0 != u32::MAX && self.hot_probe::<N, AVX>(hot as usize) {
                 return Some(Hit::Obstacle(hot, self.hot_pair.1, self.hot_pair.0));
             }
@@ -467,10 +470,10 @@ impl SphereChecker {
         };
         if warm != u32::MAX {
             let node = self.bodies[warm as usize].node as usize;
-            for si in stepped..=node {
+            for si in *stepped..=node {
                 self.step::<N, AVX>(si);
             }
-            stepped = stepped.max(node + 1);
+            *stepped = (*stepped).max(node + 1);
             if let Some(h) = env(self, warm as usize) {
                 if let Hit::Obstacle(_, o, s) = h {
                     self.warm_body = hot;
@@ -480,8 +483,11 @@ impl SphereChecker {
                 return Some(h);
             }
         }
+        if !REST {
+            return None;
+        }
         for si in 0..self.steps.len() {
-            if si >= stepped {
+            if si >= *stepped {
                 self.step::<N, AVX>(si);
             }
             let (b0, b1) = self.steps[si].bodies;
@@ -512,7 +518,8 @@ impl SphereChecker {
         } else {
             u32::MAX
         };
-        if let Some(h) = self.bodies_hot_first::<N, AVX>(hot, Self::env_of::<N, AVX>) {
+        if let Some(h) = self.bodies_hot_first::<N, AVX, true>(hot, &mut 0, Self::env_of::<N, AVX>)
+        {
             return Some(h);
         }
         let mut pi = 0;

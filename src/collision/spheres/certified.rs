@@ -5,6 +5,7 @@
 //! checking for single and multiple articulated robots", IEEE T-RO 2005, with inflated spheres
 //! instead of distances), refined where the first pass is tight.
 
+use super::chord::HotStart;
 use super::{SphereChecker, LANES, NO_FOCUS};
 
 /// The verdict of the first pass of a certified motion check
@@ -270,10 +271,14 @@ impl SphereChecker {
     /// colliding with plain spheres, or more than [`Self::CERTIFY_MAX_DEPTH`] levels or
     /// [`Self::CERTIFY_MAX_REFINEMENTS`] checks of refinement, gives false.
     pub fn segment_certified(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> bool {
+        let start = self.hot_start(a, b);
+        if start == HotStart::Collides {
+            return false;
+        }
         let ok = match self.begin_segment(a, b, max_inflation) {
             Certificate::Linear(n) => self.certify(a, b, n),
             Certificate::Chord(calls) => {
-                self.chord_first_pass(a, b, calls)
+                self.chord_first_pass(a, b, calls, start)
                     && (self.tight_states.is_empty() || self.chord_refine(a, b, calls))
             }
         };
@@ -291,9 +296,14 @@ impl SphereChecker {
     /// `planning::RrtConnectSettings::lazy`) accept tight segments provisionally and certify
     /// them only when they lie on a solution.
     pub fn segment_screened(&mut self, a: &[f64], b: &[f64], max_inflation: f64) -> SegmentScreen {
+        let start = self.hot_start(a, b);
+        if start == HotStart::Collides {
+            self.tight_states.clear();
+            return SegmentScreen::Collides;
+        }
         let free = match self.begin_segment(a, b, max_inflation) {
             Certificate::Linear(n) => self.first_pass(a, b, n),
-            Certificate::Chord(calls) => self.chord_first_pass(a, b, calls),
+            Certificate::Chord(calls) => self.chord_first_pass(a, b, calls, start),
         };
         let r = if !free {
             SegmentScreen::Collides

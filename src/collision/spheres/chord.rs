@@ -237,6 +237,18 @@ fn plus(half: &Lane, r: f32) -> Lane {
 
 const ORIGIN: [f32; 3] = [0.0; 3];
 
+/// What [`SphereChecker::hot_start`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum HotStart {
+    /// Not run.
+    Skipped,
+    /// A state collides: the segment is not free.
+    Collides,
+    /// The hot and warm bodies are free at the one-call first pass's states, which are
+    /// loaded, with the frames of the first this many steps computed.
+    Free(usize),
+}
+
 impl SphereChecker {
     /// Turns the chord certificate of certified checks on or off (on by default; off: the
     /// linear certificate from speed bounds alone). Both are sound; tests compare them.
@@ -384,24 +396,88 @@ impl SphereChecker {
     /// the ends of sub-interval `l`, allowances in `infl`): `Some` when a state collides with
     /// the plain spheres; otherwise the sub-intervals some ball touches are logged per body and
     /// self pair in `tight_log` (bit `l`). `focus`: only the bodies and pairs
-    /// `focus_pool[fs..fe]` (`NO_FOCUS`: all).
-    pub(super) fn chord8(&mut self, fs: u32, fe: u32) -> Option<Hit> {
+    /// `focus_pool[fs..fe]` (`NO_FOCUS`: all). `stepped`: the frames of the first `stepped`
+    /// steps are already computed for these lanes (by [`Self::hot_start`]; 0: none).
+    pub(super) fn chord8(&mut self, fs: u32, fe: u32, stepped: usize) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
-            return unsafe { self.chord8_avx2(fs, fe) };
+            return unsafe { self.chord8_avx2(fs, fe, stepped) };
         }
-        self.chord_run::<false>(fs, fe)
+        self.chord_run::<false>(fs, fe, stepped)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn chord8_avx2(&mut self, fs: u32, fe: u32) -> Option<Hit> {
-        self.chord_run::<true>(fs, fe)
+    unsafe fn chord8_avx2(&mut self, fs: u32, fe: u32, stepped: usize) -> Option<Hit> {
+        self.chord_run::<true>(fs, fe, stepped)
+    }
+
+    /// The start of a chord-certified check of segment `a → b`, before its bounds: the
+    /// states of the first pass's first call when it makes one call (`t = k/7`, as almost
+    /// every extension of a search does), loaded, and the hot and warm bodies tested there
+    /// with their plain spheres ([`Self::bodies_hot_first`] with the plain body test), as the
+    /// plain checks test them. Motions that collide mostly collide with the hot body (UR5-like
+    /// cage: 97 % of the checked segments collide, 85 % of them at the hot body, 7 % at the
+    /// warm one), and a state colliding there decides the segment: no certificate could prove
+    /// it free, and its acceleration bounds ([`Self::begin_segment`], 390 instructions on the
+    /// UR5-like arm) and the chords of the hot body's spheres are not computed. When they are
+    /// free, the first call reuses the lanes and the frames computed here. Not with the linear
+    /// certificate, without a hot body, or in the benchmark's uncertified mode.
+    pub(super) fn hot_start(&mut self, a: &[f64], b: &[f64]) -> HotStart {
+        if !self.chord || self.uncertified || !self.hot_first || self.hot_body == u32::MAX {
+            return HotStart::Skipped;
+        }
+        self.load_lanes(a, b, &Self::chord_states(0, 1));
+        let mut stepped = 0;
+        #[cfg(target_arch = "x86_64")]
+        let hit = if self.avx2 {
+            // SAFETY: the CPU supports AVX2 and FMA (checked at construction).
+            unsafe { self.hot_start_avx2(&mut stepped) }
+        } else {
+            self.hot_start_run::<false>(&mut stepped)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let hit = self.hot_start_run::<false>(&mut stepped);
+        if hit.is_some() {
+            self.certify_counts.segments += 1;
+            self.checks += LANES as u64;
+            return HotStart::Collides;
+        }
+        HotStart::Free(stepped)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn hot_start_avx2(&mut self, stepped: &mut usize) -> Option<Hit> {
+        self.hot_start_run::<true>(stepped)
     }
 
     #[inline(always)]
-    fn chord_run<const AVX: bool>(&mut self, fs: u32, fe: u32) -> Option<Hit> {
+    fn hot_start_run<const AVX: bool>(&mut self, stepped: &mut usize) -> Option<Hit> {
+        self.new_call();
+        let hot = self.hot_body;
+        self.bodies_hot_first::<LANES, AVX, false>(hot, stepped, Self::env_of::<LANES, AVX>)
+    }
+
+    /// The states of call `c` of a first pass of `calls` calls: `k / (7 calls)` for
+    /// `k = 7c … 7c + 7`, the last state of the segment exactly 1.
+    #[inline]
+    pub(super) fn chord_states(c: usize, calls: usize) -> [f64; LANES] {
+        let n = calls * (LANES - 1);
+        let h = 1.0 / n as f64;
+        let first = c * (LANES - 1);
+        std::array::from_fn(|l| {
+            if first + l == n {
+                1.0
+            } else {
+                (first + l) as f64 * h
+            }
+        })
+    }
+
+    #[inline(always)]
+    fn chord_run<const AVX: bool>(&mut self, fs: u32, fe: u32, stepped: usize) -> Option<Hit> {
         self.new_call();
         if fs == NO_FOCUS {
             // Kinematics fused with the tests, the hot body first, then the warm one (as the
@@ -413,7 +489,12 @@ impl SphereChecker {
             } else {
                 u32::MAX
             };
-            if let Some(h) = self.bodies_hot_first::<LANES, AVX>(hot, Self::chord_env_of::<AVX>) {
+            let mut stepped = stepped;
+            if let Some(h) = self.bodies_hot_first::<LANES, AVX, true>(
+                hot,
+                &mut stepped,
+                Self::chord_env_of::<AVX>,
+            ) {
                 return Some(h);
             }
             let mut pi = 0;
@@ -782,8 +863,15 @@ impl SphereChecker {
     /// The chord certificate's first pass: `calls` 8-lane calls over `7 · calls` equal
     /// sub-intervals, states `k / (7 calls)`, consecutive calls sharing their end state. False
     /// when a state collides; the tight (sub-interval, body or self pair) entries in
-    /// `tight_states`.
-    pub(super) fn chord_first_pass(&mut self, a: &[f64], b: &[f64], calls: usize) -> bool {
+    /// `tight_states`. `start`: what [`Self::hot_start`] found (with one call, its lanes and
+    /// frames are the first call's).
+    pub(super) fn chord_first_pass(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        calls: usize,
+        start: HotStart,
+    ) -> bool {
         let n = calls * (LANES - 1);
         let h = 1.0 / n as f64;
         self.tight_states.clear();
@@ -803,16 +891,15 @@ impl SphereChecker {
         self.set_chord_allowance(h);
         for c in 0..calls {
             let first = c * (LANES - 1);
-            let ts: [f64; LANES] = std::array::from_fn(|l| {
-                if first + l == n {
-                    1.0
-                } else {
-                    (first + l) as f64 * h
+            let stepped = match start {
+                HotStart::Free(stepped) if calls == 1 => stepped,
+                _ => {
+                    self.load_lanes(a, b, &Self::chord_states(c, calls));
+                    0
                 }
-            });
-            self.load_lanes(a, b, &ts);
+            };
             self.checks += LANES as u64;
-            if self.chord8(NO_FOCUS, NO_FOCUS).is_some() {
+            if self.chord8(NO_FOCUS, NO_FOCUS, stepped).is_some() {
                 return false;
             }
             for e in 0..self.tight_log.len() {
@@ -873,7 +960,7 @@ impl SphereChecker {
             });
             self.load_lanes(a, b, &ts);
             self.checks += LANES as u64;
-            if self.chord8(fs, fe).is_some() {
+            if self.chord8(fs, fe, 0).is_some() {
                 return false;
             }
             let m = self.tight_log.iter().fold(0, |m, e| m | e.1);

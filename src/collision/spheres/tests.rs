@@ -443,10 +443,10 @@ fn avx_checks_equal_the_generic_checks_in(
             sc.set_chord_allowance(1.0 / (LANES - 1) as f64);
             sc.load_lanes(&a, &b, &ts);
         }
-        let hit = avx.chord8(NO_FOCUS, NO_FOCUS).is_some();
+        let hit = avx.chord8(NO_FOCUS, NO_FOCUS, 0).is_some();
         assert_eq!(
             hit,
-            generic.chord8(NO_FOCUS, NO_FOCUS).is_some(),
+            generic.chord8(NO_FOCUS, NO_FOCUS, 0).is_some(),
             "chord batch {k}"
         );
         if hit {
