@@ -418,8 +418,9 @@ impl SphereChecker {
     /// every extension of a search does), loaded, and the hot and warm bodies tested there
     /// with their plain spheres ([`Self::bodies_hot_first`] with the plain body test), as the
     /// plain checks test them. Motions that collide mostly collide with the hot body (UR5-like
-    /// cage: 97 % of the checked segments collide, 85 % of them at the hot body, 7 % at the
-    /// warm one), and a state colliding there decides the segment: no certificate could prove
+    /// cage, 10 problems, counted: 97 % of the checked segments collide, 87 % of them at the
+    /// hot body — a quarter of those at its last hit's sphere and obstacle, the probe — and 8 %
+    /// at the warm one), and a state colliding there decides the segment: no certificate could prove
     /// it free, and its acceleration bounds ([`Self::begin_segment`], 390 instructions on the
     /// UR5-like arm) and the chords of the hot body's spheres are not computed. When they are
     /// free, the first call reuses the lanes and the frames computed here. Not with the linear
