@@ -879,9 +879,7 @@ impl SphereChecker {
         if self.uncertified {
             // Benchmark only: the same states with plain spheres.
             for c in 0..calls {
-                let ts: [f64; LANES] =
-                    std::array::from_fn(|l| ((c * (LANES - 1) + l) as f64 * h).min(1.0));
-                self.load_lanes(a, b, &ts);
+                self.load_lanes(a, b, &Self::chord_states(c, calls));
                 self.checks += LANES as u64;
                 if self.collides8() {
                     return false;
