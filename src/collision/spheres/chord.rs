@@ -414,8 +414,9 @@ impl SphereChecker {
     }
 
     /// The start of a chord-certified check of segment `a → b`, before its bounds: the
-    /// states of the first pass's first call when it makes one call (`t = k/7`, as almost
-    /// every extension of a search does), loaded, and the hot and warm bodies tested there
+    /// states of the first pass's first call when it makes one call (`t = k/7`, as most do:
+    /// on the UR5-like arm at least 99 % of the checks of its cage and shelf sets, 86 % of box
+    /// and table), loaded, and the hot and warm bodies tested there
     /// with their plain spheres ([`Self::bodies_hot_first`] with the plain body test), as the
     /// plain checks test them. Motions that collide mostly collide with the hot body (UR5-like
     /// cage, 10 problems, counted: 97 % of the checked segments collide, 87 % of them at the
