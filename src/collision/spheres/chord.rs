@@ -413,19 +413,20 @@ impl SphereChecker {
         self.chord_run::<true>(fs, fe, stepped)
     }
 
-    /// The start of a chord-certified check of segment `a → b`, before its bounds: the
-    /// states of the first pass's first call when it makes one call (`t = k/7`, as most do:
-    /// on the UR5-like arm at least 99 % of the checks of its cage and shelf sets, 86 % of box
-    /// and table), loaded, and the hot and warm bodies tested there
-    /// with their plain spheres ([`Self::bodies_hot_first`] with the plain body test), as the
-    /// plain checks test them. Motions that collide mostly collide with the hot body (UR5-like
-    /// cage, 10 problems, counted: 97 % of the checked segments collide, 87 % of them at the
-    /// hot body — a quarter of those at its last hit's sphere and obstacle, the probe — and 8 %
-    /// at the warm one), and a state colliding there decides the segment: no certificate could prove
-    /// it free, and its acceleration bounds ([`Self::begin_segment`], 390 instructions on the
-    /// UR5-like arm) and the chords of the hot body's spheres are not computed. When they are
-    /// free, the first call reuses the lanes and the frames computed here. Not with the linear
-    /// certificate, without a hot body, or in the benchmark's uncertified mode.
+    /// The start of a chord-certified check of segment `a → b`, before its bounds: the states
+    /// of the first pass's first call when it makes one call (`t = k/7`), loaded, and the hot
+    /// and warm bodies tested there with their plain spheres ([`Self::bodies_hot_first`] with
+    /// the plain body test), as the plain checks test them. Most checks make one call (on the
+    /// UR5-like arm at least 99.8 % of its cage set's, 98.9 % of shelf's, 86 % of box's and
+    /// table's: bounds from the calls summed over the checks). Motions that collide mostly
+    /// collide with the hot body (UR5-like cage, 10 problems, counted: 97 % of the checks
+    /// collide, 87 % of them at the hot body — a quarter of those at its last hit's sphere and
+    /// obstacle, the probe — and 8 % at the warm one), and a state colliding there decides the
+    /// segment: no certificate could prove it free, and its acceleration bounds
+    /// ([`Self::begin_segment`], 390 instructions on the UR5-like arm) and the chords of the
+    /// hot body's spheres are not computed. When they are free, the first call reuses the
+    /// lanes and the frames computed here. Not with the linear certificate, without a hot
+    /// body, or in the benchmark's uncertified mode.
     pub(super) fn hot_start(&mut self, a: &[f64], b: &[f64]) -> HotStart {
         if !self.chord || self.uncertified || !self.hot_first || self.hot_body == u32::MAX {
             return HotStart::Skipped;
