@@ -95,21 +95,27 @@ unsafe fn scan_blocks<const UNIT: bool>(
             }
         }
         let b = _mm256_set1_pd(best.1);
-        let closer = d.iter().fold(_mm256_setzero_pd(), |m, &dv| {
-            _mm256_or_pd(m, _mm256_cmp_pd::<_CMP_LT_OQ>(dv, b))
-        });
-        if _mm256_movemask_pd(closer) == 0 {
+        let closer = d.map(|dv| _mm256_cmp_pd::<_CMP_LT_OQ>(dv, b));
+        let any = _mm256_or_pd(
+            _mm256_or_pd(closer[0], closer[1]),
+            _mm256_or_pd(closer[2], closer[3]),
+        );
+        if _mm256_movemask_pd(any) == 0 {
             continue;
         }
-        let mut ds = [0.0f64; BUCKET];
-        for (v, dv) in d.iter().enumerate() {
-            _mm256_storeu_pd(ds.as_mut_ptr().add(4 * v), *dv);
-        }
-        for (s, &x) in ds.iter().enumerate().take(n - first) {
-            if x < best.1 {
-                *best = ((first + s) as u32, x);
-            }
-        }
+        // The block's smallest distance below the best (other slots, NaN included, as +∞) and
+        // its first slot, without a branch per slot: what the slot-by-slot scan `x < best`
+        // ends with (the first of equal minima). Unused slots hold +∞ and are never closer.
+        let inf = _mm256_set1_pd(f64::INFINITY);
+        let m: [__m256d; 4] = std::array::from_fn(|v| _mm256_blendv_pd(inf, d[v], closer[v]));
+        let lo = _mm256_min_pd(_mm256_min_pd(m[0], m[1]), _mm256_min_pd(m[2], m[3]));
+        let lo = _mm256_min_pd(lo, _mm256_permute2f128_pd::<1>(lo, lo));
+        let lo = _mm256_min_pd(lo, _mm256_permute_pd::<0b0101>(lo));
+        let x = _mm256_cvtsd_f64(lo);
+        let bits = m.iter().enumerate().fold(0u32, |acc, (v, &mv)| {
+            acc | ((_mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(mv, lo)) as u32) << (4 * v))
+        });
+        *best = ((first + bits.trailing_zeros() as usize) as u32, x);
     }
 }
 
