@@ -41,12 +41,13 @@ unsafe fn block_distances_avx<const W: usize>(
 /// The linear scan of [`Tree::nearest`] with AVX and FMA: per block the distances of
 /// [`block_distances`] (the same operations, so the same values) in four registers, kept
 /// against the best so far per lane with blends, so ties still go to the lowest index.
-/// Measured (callgrind, Panda cage): the scalar comparison of all 16 slots was half of each
-/// block's cost; its branches, one per slot, mispredicted (wall clock, UR5-like cage set:
-/// without them its mean went from 1013 to 918 µs, 4 pairs; these blends and a vector minimum
-/// per block holding a closer state measured the same, 6 pairs). `unit`: every weight is 1, so `w·e` is `e` exactly and the product is
-/// skipped (the same values; see [`scan_blocks`]; measured, callgrind, 15 Panda cage
-/// problems, search only: 17.6 → 15.2 M instructions in the scans).
+/// Measured: a scalar comparison of all 16 slots was half of each block's cost (callgrind,
+/// Panda cage); comparing the block at once and then its slots one by one left a branch per
+/// slot that mispredicted (wall clock, UR5-like cage set: without those branches its mean went
+/// from 1013 to 918 µs, 4 pairs; these blends and a vector minimum per block holding a closer
+/// state measured the same, 6 pairs). `unit`: every weight is 1, so `w·e` is `e` exactly and
+/// the product is skipped (the same values; see [`scan_blocks`]; measured, callgrind, 15 Panda
+/// cage problems, search only: 17.6 → 15.2 M instructions in the scans).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,fma")]
 unsafe fn scan_avx(

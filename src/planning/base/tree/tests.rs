@@ -185,6 +185,10 @@ fn kd_tree_nearest_equals_linear_scan_with(w: &[f64]) {
             if n >= 7 {
                 let p = [0.5; 7];
                 assert_eq!(t.nearest(&p).map(|x| x.1), Some(0.0));
+                if t.len() <= LINEAR_SCAN_MAX {
+                    // 40 states at distance 0: the first of them, as the linear scan.
+                    assert_eq!(t.nearest(&p), t.nearest_linear(&p), "after {n} states");
+                }
             }
         }
     }
