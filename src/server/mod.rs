@@ -576,6 +576,9 @@ async fn serve_http1(
     Ok(())
 }
 
+/// A future boxed where it is made (see [`Server::start`]).
+pub type BoxFuture<T> = std::pin::Pin<Box<dyn std::future::Future<Output = T> + Send>>;
+
 /// A running server.
 pub struct Server {
     addr: SocketAddr,
@@ -588,7 +591,16 @@ pub struct Server {
 impl Server {
     /// Loads the models, opens the job store (jobs left running become `interrupted`), starts
     /// the workers and binds. Port 0 picks a free port (see [`Server::addr`]).
-    pub async fn start(cfg: Config) -> Result<Server, ServerError> {
+    ///
+    /// A boxed future, made here: an `async fn`'s body (and every task it spawns) is compiled
+    /// again in each crate that awaits it; behind `dyn Future` it is compiled once, in this
+    /// library (measured with `cargo llvm-lines`: a test crate that starts a server, 256 771 →
+    /// 7 858 lines of LLVM IR, 8.9 → 1.1 s to compile at opt-level 3).
+    pub fn start(cfg: Config) -> BoxFuture<Result<Server, ServerError>> {
+        Box::pin(Self::start_here(cfg))
+    }
+
+    async fn start_here(cfg: Config) -> Result<Server, ServerError> {
         cfg.validate()?;
         std::fs::create_dir_all(&cfg.data_dir)?;
         let c2 = cfg.clone();
@@ -727,7 +739,13 @@ impl Server {
     /// queued jobs stay queued in the store, running ones get the grace period to finish while the
     /// listener stays open (`/healthz`, `GET`, the jobs' event streams keep working) for at least
     /// the drain time; then the listener closes, open connections get 5 s, the store is closed.
-    pub async fn shutdown(self) -> Result<(), ServerError> {
+    ///
+    /// A boxed future, as [`Server::start`]'s.
+    pub fn shutdown(self) -> BoxFuture<Result<(), ServerError>> {
+        Box::pin(self.shutdown_here())
+    }
+
+    async fn shutdown_here(self) -> Result<(), ServerError> {
         tracing::info!("shutting down: draining");
         let t0 = tokio::time::Instant::now();
         self.state.shutting_down.store(true, Ordering::SeqCst);
