@@ -327,6 +327,44 @@ fn bench_mbm_suite_plans_every_robot_certified_and_uncertified() {
     assert!(err.contains("--uncertified"), "{err}");
 }
 
+/// `bench mbm` re-checks every returned path exactly once the set's timed plans are done: the
+/// same search without the certificate returns paths through obstacles, and the re-check (run
+/// after the plans, against each run's own problem) counts them as invalid; the certified paths
+/// of several trials per problem all pass it.
+#[test]
+fn bench_mbm_rechecks_every_path_after_the_timed_plans() {
+    let base = [
+        "bench",
+        "mbm",
+        "--robot",
+        "benchmarks/generality/ur5like/ur5like_spherized.urdf",
+        "--problems",
+        "benchmarks/generality/ur5like/problems.json",
+        "--no-simplify",
+        "--limit",
+        "3",
+        "--json",
+    ];
+    let totals = |v: &serde_json::Value| {
+        let o = &v["overall"];
+        (
+            o["solved"].as_u64().expect("solved"),
+            o["invalid"].as_u64().expect("invalid"),
+            o["runs"].as_u64().expect("runs"),
+        )
+    };
+    let uncertified = json(&[&base[..], &["--uncertified"]].concat());
+    let (solved, invalid, runs) = totals(&uncertified);
+    assert_eq!(runs, 12, "{uncertified}");
+    assert_eq!(solved + invalid, runs, "{uncertified}");
+    assert!(
+        invalid >= 1,
+        "no path through an obstacle caught: {uncertified}"
+    );
+    let certified = json(&[&base[..], &["--trials", "2"]].concat());
+    assert_eq!(totals(&certified), (24, 0, 24), "{certified}");
+}
+
 #[test]
 fn query_runs_the_grasp_ik_endpoints_locally() {
     let dir = common::tmp::run_root().join(format!("manyhands-cli-query-{}", std::process::id()));
