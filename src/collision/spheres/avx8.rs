@@ -297,6 +297,39 @@ pub(super) fn within_origin(a: [V; 3], r: V) -> u32 {
     ))
 }
 
+/// Lanes `l` whose chord from `d` (lane `l`) to `d⁺` (lane `l + 1`) comes within `r` of the
+/// origin: the segment's point nearest the origin, `d + s e` with `e = d⁺ − d` and
+/// `s = clamp(−d·e / e·e, 0, 1)` (0 for a chord of length 0), tested against `r`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+pub(super) fn chord_within_origin(d: [V; 3], r: f32) -> u32 {
+    let idx = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
+    let e = [
+        _mm256_sub_ps(_mm256_permutevar8x32_ps(d[0], idx), d[0]),
+        _mm256_sub_ps(_mm256_permutevar8x32_ps(d[1], idx), d[1]),
+        _mm256_sub_ps(_mm256_permutevar8x32_ps(d[2], idx), d[2]),
+    ];
+    let ee = _mm256_fmadd_ps(
+        e[2],
+        e[2],
+        _mm256_fmadd_ps(e[1], e[1], _mm256_mul_ps(e[0], e[0])),
+    );
+    let de = _mm256_fmadd_ps(
+        d[2],
+        e[2],
+        _mm256_fmadd_ps(d[1], e[1], _mm256_mul_ps(d[0], e[0])),
+    );
+    // −d·e / e·e, NaN for 0 / 0: `max` returns its second operand (0) then.
+    let x = _mm256_div_ps(_mm256_sub_ps(_mm256_setzero_ps(), de), ee);
+    let s = _mm256_min_ps(_mm256_max_ps(x, _mm256_setzero_ps()), _mm256_set1_ps(1.0));
+    let c = [
+        _mm256_fmadd_ps(s, e[0], d[0]),
+        _mm256_fmadd_ps(s, e[1], d[1]),
+        _mm256_fmadd_ps(s, e[2], d[2]),
+    ];
+    le_zero(dist2_minus(c[0], c[1], c[2], r * r))
+}
+
 /// `a − b` per lane.
 #[inline]
 #[target_feature(enable = "avx2,fma")]

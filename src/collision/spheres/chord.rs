@@ -13,7 +13,8 @@
 //! self pair the difference of the two points has acceleration at most `A_a + A_b`, and the same
 //! argument applies to it: the pair is apart over the sub-interval when the ball about the
 //! difference's chord midpoint, of radius `r_i + r_j + δ_a + δ_b + |Δd| / 2`, excludes the
-//! origin.
+//! origin — or, where that ball is loose, when the chord itself keeps `r_i + r_j + δ_a + δ_b`
+//! from the origin ([`SphereChecker::CHORD_SEGMENT_MARGIN`]).
 //!
 //! The linear certificate ([`SphereChecker::segment_certified`]'s other form) inflates each state
 //! by a bound on the *speed*, `Σ_v |Δq_v| w_v`, a sum of worst-case lever arms; the chord's half
@@ -189,6 +190,30 @@ fn chords(p: &[Lane; 3]) -> ([Lane; 3], Lane) {
     (mid, half)
 }
 
+/// Lanes `l` whose chord from `d` (lane `l`) to `d⁺` (lane `l + 1`) comes within `r` of the
+/// origin (the AVX path's [`super::avx8::chord_within_origin`], operation for operation).
+#[inline(always)]
+pub(super) fn chord_within_origin(d: &[Lane; 3], r: f32) -> u32 {
+    let n = [next(&d[0]), next(&d[1]), next(&d[2])];
+    let mut m = 0u32;
+    for l in 0..LANES {
+        let e = [n[0][l] - d[0][l], n[1][l] - d[1][l], n[2][l] - d[2][l]];
+        let ee = e[2].mul_add(e[2], e[1].mul_add(e[1], e[0] * e[0]));
+        let de = d[2][l].mul_add(e[2], d[1][l].mul_add(e[1], d[0][l] * e[0]));
+        let x = (0.0 - de) / ee;
+        // As `_mm256_max_ps(x, 0)`: 0 when x is NaN.
+        let s = (if x > 0.0 { x } else { 0.0 }).min(1.0);
+        let c = [
+            s.mul_add(e[0], d[0][l]),
+            s.mul_add(e[1], d[1][l]),
+            s.mul_add(e[2], d[2][l]),
+        ];
+        let d2 = c[2].mul_add(c[2], c[1].mul_add(c[1], c[0].mul_add(c[0], -(r * r))));
+        m |= u32::from(d2 <= 0.0) << l;
+    }
+    m
+}
+
 /// Lanes whose point lies within `r[l]` of `c`.
 #[inline(always)]
 fn within(p: &[Lane; 3], c: [f32; 3], r: &Lane) -> u32 {
@@ -306,6 +331,17 @@ impl SphereChecker {
         }
         amax * (1.0 + 1e-5)
     }
+
+    /// A self pair's sub-interval whose ball (about the difference's chord midpoint) touches
+    /// the origin is tight only if the chord itself comes within `r_i + r_j + δ_a + δ_b` of
+    /// it: the difference stays within `δ_a + δ_b` of its chord (module documentation), so the
+    /// chord's distance from the origin bounds it from below over the whole sub-interval. The
+    /// ball is the cheap first test; the chord's distance is exact where the ball is loose
+    /// (two spheres at a constant distance turning about a common axis: a UR5's base and
+    /// shoulder-end upper-arm spheres, 2.4 mm apart at every configuration, made every check
+    /// that turns the shoulder tight). The nearest point is computed in f32 from the computed
+    /// positions: one more rounding allowance.
+    const CHORD_SEGMENT_MARGIN: f32 = Self::ROUNDING_MARGIN as f32;
 
     /// Body `b`'s acceleration bound over the current segment (computed once per segment).
     #[inline(always)]
@@ -678,7 +714,8 @@ impl SphereChecker {
                     continue;
                 }
                 let pj = load3(&self.sw[j]);
-                let (m1, h1) = chords(sub3(pi_, pj));
+                let d = sub3(pi_, pj);
+                let (m1, h1) = chords(d);
                 let m = within_origin(m1, add_s(h1, rij + dl)) & SUB;
                 if m == 0 {
                     continue;
@@ -687,7 +724,7 @@ impl SphereChecker {
                 if within(pi_, pj, _mm256_set1_ps(rij)) & ends != 0 {
                     return Some(Hit::SelfPair(a as u32, b as u32));
                 }
-                tp |= m;
+                tp |= m & chord_within_origin(d, rij + dl + Self::CHORD_SEGMENT_MARGIN);
             }
         }
         if tp != 0 {
@@ -838,7 +875,7 @@ impl SphereChecker {
                 if within_lanes(pi_, &self.sw[j], &[rij; LANES]) & ends != 0 {
                     return Some(Hit::SelfPair(a as u32, b as u32));
                 }
-                tp |= m;
+                tp |= m & chord_within_origin(&dij, rij + dl + Self::CHORD_SEGMENT_MARGIN);
             }
         }
         if tp != 0 {

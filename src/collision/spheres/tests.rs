@@ -960,3 +960,140 @@ fn checker_tests_exactly_the_world_s_checked_pairs() {
         },
     )));
 }
+
+/// The self pairs' second test (`chord_within_origin`, AVX and generic): a lane is marked
+/// exactly when the chord from its difference to the next lane's comes within `r` of the
+/// origin, against the distance computed in f64 and by sampling the chord; zero-length chords
+/// (equal lanes) are their point's distance. Lanes within 1e-5 m of the boundary are not
+/// judged (f32 rounding).
+#[test]
+fn chord_within_origin_is_the_chord_s_distance_from_the_origin() {
+    use super::{Lane, LANES};
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let (mut judged, mut near, mut far) = (0, 0, 0);
+    for k in 0..4000 {
+        let mut d: [Lane; 3] = [[0.0; LANES]; 3];
+        for l in 0..LANES {
+            for c in 0..3 {
+                d[c][l] = rng.random_range(-0.3f32..0.3);
+            }
+            if k % 4 == 0 && l % 2 == 1 {
+                for c in 0..3 {
+                    d[c][l] = d[c][l - 1];
+                }
+            }
+        }
+        let r: f32 = rng.random_range(0.0..0.35);
+        let generic = super::chord::chord_within_origin(&d, r);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: AVX2 and FMA are present (checked above).
+            let avx = unsafe {
+                super::avx8::chord_within_origin(
+                    [
+                        super::avx8::load1(&d[0]),
+                        super::avx8::load1(&d[1]),
+                        super::avx8::load1(&d[2]),
+                    ],
+                    r,
+                )
+            };
+            assert_eq!(avx & 0x7f, generic & 0x7f, "case {k}");
+        }
+        for l in 0..LANES - 1 {
+            let p = |j: usize| [0, 1, 2].map(|c| f64::from(d[c][j]));
+            let (a, b) = (p(l), p(l + 1));
+            let e = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let ee = e.iter().map(|x| x * x).sum::<f64>();
+            let de = (0..3).map(|c| a[c] * e[c]).sum::<f64>();
+            let s = if ee > 0.0 {
+                (-de / ee).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let dist = (0..3)
+                .map(|c| (a[c] + s * e[c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let sampled = (0..=1000)
+                .map(|i| {
+                    let t = f64::from(i) / 1000.0;
+                    (0..3)
+                        .map(|c| (a[c] + t * e[c]).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(dist <= sampled + 1e-12 && sampled - dist < 1e-3, "case {k}");
+            if (dist - f64::from(r)).abs() < 1e-5 {
+                continue;
+            }
+            judged += 1;
+            let marked = generic & (1 << l) != 0;
+            assert_eq!(
+                marked,
+                dist < f64::from(r),
+                "case {k} lane {l}: {dist} vs {r}"
+            );
+            near += usize::from(marked);
+            far += usize::from(!marked);
+        }
+    }
+    assert!(
+        near > 1000 && far > 1000,
+        "{judged} judged: {near} near, {far} far"
+    );
+}
+
+/// Two spheres at a constant distance turning about a common axis (a UR5's base sphere and
+/// the sphere at its upper arm's origin: 2.4 mm apart at every configuration) are proven
+/// apart by the chord's distance from the origin in the first pass: a motion that turns the
+/// shoulder by a radian and lifts the arm is certified without one refinement call, where the
+/// ball about the chord's midpoint alone (its half chord ≈ 10 mm) needed refinement; and a
+/// motion that brings a third sphere into the first is refused.
+#[test]
+fn a_pair_at_constant_distance_is_certified_without_refinement() {
+    let urdf = r#"<?xml version="1.0"?>
+<robot name="shoulder_pair">
+  <link name="base"><collision><geometry><sphere radius="0.08"/></geometry></collision></link>
+  <link name="shoulder"/>
+  <link name="upper_arm"><collision><geometry><sphere radius="0.08"/></geometry></collision></link>
+  <link name="slider"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+  <joint name="pan" type="revolute"><parent link="base"/><child link="shoulder"/>
+    <origin xyz="0 0 0.089159"/><axis xyz="0 0 1"/><limit lower="-3.14" upper="3.14" effort="1" velocity="1"/></joint>
+  <joint name="lift" type="revolute"><parent link="shoulder"/><child link="upper_arm"/>
+    <origin xyz="0 0.13585 0"/><axis xyz="0 1 0"/><limit lower="-3.14" upper="3.14" effort="1" velocity="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="base"/><child link="slider"/>
+    <origin xyz="0.5 0 0"/><axis xyz="-1 0 0"/><limit lower="0" upper="0.5" effort="1" velocity="1"/></joint>
+</robot>"#;
+    let srdf = r#"<?xml version="1.0"?>
+<robot name="shoulder_pair">
+  <disable_collisions link1="base" link2="shoulder" reason="Adjacent"/>
+  <disable_collisions link1="shoulder" link2="upper_arm" reason="Adjacent"/>
+  <disable_collisions link1="slider" link2="upper_arm" reason="Never"/>
+</robot>"#;
+    let robot = std::sync::Arc::new(
+        crate::Robot::from_strings(urdf, Some(srdf), std::path::Path::new(".")).expect("robot"),
+    );
+    let mut c = checker_of(&robot);
+    assert_eq!(c.qv.len(), 3);
+    let pan = robot.var("pan").expect("pan");
+    let lift = robot.var("lift").expect("lift");
+    let slide = robot.var("slide").expect("slide");
+    let q = |p: f64, l: f64, s: f64| {
+        let mut v = vec![0.0; 3];
+        v[pan] = p;
+        v[lift] = l;
+        v[slide] = s;
+        v
+    };
+    let (a, b) = (q(-0.5, 0.0, 0.0), q(0.5, 0.5, 0.0));
+    c.reset_certify_counts();
+    assert!(c.segment_certified(&a, &b, 0.04), "the pair stays apart");
+    assert_eq!(c.certify_counts().refinements, 0, "no refinement needed");
+    // The slider's sphere passes through the base's sphere: refused.
+    assert!(!c.segment_certified(&q(0.0, 0.0, 0.0), &q(0.0, 0.0, 0.5), 0.04));
+    assert!(!c.segment_certified(&q(0.0, 0.0, 0.3), &q(0.0, 0.0, 0.5), 0.04));
+}
