@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Alternates VAMP (build.sh's driver) and manyhands binaries on one core, A B A B:
 #   compare.sh ROBOT PAIRS BIN... 
-# ROBOT: panda (the MotionBenchMaker sets, `data mbm`), ur5 or fetch (VAMP's robots, problems made
+# ROBOT: panda or baxter (the MotionBenchMaker sets, `data mbm`), ur5 or fetch (VAMP's robots, problems made
 # by `manyhands data problems --per-set 100 --seed 1` with the first BIN: VAMP's own problem sets
 # of those robots are deliberately not used). Extra `bench mbm` arguments: MH_ARGS.
 # Prints per run: each set's median planning time (µs) / median iterations, and the overall
@@ -13,18 +13,18 @@ root="$(cd "$here/../.." && pwd)"
 out="${OUT:-$root/target/vamp}"
 robot=$1; pairs=$2; shift 2
 case $robot in
-  panda) range=1.0; mh=(--robot panda)
+  panda|baxter) range=1.0; [ "$robot" = baxter ] && range=0.5; mh=(--robot "$robot")
     # Where `bench mbm --robot panda` finds the MotionBenchMaker data (see README.md).
     for d in "${MANYHANDS_MBM_DIR:-}" "$root/../shared/benchmarks/mbm" \
       "${MANYHANDS_CACHE_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/manyhands}/mbm"; do
-      if [ -n "$d" ] && [ -f "$d/panda/problems.json" ]; then problems="$d/panda/problems.json"; break; fi
+      if [ -n "$d" ] && [ -f "$d/$robot/problems.json" ]; then problems="$d/$robot/problems.json"; break; fi
     done
     [ -n "${problems:-}" ] || { echo "no MotionBenchMaker data: cargo run --release -- data mbm" >&2; exit 1; } ;;
   ur5) range=1.5 ;;
   fetch) range=1.0 ;;
-  *) echo "robot: panda, ur5 or fetch" >&2; exit 2 ;;
+  *) echo "robot: panda, baxter, ur5 or fetch" >&2; exit 2 ;;
 esac
-if [ "$robot" != panda ]; then
+if [ "$robot" = ur5 ] || [ "$robot" = fetch ]; then
   urdf=$(ls "$out/robots/$robot/"*_spherized.urdf); srdf=$(ls "$out/robots/$robot/"*.srdf)
   problems="$out/$robot-problems.json"
   [ -f "$problems" ] || "$1" data problems --robot "$urdf" --srdf "$srdf" --per-set 100 --seed 1 --out "$problems" >&2

@@ -1,6 +1,6 @@
 // The outside reference of `bench mbm`: VAMP 0.6.4's RRTC (its headers, built by build.sh) on
 // problems exported from a manyhands problems.json by problems_to_txt.py.
-// usage: driver ROBOT PROBLEMS.txt TRIALS RANGE   (ROBOT: panda, ur5 or fetch)
+// usage: driver ROBOT PROBLEMS.txt TRIALS RANGE   (ROBOT: panda, ur5, fetch or baxter)
 // prints one line per trial: set, index, solved (0/1), iterations, planning nanoseconds.
 // The Halton sampler is reset before each problem (as VAMP's scripts/evaluate_mbm.py does).
 #include <vector>
@@ -17,6 +17,7 @@
 #include <vamp/robots/panda.hh>
 #include <vamp/robots/ur5.hh>
 #include <vamp/robots/fetch.hh>
+#include <vamp/robots/baxter.hh>
 #include <vamp/random/halton.hh>
 
 static constexpr const std::size_t rake = vamp::FloatVectorWidth;
@@ -148,6 +149,8 @@ auto main(int argc, char **argv) -> int
         return run<vamp::robots::UR5>(problems, trials, range);
     if (robot == "fetch")
         return run<vamp::robots::Fetch>(problems, trials, range);
+    if (robot == "baxter")
+        return run<vamp::robots::Baxter>(problems, trials, range);
     std::cerr << "unknown robot\n";
     return 2;
 }
