@@ -355,6 +355,7 @@ fn run_problem(
             run.vertices = r.path.len();
             run.path = r.path.clone();
             run.certification = s.certification;
+            // Planned; `recheck` decides (after the set's timed plans).
             run.solved = true;
         }
         Err(e) => {
