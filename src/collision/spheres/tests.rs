@@ -1052,7 +1052,9 @@ fn chord_within_origin_is_the_chord_s_distance_from_the_origin() {
 /// apart by the chord's distance from the origin in the first pass: a motion that turns the
 /// shoulder by a radian and lifts the arm is certified without one refinement call, where the
 /// ball about the chord's midpoint alone (its half chord ≈ 10 mm) needed refinement; and a
-/// motion that brings a third sphere into the first is refused.
+/// motion that brings a third sphere into the first is refused — also one whose checked states
+/// are all free, the crossing lying between two of them, which only the tight pair's chord
+/// (through the origin) sends to refinement.
 #[test]
 fn a_pair_at_constant_distance_is_certified_without_refinement() {
     let urdf = r#"<?xml version="1.0"?>
@@ -1060,13 +1062,13 @@ fn a_pair_at_constant_distance_is_certified_without_refinement() {
   <link name="base"><collision><geometry><sphere radius="0.08"/></geometry></collision></link>
   <link name="shoulder"/>
   <link name="upper_arm"><collision><geometry><sphere radius="0.08"/></geometry></collision></link>
-  <link name="slider"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+  <link name="slider"><collision><geometry><sphere radius="0.01"/></geometry></collision></link>
   <joint name="pan" type="revolute"><parent link="base"/><child link="shoulder"/>
     <origin xyz="0 0 0.089159"/><axis xyz="0 0 1"/><limit lower="-3.14" upper="3.14" effort="1" velocity="1"/></joint>
   <joint name="lift" type="revolute"><parent link="shoulder"/><child link="upper_arm"/>
     <origin xyz="0 0.13585 0"/><axis xyz="0 1 0"/><limit lower="-3.14" upper="3.14" effort="1" velocity="1"/></joint>
   <joint name="slide" type="prismatic"><parent link="base"/><child link="slider"/>
-    <origin xyz="0.5 0 0"/><axis xyz="-1 0 0"/><limit lower="0" upper="0.5" effort="1" velocity="1"/></joint>
+    <origin xyz="0.5 0 0"/><axis xyz="-1 0 0"/><limit lower="0" upper="2" effort="1" velocity="1"/></joint>
 </robot>"#;
     let srdf = r#"<?xml version="1.0"?>
 <robot name="shoulder_pair">
@@ -1093,7 +1095,17 @@ fn a_pair_at_constant_distance_is_certified_without_refinement() {
     c.reset_certify_counts();
     assert!(c.segment_certified(&a, &b, 0.04), "the pair stays apart");
     assert_eq!(c.certify_counts().refinements, 0, "no refinement needed");
-    // The slider's sphere passes through the base's sphere: refused.
+    // The slider's sphere ends inside the base's sphere: refused.
     assert!(!c.segment_certified(&q(0.0, 0.0, 0.0), &q(0.0, 0.0, 0.5), 0.04));
     assert!(!c.segment_certified(&q(0.0, 0.0, 0.3), &q(0.0, 0.0, 0.5), 0.04));
+    // It passes through it between two checked states (x = 0.1, then -0.1, 0.2 apart; they
+    // touch within 0.09 of the base's centre): both ends free, the motion refused.
+    let (s0, s1) = (q(0.0, 0.0, 0.4), q(0.0, 0.0, 1.8));
+    assert!(c.segment_certified(&s0, &s0, 0.04) && c.segment_certified(&s1, &s1, 0.04));
+    c.reset_certify_counts();
+    assert!(
+        !c.segment_certified(&s0, &s1, 0.04),
+        "the crossing is found"
+    );
+    assert!(c.certify_counts().refinements > 0, "found by refinement");
 }
