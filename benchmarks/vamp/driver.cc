@@ -141,6 +141,11 @@ auto main(int argc, char **argv) -> int
     }
     const std::string robot = argv[1];
     auto problems = read_problems(argv[2]);
+    if (problems.empty())
+    {
+        std::cerr << "no problems read from " << argv[2] << "\n";
+        return 2;
+    }
     const int trials = std::stoi(argv[3]);
     const float range = std::stof(argv[4]);
     if (robot == "panda")
